@@ -1,0 +1,2 @@
+//! ringsync CLI
+fn main() {}
