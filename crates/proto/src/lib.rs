@@ -1,1 +1,8 @@
-//! placeholder
+//! The sans-IO ringsync protocol layer: integer-nanosecond [time](time) and the
+//! [cycle plan](plan) of eq. 1-2. The master and slave state machines join it later.
+
+pub mod plan;
+pub mod time;
+
+pub use plan::{CyclePlan, PlanError, RingParams, max_slaves};
+pub use time::{Duration, Instant};

@@ -1,0 +1,170 @@
+//! Time in integer nanoseconds: [`Duration`] (signed span) and [`Instant`] (a point on one
+//! node's time line). Never `f64` seconds in the protocol layer.
+
+use core::fmt;
+use core::ops::{Add, AddAssign, Mul, Neg, Sub, SubAssign};
+
+use serde::Serialize;
+
+/// A signed span of time [ns]. Signed so that a shortfall (negative idle time) or a clock
+/// offset is representable.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Default, Serialize)]
+#[serde(transparent)]
+pub struct Duration(i64);
+
+impl Duration {
+    /// Zero length.
+    pub const ZERO: Duration = Duration(0);
+
+    /// From nanoseconds.
+    pub const fn from_ns(ns: i64) -> Self {
+        Duration(ns)
+    }
+    /// From microseconds.
+    pub const fn from_us(us: i64) -> Self {
+        Duration(us * 1_000)
+    }
+    /// From milliseconds.
+    pub const fn from_ms(ms: i64) -> Self {
+        Duration(ms * 1_000_000)
+    }
+    /// Length [ns].
+    pub const fn as_ns(self) -> i64 {
+        self.0
+    }
+    /// Length [µs], for display.
+    pub fn as_us_f64(self) -> f64 {
+        self.0 as f64 / 1_000.0
+    }
+    /// Whether the span is negative.
+    pub const fn is_negative(self) -> bool {
+        self.0 < 0
+    }
+    /// Saturating sum.
+    pub const fn saturating_add(self, other: Duration) -> Duration {
+        Duration(self.0.saturating_add(other.0))
+    }
+}
+
+impl fmt::Display for Duration {
+    /// Microseconds with three decimals (nanosecond resolution), e.g. `10.720 µs`.
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let sign = if self.0 < 0 { "-" } else { "" };
+        let a = self.0.unsigned_abs();
+        write!(f, "{sign}{}.{:03} µs", a / 1_000, a % 1_000)
+    }
+}
+
+impl Add for Duration {
+    type Output = Duration;
+    fn add(self, rhs: Duration) -> Duration {
+        Duration(self.0 + rhs.0)
+    }
+}
+impl AddAssign for Duration {
+    fn add_assign(&mut self, rhs: Duration) {
+        self.0 += rhs.0;
+    }
+}
+impl Sub for Duration {
+    type Output = Duration;
+    fn sub(self, rhs: Duration) -> Duration {
+        Duration(self.0 - rhs.0)
+    }
+}
+impl SubAssign for Duration {
+    fn sub_assign(&mut self, rhs: Duration) {
+        self.0 -= rhs.0;
+    }
+}
+impl Neg for Duration {
+    type Output = Duration;
+    fn neg(self) -> Duration {
+        Duration(-self.0)
+    }
+}
+impl Mul<i64> for Duration {
+    type Output = Duration;
+    fn mul(self, k: i64) -> Duration {
+        Duration(self.0 * k)
+    }
+}
+impl core::iter::Sum for Duration {
+    fn sum<I: Iterator<Item = Duration>>(iter: I) -> Duration {
+        iter.fold(Duration::ZERO, Add::add)
+    }
+}
+
+/// A point in time on one time line [ns since that line's origin]; in a cycle plan, the
+/// origin is the cycle start (the master starts sending the lumped frame).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Default, Serialize)]
+#[serde(transparent)]
+pub struct Instant(i64);
+
+impl Instant {
+    /// The origin.
+    pub const ZERO: Instant = Instant(0);
+    /// From nanoseconds since the origin.
+    pub const fn from_ns(ns: i64) -> Self {
+        Instant(ns)
+    }
+    /// Nanoseconds since the origin.
+    pub const fn as_ns(self) -> i64 {
+        self.0
+    }
+    /// Span from the origin.
+    pub const fn since_origin(self) -> Duration {
+        Duration(self.0)
+    }
+}
+
+impl fmt::Display for Instant {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        Duration(self.0).fmt(f)
+    }
+}
+
+impl Add<Duration> for Instant {
+    type Output = Instant;
+    fn add(self, d: Duration) -> Instant {
+        Instant(self.0 + d.0)
+    }
+}
+impl AddAssign<Duration> for Instant {
+    fn add_assign(&mut self, d: Duration) {
+        self.0 += d.0;
+    }
+}
+impl Sub<Duration> for Instant {
+    type Output = Instant;
+    fn sub(self, d: Duration) -> Instant {
+        Instant(self.0 - d.0)
+    }
+}
+impl Sub for Instant {
+    type Output = Duration;
+    fn sub(self, other: Instant) -> Duration {
+        Duration(self.0 - other.0)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn display_has_ns_resolution() {
+        assert_eq!(Duration::from_ns(10_720).to_string(), "10.720 µs");
+        assert_eq!(Duration::from_ns(-5).to_string(), "-0.005 µs");
+        assert_eq!(Duration::from_ms(1).to_string(), "1000.000 µs");
+    }
+
+    #[test]
+    fn arithmetic() {
+        let t = Instant::ZERO + Duration::from_us(3);
+        assert_eq!(t - Instant::from_ns(1_000), Duration::from_ns(2_000));
+        assert_eq!(Duration::from_ns(7) * 3, Duration::from_ns(21));
+        let s: Duration = [1, 2, 3].into_iter().map(Duration::from_ns).sum();
+        assert_eq!(s, Duration::from_ns(6));
+    }
+}
