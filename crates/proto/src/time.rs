@@ -148,9 +148,118 @@ impl Sub for Instant {
     }
 }
 
+/// Why a duration string was refused.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum ParseDurationError {
+    /// No unit after the number.
+    #[error("'{0}' has no unit: write e.g. 1ms, 250us, 800ns")]
+    NoUnit(String),
+    /// A unit other than ns, us, µs, ms, s.
+    #[error("'{0}' has an unknown unit: use ns, us (or µs), ms or s")]
+    BadUnit(String),
+    /// Not a number.
+    #[error("'{0}' is not a number followed by a unit, e.g. 1ms")]
+    BadNumber(String),
+    /// Finer than 1 ns.
+    #[error("'{0}' is not a whole number of nanoseconds")]
+    NotWholeNs(String),
+    /// Beyond ±292 years.
+    #[error("'{0}' is too large")]
+    TooLarge(String),
+}
+
+impl core::str::FromStr for Duration {
+    type Err = ParseDurationError;
+
+    /// Parses `<number><unit>` with unit ns, us, µs, ms or s, e.g. `1ms`, `2.5us`, `-40ns`.
+    /// The value must be a whole number of nanoseconds.
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        let t = s.trim();
+        let split = t
+            .find(|c: char| !(c.is_ascii_digit() || c == '.' || c == '-' || c == '+'))
+            .unwrap_or(t.len());
+        let (num, unit) = t.split_at(split);
+        let unit = unit.trim();
+        if unit.is_empty() {
+            return Err(ParseDurationError::NoUnit(s.to_string()));
+        }
+        let scale: i128 = match unit {
+            "ns" => 1,
+            "us" | "µs" | "μs" => 1_000,
+            "ms" => 1_000_000,
+            "s" => 1_000_000_000,
+            _ => return Err(ParseDurationError::BadUnit(s.to_string())),
+        };
+        let value = parse_decimal_scaled(num, scale)
+            .ok_or_else(|| ParseDurationError::BadNumber(s.to_string()))?;
+        let Some(ns) = value else {
+            return Err(ParseDurationError::NotWholeNs(s.to_string()));
+        };
+        i64::try_from(ns)
+            .map(Duration)
+            .map_err(|_| ParseDurationError::TooLarge(s.to_string()))
+    }
+}
+
+/// Parses a plain decimal number (optional sign, digits, optional fraction; no exponent)
+/// and multiplies it by `scale` exactly. `None`: not a number; `Some(None)`: the product is
+/// not an integer.
+pub(crate) fn parse_decimal_scaled(num: &str, scale: i128) -> Option<Option<i128>> {
+    let (neg, digits) = match num.strip_prefix('-') {
+        Some(rest) => (true, rest),
+        None => (false, num.strip_prefix('+').unwrap_or(num)),
+    };
+    let (int, frac) = digits.split_once('.').unwrap_or((digits, ""));
+    if int.is_empty() && frac.is_empty() {
+        return None;
+    }
+    if !int.chars().chain(frac.chars()).all(|c| c.is_ascii_digit()) || int.len() + frac.len() > 30 {
+        return None;
+    }
+    let mut v: i128 = 0;
+    for c in int.chars().chain(frac.chars()) {
+        v = v.checked_mul(10)?.checked_add(i128::from(c as u8 - b'0'))?;
+    }
+    let den = 10i128.checked_pow(frac.len() as u32)?;
+    let scaled = v.checked_mul(scale)?;
+    let out = if scaled % den == 0 {
+        Some(scaled / den)
+    } else {
+        None
+    };
+    Some(out.map(|x| if neg { -x } else { x }))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn parses_units() {
+        let d = |s: &str| s.parse::<Duration>();
+        assert_eq!(d("1ms"), Ok(Duration::from_ms(1)));
+        assert_eq!(d("250us"), Ok(Duration::from_us(250)));
+        assert_eq!(d("250 µs"), Ok(Duration::from_us(250)));
+        assert_eq!(d("2.5us"), Ok(Duration::from_ns(2_500)));
+        assert_eq!(d("240ns"), Ok(Duration::from_ns(240)));
+        assert_eq!(d("0.001s"), Ok(Duration::from_ms(1)));
+        assert_eq!(d("-40ns"), Ok(Duration::from_ns(-40)));
+        assert_eq!(d("1000"), Err(ParseDurationError::NoUnit("1000".into())));
+        assert_eq!(d("1h"), Err(ParseDurationError::BadUnit("1h".into())));
+        assert_eq!(
+            d("0.5ns"),
+            Err(ParseDurationError::NotWholeNs("0.5ns".into()))
+        );
+        assert_eq!(d("ms"), Err(ParseDurationError::BadNumber("ms".into())));
+        assert_eq!(
+            d("1.2.3ms"),
+            Err(ParseDurationError::BadNumber("1.2.3ms".into()))
+        );
+        assert!(matches!(
+            d("99999999999s"),
+            Err(ParseDurationError::TooLarge(_))
+        ));
+    }
 
     #[test]
     fn display_has_ns_resolution() {

@@ -45,9 +45,52 @@ impl Link {
     }
 }
 
+/// Parses a bit rate: a number with an optional decimal prefix k, M or G and an optional
+/// `bps` or `bit/s`, e.g. `100M`, `100Mbps`, `1G`, `2.5Gbit/s`, `100000000`. Returns
+/// bit/s, or a message that says what is wrong.
+pub fn parse_bit_rate(s: &str) -> Result<u64, String> {
+    let t = s.trim();
+    let body = t
+        .strip_suffix("bit/s")
+        .or_else(|| t.strip_suffix("bps"))
+        .unwrap_or(t)
+        .trim_end();
+    let (num, scale) = match body.chars().last() {
+        Some('k') => (&body[..body.len() - 1], 1_000),
+        Some('M') => (&body[..body.len() - 1], 1_000_000),
+        Some('G') => (&body[..body.len() - 1], 1_000_000_000),
+        _ => (body, 1),
+    };
+    match crate::time::parse_decimal_scaled(num.trim(), scale) {
+        None => Err(format!(
+            "'{s}' is not a bit rate: write e.g. 100M, 100Mbps or 1G"
+        )),
+        Some(None) => Err(format!("'{s}' is not a whole number of bit/s")),
+        Some(Some(v)) => u64::try_from(v).map_err(|_| {
+            if v < 0 {
+                format!("'{s}' is negative: a bit rate must be > 0")
+            } else {
+                format!("'{s}' is too large")
+            }
+        }),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn bit_rates_parse() {
+        assert_eq!(parse_bit_rate("100M"), Ok(100_000_000));
+        assert_eq!(parse_bit_rate("100Mbps"), Ok(100_000_000));
+        assert_eq!(parse_bit_rate("2.5Gbit/s"), Ok(2_500_000_000));
+        assert_eq!(parse_bit_rate("10000000"), Ok(10_000_000));
+        assert_eq!(parse_bit_rate("0"), Ok(0));
+        assert!(parse_bit_rate("-5M").expect_err("neg").contains("negative"));
+        assert!(parse_bit_rate("fast").is_err());
+        assert!(parse_bit_rate("1.5").is_err());
+    }
 
     fn fast_ethernet() -> Link {
         Link {

@@ -21,7 +21,7 @@ mod link;
 mod params;
 mod timeline;
 
-pub use link::Link;
+pub use link::{Link, parse_bit_rate};
 pub use params::{PlanError, RingParams};
 pub use timeline::{FrameRef, Node, Passage, Phase, PhaseKind, Timeline};
 

@@ -89,76 +89,78 @@ pub struct Timeline {
     pub phases: Vec<Phase>,
 }
 
-/// Follows one frame from `origin` (first bit out at `t0`, `dur` long) through `path`; every
-/// node but the last forwards it after the residence.
-fn route(
-    out: &mut Vec<Passage>,
-    frame: FrameRef,
-    origin: Node,
-    t0: Instant,
-    dur: Duration,
-    path: impl Iterator<Item = Node>,
+/// Sends frames along ring paths and records their passages.
+struct Router {
+    passages: Vec<Passage>,
+    /// First-bit latency of one hop [ns].
     hop: Duration,
+    /// Residence of a forwarding slave [ns].
     residence: Duration,
-) -> Instant {
-    let mut path = path.peekable();
-    out.push(Passage {
-        frame,
-        node: origin,
-        rx: None,
-        tx: Some(Span {
-            start: t0,
-            end: t0 + dur,
-        }),
-    });
-    let mut tx_start = t0;
-    let mut last_end = t0 + dur;
-    while let Some(node) = path.next() {
-        let rx_start = tx_start + hop;
-        let rx = Span {
-            start: rx_start,
-            end: rx_start + dur,
-        };
-        last_end = rx.end;
-        let tx = path.peek().is_some().then(|| {
-            tx_start = rx_start + residence;
-            Span {
-                start: tx_start,
-                end: tx_start + dur,
-            }
-        });
-        out.push(Passage {
+}
+
+impl Router {
+    /// Follows one frame from `origin` (first bit out at `t0`, `dur` long) through `path`;
+    /// every node but the last forwards it after the residence. Returns when its last bit
+    /// reaches the last node.
+    fn route(
+        &mut self,
+        frame: FrameRef,
+        origin: Node,
+        (t0, dur): (Instant, Duration),
+        path: impl Iterator<Item = Node>,
+    ) -> Instant {
+        let mut path = path.peekable();
+        self.passages.push(Passage {
             frame,
-            node,
-            rx: Some(rx),
-            tx,
+            node: origin,
+            rx: None,
+            tx: Some(Span {
+                start: t0,
+                end: t0 + dur,
+            }),
         });
+        let mut tx_start = t0;
+        let mut last_end = t0 + dur;
+        while let Some(node) = path.next() {
+            let rx_start = tx_start + self.hop;
+            let rx = Span {
+                start: rx_start,
+                end: rx_start + dur,
+            };
+            last_end = rx.end;
+            let tx = path.peek().is_some().then(|| {
+                tx_start = rx_start + self.residence;
+                Span {
+                    start: tx_start,
+                    end: tx_start + dur,
+                }
+            });
+            self.passages.push(Passage {
+                frame,
+                node,
+                rx: Some(rx),
+                tx,
+            });
+        }
+        last_end
     }
-    last_end
 }
 
 impl Timeline {
     pub(super) fn build(plan: &CyclePlan) -> Timeline {
         let n = plan.params.slaves;
-        let hop = plan.hop;
-        let t_t = plan.params.residence;
         let gap = plan.link.gap();
         let slaves = move || (1..=n).map(Node::Slave);
-        let mut passages = Vec::new();
+        let mut r = Router {
+            passages: Vec::new(),
+            hop: plan.hop,
+            residence: plan.params.residence,
+        };
         let mut back = Instant::ZERO;
         for (j, &dur) in plan.lumped.frame_time.iter().enumerate() {
             let t0 = Instant::ZERO + plan.lumped.frame_offset(j, gap);
             let path = slaves().chain(core::iter::once(Node::Master));
-            back = route(
-                &mut passages,
-                FrameRef::Lumped(j as u32),
-                Node::Master,
-                t0,
-                dur,
-                path,
-                hop,
-                t_t,
-            );
+            back = r.route(FrameRef::Lumped(j as u32), Node::Master, (t0, dur), path);
         }
         let p2p = Instant::ZERO + plan.event.p2p_start;
         let mut phases = vec![
@@ -175,29 +177,21 @@ impl Timeline {
         ];
         let mut start = p2p;
         for i in 1..=n {
-            let cmd_end = route(
-                &mut passages,
+            let cmd_end = r.route(
                 FrameRef::Command(i),
                 Node::Master,
-                start,
-                plan.t_cmf,
+                (start, plan.t_cmf),
                 (1..=i).map(Node::Slave),
-                hop,
-                t_t,
             );
             let resp_start = cmd_end + plan.params.response_delay;
             let path = (i + 1..=n)
                 .map(Node::Slave)
                 .chain(core::iter::once(Node::Master));
-            let end = route(
-                &mut passages,
+            let end = r.route(
                 FrameRef::Response(i),
                 Node::Slave(i),
-                resp_start,
-                plan.t_rmf,
+                (resp_start, plan.t_rmf),
                 path,
-                hop,
-                t_t,
             );
             let end = end + plan.event.turnaround;
             phases.push(Phase {
@@ -226,7 +220,7 @@ impl Timeline {
         }
         Timeline {
             t_cyc: plan.params.t_cyc,
-            passages,
+            passages: r.passages,
             phases,
         }
     }

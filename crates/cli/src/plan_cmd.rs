@@ -1,0 +1,182 @@
+//! `ringsync plan`: the cycle-time planner.
+
+use std::path::PathBuf;
+
+use anyhow::Context as _;
+use clap::Args;
+use ringsync_proto::plan::parse_bit_rate;
+use ringsync_proto::{CyclePlan, Duration, PlanError, RingParams, max_slaves};
+
+use crate::CliError;
+
+fn duration(s: &str) -> Result<Duration, String> {
+    s.parse::<Duration>().map_err(|e| e.to_string())
+}
+
+/// Options of `ringsync plan`; defaults are the reference scenario `paper-2015`.
+#[derive(Args, Debug)]
+#[command(
+    after_help = "Durations take a unit: ns, us (or µs), ms, s. Example:\n  ringsync plan --slaves 8 --cycle 500us --json"
+)]
+pub struct PlanArgs {
+    /// Number of slaves n on the ring [1..=65535].
+    #[arg(long, default_value_t = 4, allow_negative_numbers = true)]
+    slaves: i64,
+    /// Cycle time T_cyc.
+    #[arg(long, default_value = "1ms", value_parser = duration, allow_hyphen_values = true)]
+    cycle: Duration,
+    /// Link bit rate, e.g. 100M, 1G, 100000000.
+    #[arg(long, default_value = "100M", allow_hyphen_values = true)]
+    bit_rate: String,
+    /// PHY receive latency (MII, DP83848: 240ns).
+    #[arg(long, default_value = "240ns", value_parser = duration, allow_hyphen_values = true)]
+    phy_rx: Duration,
+    /// PHY transmit latency (MII: about 60ns).
+    #[arg(long, default_value = "60ns", value_parser = duration, allow_hyphen_values = true)]
+    phy_tx: Duration,
+    /// Cable length of each hop [m].
+    #[arg(long, default_value_t = 2.0, allow_negative_numbers = true)]
+    cable_m: f64,
+    /// Signal propagation in the cable [ns/m].
+    #[arg(long, default_value_t = 5.0, allow_negative_numbers = true)]
+    propagation_ns_per_m: f64,
+    /// Residence time T_t of a forwarding slave, first bit in to first bit out.
+    #[arg(long, default_value = "1us", value_parser = duration, allow_hyphen_values = true)]
+    residence: Duration,
+    /// Response delay T_ti of a slave, end of its command to start of its response.
+    #[arg(long, default_value = "2us", value_parser = duration, allow_hyphen_values = true)]
+    response_delay: Duration,
+    /// Reserve T_rest between the sync and P2P phases (master computes).
+    #[arg(long, default_value = "100us", value_parser = duration, allow_hyphen_values = true)]
+    t_rest: Duration,
+    /// Bytes per slave in the lumped frame (wire format: 20) [B].
+    #[arg(long, default_value_t = 20, allow_negative_numbers = true)]
+    slot_bytes: i64,
+    /// Bytes per slave in the lumped-only plan's frame (wire format: 32) [B].
+    #[arg(long, default_value_t = 32, allow_negative_numbers = true)]
+    lumped_only_slot_bytes: i64,
+    /// Largest Ethernet payload [B].
+    #[arg(long, default_value_t = 1500, allow_negative_numbers = true)]
+    mtu: i64,
+    /// Print one JSON object in integer nanoseconds instead of the table.
+    #[arg(long)]
+    json: bool,
+    /// With --json: include the frame-by-frame timeline of the cycle.
+    #[arg(long)]
+    events: bool,
+    /// Also draw the cycle as an SVG timing diagram (like the paper's Fig. 1) into FILE.
+    #[arg(long, value_name = "FILE")]
+    svg: Option<PathBuf>,
+}
+
+/// The CLI option that sets a [`RingParams`] field.
+fn option_of(field: &str) -> &'static str {
+    match field {
+        "slaves" => "--slaves",
+        "bit_rate" => "--bit-rate",
+        "phy_rx" => "--phy-rx",
+        "phy_tx" => "--phy-tx",
+        "cable_m" => "--cable-m",
+        "propagation_ns_per_m" => "--propagation-ns-per-m",
+        "residence" => "--residence",
+        "response_delay" => "--response-delay",
+        "t_rest" => "--t-rest",
+        "t_cyc" => "--cycle",
+        "slot_bytes" => "--slot-bytes",
+        "lumped_only_slot_bytes" => "--lumped-only-slot-bytes",
+        "mtu" => "--mtu",
+        _ => "an option",
+    }
+}
+
+fn usage(e: PlanError) -> CliError {
+    CliError::Usage(match e {
+        PlanError::OutOfRange {
+            field,
+            value,
+            allowed,
+        } => {
+            format!(
+                "{} {value} is out of range: allowed {allowed}",
+                option_of(field)
+            )
+        }
+        PlanError::CycleTooShort {
+            slaves,
+            t_cyc,
+            needed,
+            short,
+            basis,
+        } => format!(
+            "--cycle {t_cyc} is too short for {slaves} slaves: the plan needs {needed} ({basis}), short by {short}"
+        ),
+    })
+}
+
+/// Converts an integer option to its type, or says which range it must be in.
+fn int<T: TryFrom<i64>>(option: &str, v: i64, allowed: &str) -> Result<T, CliError> {
+    T::try_from(v)
+        .map_err(|_| CliError::Usage(format!("{option} {v} is out of range: allowed {allowed}")))
+}
+
+impl PlanArgs {
+    fn params(&self) -> Result<RingParams, CliError> {
+        let bit_rate_bps = parse_bit_rate(&self.bit_rate)
+            .map_err(|m| CliError::Usage(format!("--bit-rate {m}")))?;
+        Ok(RingParams {
+            slaves: int("--slaves", self.slaves, "1..=65535")?,
+            bit_rate_bps,
+            phy_rx: self.phy_rx,
+            phy_tx: self.phy_tx,
+            cable_m: self.cable_m,
+            propagation_ns_per_m: self.propagation_ns_per_m,
+            residence: self.residence,
+            response_delay: self.response_delay,
+            t_rest: self.t_rest,
+            t_cyc: self.cycle,
+            slot_bytes: int("--slot-bytes", self.slot_bytes, "1 B ..= MTU - 28 B")?,
+            lumped_only_slot_bytes: int(
+                "--lumped-only-slot-bytes",
+                self.lumped_only_slot_bytes,
+                "1 B ..= MTU - 28 B",
+            )?,
+            mtu: int("--mtu", self.mtu, "46 ..= 9000 B")?,
+        })
+    }
+}
+
+/// Runs `ringsync plan`.
+pub(crate) fn run(args: &PlanArgs) -> Result<(), CliError> {
+    let params = args.params()?;
+    let plan = CyclePlan::new(&params).map_err(usage)?;
+    plan.check_fits().map_err(usage)?;
+    let max_n = max_slaves(&params).map_err(usage)?;
+    if let Some(path) = &args.svg {
+        let svg = ringsync_report::timing_svg(&plan).ok_or_else(|| {
+            CliError::Usage(format!(
+                "--svg draws at most {} slaves, --slaves is {}",
+                ringsync_report::MAX_SVG_SLAVES,
+                params.slaves
+            ))
+        })?;
+        std::fs::write(path, svg).with_context(|| format!("cannot write {}", path.display()))?;
+    }
+    if args.json {
+        let v = ringsync_report::plan_json(&plan, max_n, args.events);
+        let text = serde_json::to_string_pretty(&v).context("cannot format JSON")?;
+        crate::out(&format!("{text}\n"))?;
+    } else {
+        if args.events {
+            return Err(CliError::Usage("--events goes with --json".into()));
+        }
+        let mut text = ringsync_report::plan_table(&plan, max_n);
+        if let Some(path) = &args.svg {
+            text.push_str(&format!(
+                "\nTiming diagram written to {}.\n",
+                path.display()
+            ));
+        }
+        crate::out(&text)?;
+    }
+    Ok(())
+}

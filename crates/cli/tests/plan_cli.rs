@@ -1,0 +1,202 @@
+//! `ringsync plan` end to end: the binary as a user runs it.
+
+use std::process::{Command, Output};
+
+fn ringsync(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_ringsync"))
+        .args(args)
+        .env("RUST_BACKTRACE", "0")
+        .output()
+        .expect("run ringsync")
+}
+
+fn stdout(o: &Output) -> String {
+    String::from_utf8(o.stdout.clone()).expect("utf-8")
+}
+
+/// The value in µs of the first table row whose first column is `term`, in ns.
+fn table_ns(table: &str, term: &str) -> i64 {
+    let line = table
+        .lines()
+        .find(|l| l.trim_start().starts_with(term) && l.trim_start()[term.len()..].starts_with(' '))
+        .unwrap_or_else(|| panic!("no row {term} in\n{table}"));
+    let cols: Vec<&str> = line.split_whitespace().collect();
+    // ... time [µs], share value, "%"
+    let us = cols[cols.len() - 3];
+    let (int, frac) = us.split_once('.').expect("µs with decimals");
+    let sign = if int.starts_with('-') { -1 } else { 1 };
+    sign * (int.trim_start_matches('-').parse::<i64>().expect("int") * 1000
+        + frac.parse::<i64>().expect("frac"))
+}
+
+#[test]
+fn json_matches_the_table() {
+    for args in [
+        &["plan", "--slaves", "4"][..],
+        &[
+            "plan",
+            "--slaves",
+            "7",
+            "--cycle",
+            "700us",
+            "--bit-rate",
+            "1G",
+        ],
+    ] {
+        let table = ringsync(args);
+        assert!(
+            table.status.success(),
+            "{}",
+            String::from_utf8_lossy(&table.stderr)
+        );
+        let table = stdout(&table);
+        let mut json_args = args.to_vec();
+        json_args.push("--json");
+        let json = ringsync(&json_args);
+        assert!(json.status.success());
+        let v: serde_json::Value = serde_json::from_str(&stdout(&json)).expect("valid JSON");
+        let n = v["n"].as_u64().expect("n") as usize;
+        for (term, key) in [
+            ("T_lmf", "t_lmf_ns"),
+            ("D_ms(n)", "d_ms_ns"),
+            ("D_snm", "d_snm_ns"),
+            ("T_rest", "t_rest_ns"),
+            ("= T_syn", "t_syn_ns"),
+            ("T_idle", "t_idle_ns"),
+            ("= T_cyc", "t_cyc_ns"),
+        ] {
+            assert_eq!(
+                table_ns(&table, term),
+                v[key].as_i64().expect(key),
+                "{term} vs {key}"
+            );
+        }
+        let slots = v["slot_ns"].as_array().expect("slot_ns");
+        assert_eq!(slots.len(), n);
+        let mut sum = v["t_syn_ns"].as_i64().expect("syn") + v["t_idle_ns"].as_i64().expect("idle");
+        for (i, s) in slots.iter().enumerate() {
+            assert_eq!(
+                table_ns(&table, &format!("T_slot({})", i + 1)),
+                s.as_i64().expect("slot")
+            );
+            sum += s.as_i64().expect("slot");
+        }
+        let reserve =
+            v["reserve_slices"].as_i64().expect("k") * v["reserve_slice_ns"].as_i64().expect("r");
+        assert_eq!(
+            table_ns(
+                &table,
+                &format!("reserve {}×T_slot({n})", v["reserve_slices"])
+            ),
+            reserve
+        );
+        // Eq. 1 from the JSON parts.
+        assert_eq!(sum + reserve, v["t_cyc_ns"].as_i64().expect("cyc"));
+        for key in [
+            "link_bps",
+            "lumped_frame_bytes",
+            "command_frame_bytes",
+            "response_frame_bytes",
+            "t_cmf_ns",
+            "min_t_cyc_ns",
+            "max_n_for_t_cyc",
+        ] {
+            assert!(v[key].is_u64(), "{key} missing or not an integer");
+        }
+        assert!(table.contains(&format!("{} slaves.", v["max_n_for_t_cyc"])));
+    }
+}
+
+#[test]
+fn bad_input_is_one_line_and_exit_2() {
+    for (args, needle) in [
+        (
+            &["plan", "--slaves", "0"][..],
+            "--slaves 0 is out of range: allowed 1..=65535",
+        ),
+        (&["plan", "--slaves", "-2"], "--slaves -2 is out of range"),
+        (
+            &["plan", "--bit-rate", "0"],
+            "--bit-rate 0 bit/s is out of range",
+        ),
+        (
+            &["plan", "--bit-rate", "-100M"],
+            "--bit-rate '-100M' is negative",
+        ),
+        (&["plan", "--cycle", "150us"], "short by 74.690 µs"),
+        (
+            &["plan", "--cycle", "0s"],
+            "--cycle 0.000 µs is out of range",
+        ),
+        (&["plan", "--cycle", "1000"], "has no unit"),
+        (
+            &["plan", "--residence", "-1us"],
+            "--residence -1.000 µs is out of range",
+        ),
+        (
+            &["plan", "--frobnicate"],
+            "unexpected argument '--frobnicate'",
+        ),
+        (
+            &[
+                "plan",
+                "--slaves",
+                "100",
+                "--cycle",
+                "1s",
+                "--svg",
+                "/tmp/never.svg",
+            ],
+            "--svg draws at most 64 slaves",
+        ),
+        (&["nosuchcommand"], "unrecognized subcommand"),
+    ] {
+        let o = ringsync(args);
+        let err = String::from_utf8(o.stderr).expect("utf-8");
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+        assert_eq!(err.lines().count(), 1, "{args:?}: not one line: {err}");
+        assert!(err.contains(needle), "{args:?}: {err}");
+        assert!(!err.contains("panicked"), "{args:?}: {err}");
+        assert!(o.stdout.is_empty(), "{args:?}: wrote to stdout on error");
+    }
+}
+
+#[test]
+fn svg_timing_diagram_is_written() {
+    let dir = std::env::temp_dir().join(format!("ringsync-plan-test-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("dir");
+    let path = dir.join("cycle.svg");
+    let o = ringsync(&[
+        "plan",
+        "--slaves",
+        "4",
+        "--svg",
+        path.to_str().expect("path"),
+    ]);
+    assert!(o.status.success());
+    let svg = std::fs::read_to_string(&path).expect("svg written");
+    assert!(svg.starts_with("<?xml") && svg.trim_end().ends_with("</svg>"));
+    for lane in [
+        "master",
+        "slave 1",
+        "slave 4",
+        "sync",
+        "T_rest",
+        "idle",
+        "response of slave 3",
+    ] {
+        assert!(svg.contains(lane), "no {lane} in the diagram");
+    }
+    std::fs::remove_dir_all(&dir).expect("cleanup");
+}
+
+#[test]
+fn events_give_the_timeline() {
+    let o = ringsync(&["plan", "--json", "--events"]);
+    assert!(o.status.success());
+    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).expect("json");
+    let passages = v["timeline"]["passages"].as_array().expect("passages");
+    // Lumped frame: master + 4 slaves + master; commands: 1 + 2 + 3 + 4 targets and
+    // forwarders plus the master; responses: (4 − i) forwarders + origin + master.
+    assert_eq!(passages.len(), 6 + (2 + 3 + 4 + 5) + (5 + 4 + 3 + 2));
+}
