@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use anyhow::Context as _;
 use clap::Args;
 use ringsync_proto::plan::parse_bit_rate;
-use ringsync_proto::{CyclePlan, Duration, PlanError, RingParams, max_slaves};
+use ringsync_proto::{CyclePlan, Duration, PlanError, PlanKind, RingParams};
 
 use crate::CliError;
 
@@ -58,6 +58,9 @@ pub struct PlanArgs {
     /// Largest Ethernet payload [B].
     #[arg(long, default_value_t = 1500, allow_negative_numbers = true)]
     mtu: i64,
+    /// Plan whose cycle is checked and shown: p2p-lumped (the paper's) or lumped-only (ref. [3]).
+    #[arg(long, default_value = "p2p-lumped", value_parser = |s: &str| s.parse::<PlanKind>())]
+    plan: PlanKind,
     /// Print one JSON object in integer nanoseconds instead of the table.
     #[arg(long)]
     json: bool,
@@ -149,8 +152,7 @@ impl PlanArgs {
 pub(crate) fn run(args: &PlanArgs) -> Result<(), CliError> {
     let params = args.params()?;
     let plan = CyclePlan::new(&params).map_err(usage)?;
-    plan.check_fits().map_err(usage)?;
-    let max_n = max_slaves(&params).map_err(usage)?;
+    plan.check_fits_for(args.plan).map_err(usage)?;
     if let Some(path) = &args.svg {
         let svg = ringsync_report::timing_svg(&plan).ok_or_else(|| {
             CliError::Usage(format!(
@@ -162,14 +164,14 @@ pub(crate) fn run(args: &PlanArgs) -> Result<(), CliError> {
         std::fs::write(path, svg).with_context(|| format!("cannot write {}", path.display()))?;
     }
     if args.json {
-        let v = ringsync_report::plan_json(&plan, max_n, args.events);
+        let v = ringsync_report::plan_json(&plan, args.plan, args.events);
         let text = serde_json::to_string_pretty(&v).context("cannot format JSON")?;
         crate::out(&format!("{text}\n"))?;
     } else {
         if args.events {
             return Err(CliError::Usage("--events goes with --json".into()));
         }
-        let mut text = ringsync_report::plan_table(&plan, max_n);
+        let mut text = ringsync_report::plan_table(&plan, args.plan);
         if let Some(path) = &args.svg {
             text.push_str(&format!(
                 "\nTiming diagram written to {}.\n",

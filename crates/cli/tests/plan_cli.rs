@@ -200,3 +200,31 @@ fn events_give_the_timeline() {
     // forwarders plus the master; responses: (4 − i) forwarders + origin + master.
     assert_eq!(passages.len(), 6 + (2 + 3 + 4 + 5) + (5 + 4 + 3 + 2));
 }
+
+#[test]
+fn lumped_only_plan_checks_its_own_cycle() {
+    let args = [
+        "plan",
+        "--slaves",
+        "100",
+        "--lumped-only-slot-bytes",
+        "8",
+        "--t-rest",
+        "0us",
+    ];
+    // 100 slaves do not fit 1 ms with P2P slices ...
+    let o = ringsync(&args);
+    assert_eq!(o.status.code(), Some(2));
+    // ... but the lumped-only plan needs 199.63 µs (docs/planner.md, EtherCAT comparison).
+    let mut lo = args.to_vec();
+    lo.extend(["--plan", "lumped-only", "--json"]);
+    let o = ringsync(&lo);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).expect("json");
+    assert_eq!(v["plan"], "lumped-only");
+    assert_eq!(v["lumped_only"]["min_t_cyc_ns"], 199_630);
+    assert_eq!(v["lumped_only"]["t_idle_ns"], 1_000_000 - 199_630);
+    let table = stdout(&ringsync(&lo[..lo.len() - 1]));
+    assert!(table.contains("lumped-only plan of ref. [3]"));
+    assert_eq!(table_ns(&table, "T_idle"), 1_000_000 - 199_630);
+}

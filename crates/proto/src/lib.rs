@@ -4,5 +4,5 @@
 pub mod plan;
 pub mod time;
 
-pub use plan::{CyclePlan, PlanError, RingParams, max_slaves};
+pub use plan::{CyclePlan, PlanError, PlanKind, RingParams, max_slaves};
 pub use time::{Duration, Instant};

@@ -3,7 +3,7 @@
 use std::fmt::Write as _;
 
 use ringsync_proto::plan::ASSUMPTIONS;
-use ringsync_proto::{CyclePlan, Duration};
+use ringsync_proto::{CyclePlan, Duration, PlanKind, max_slaves};
 use serde_json::{Value, json};
 
 /// Rows of T_slot(i) shown one by one; longer rings collapse the middle into one row.
@@ -28,19 +28,47 @@ fn bit_rate(bps: u64) -> String {
     }
 }
 
-/// The budget table of eq. 1-2: every term in µs (ns resolution) with its share of T_cyc,
-/// then the event-level figures, the lumped-only plan and the assumptions.
-/// `max_n` is the largest ring that fits this T_cyc (see [`ringsync_proto::max_slaves`]).
-pub fn plan_table(p: &CyclePlan, max_n: u32) -> String {
-    let n = p.slaves() as usize;
-    let t_cyc = p.params.t_cyc;
-    let mut o = String::new();
+/// Largest ring that fits the plan's T_cyc with the plan's other parameters.
+fn largest(p: &CyclePlan, kind: PlanKind) -> u32 {
+    max_slaves(&p.params, kind).unwrap_or(0)
+}
+
+/// The budget table: every term in µs (ns resolution) with its share of T_cyc, the other
+/// plan for comparison, and the assumptions. For the proposed plan the terms are those of
+/// eq. 1-2, followed by the event-level figures.
+pub fn plan_table(p: &CyclePlan, kind: PlanKind) -> String {
+    match kind {
+        PlanKind::P2pLumped => p2p_table(p),
+        PlanKind::LumpedOnly => lumped_only_table(p),
+    }
+}
+
+fn row(o: &mut String, t_cyc: Duration, term: &str, what: &str, d: Duration) {
     let _ = writeln!(
         o,
-        "Cycle plan (eq. 1-2): {n} slave{}, {}, T_cyc = {} µs, proposed plan (lumped frame + point-to-point slices)",
+        "  {:<24} {:<40} {:>12} {:>9}",
+        term,
+        what,
+        us(d),
+        share(d, t_cyc)
+    );
+}
+
+fn assumptions(o: &mut String) {
+    let _ = writeln!(o, "\nAssumptions not in the paper:");
+    for a in ASSUMPTIONS {
+        let _ = writeln!(o, "  - {a}");
+    }
+}
+
+fn header(o: &mut String, p: &CyclePlan, plan: &str) {
+    let n = p.slaves();
+    let _ = writeln!(
+        o,
+        "Cycle plan: {n} slave{}, {}, T_cyc = {} µs, {plan}",
         if n == 1 { "" } else { "s" },
         bit_rate(p.params.bit_rate_bps),
-        us(t_cyc)
+        us(p.params.t_cyc)
     );
     let _ = writeln!(
         o,
@@ -57,22 +85,91 @@ pub fn plan_table(p: &CyclePlan, max_n: u32) -> String {
         "  {:<24} {:<40} {:>12} {:>9}",
         "term", "what", "time [µs]", "share"
     );
-    let row = |o: &mut String, term: &str, what: &str, d: Duration| {
-        let _ = writeln!(
-            o,
-            "  {:<24} {:<40} {:>12} {:>9}",
-            term,
-            what,
-            us(d),
-            share(d, t_cyc)
-        );
-    };
-    let lumped_what = if p.lumped.frame_bytes.len() == 1 {
-        format!("lumped frame on the wire, {} B", p.lumped.frame_bytes[0])
+}
+
+fn lumped_what(bytes: &[usize]) -> String {
+    if bytes.len() == 1 {
+        format!("lumped frame on the wire, {} B", bytes[0])
     } else {
-        format!("{} lumped frames back to back", p.lumped.frame_bytes.len())
-    };
-    row(&mut o, "T_lmf", &lumped_what, p.t_lmf);
+        format!("{} lumped frames back to back", bytes.len())
+    }
+}
+
+fn lumped_only_table(p: &CyclePlan) -> String {
+    let n = p.slaves();
+    let t_cyc = p.params.t_cyc;
+    let mut o = String::new();
+    header(
+        &mut o,
+        p,
+        "lumped-only plan of ref. [3] (one lumped frame, controllers in the slaves)",
+    );
+    let lo = &p.lumped_only;
+    row(
+        &mut o,
+        t_cyc,
+        "T_lmf",
+        &lumped_what(&lo.lumped.frame_bytes),
+        lo.lumped.t_lmf,
+    );
+    row(
+        &mut o,
+        t_cyc,
+        "D_ms(n)",
+        &format!("master → slave {n}, first bit"),
+        p.d_ms,
+    );
+    row(
+        &mut o,
+        t_cyc,
+        "D_snm",
+        &format!("slave {n} → master, first bit"),
+        p.d_snm,
+    );
+    row(
+        &mut o,
+        t_cyc,
+        "T_rest",
+        "reserve: the master computes",
+        p.params.t_rest,
+    );
+    row(&mut o, t_cyc, "T_idle", "idle", lo.t_idle);
+    row(&mut o, t_cyc, "= T_cyc", "", t_cyc);
+    let _ = writeln!(
+        o,
+        "\nShortest cycle for {n} slaves: {} µs (lumped-only); the proposed plan needs {} µs by eq. 1, {} µs at event level.",
+        us(lo.min_t_cyc),
+        us(p.min_t_cyc),
+        us(p.event.min_t_cyc)
+    );
+    let _ = writeln!(
+        o,
+        "Largest ring for T_cyc = {} µs: {} slaves (lumped-only), {} slaves (proposed plan).",
+        us(t_cyc),
+        largest(p, PlanKind::LumpedOnly),
+        largest(p, PlanKind::P2pLumped)
+    );
+    assumptions(&mut o);
+    o
+}
+
+fn p2p_table(p: &CyclePlan) -> String {
+    let n = p.slaves() as usize;
+    let t_cyc = p.params.t_cyc;
+    let max_n = largest(p, PlanKind::P2pLumped);
+    let mut o = String::new();
+    header(
+        &mut o,
+        p,
+        "proposed plan (lumped frame + point-to-point slices, eq. 1-2)",
+    );
+    let row = |o: &mut String, term: &str, what: &str, d: Duration| row(o, t_cyc, term, what, d);
+    row(
+        &mut o,
+        "T_lmf",
+        &lumped_what(&p.lumped.frame_bytes),
+        p.t_lmf,
+    );
     row(
         &mut o,
         "D_ms(n)",
@@ -181,10 +278,7 @@ pub fn plan_table(p: &CyclePlan, max_n: u32) -> String {
         us(p.lumped_only.lumped.t_lmf),
         us(p.lumped_only.min_t_cyc)
     );
-    let _ = writeln!(o, "\nAssumptions not in the paper:");
-    for a in ASSUMPTIONS {
-        let _ = writeln!(o, "  - {a}");
-    }
+    assumptions(&mut o);
     o
 }
 
@@ -193,9 +287,13 @@ fn ns_list(v: &[Duration]) -> Vec<i64> {
 }
 
 /// The plan as one JSON object in integer nanoseconds (keys documented in docs/planner.md).
-/// With `events`, the frame-by-frame timeline is included.
-pub fn plan_json(p: &CyclePlan, max_n: u32, events: bool) -> Value {
+/// Top-level terms are the proposed plan's; `lumped_only` holds the other plan's; `plan`
+/// names the plan the cycle was checked against. With `events`, the frame-by-frame timeline
+/// is included.
+pub fn plan_json(p: &CyclePlan, kind: PlanKind, events: bool) -> Value {
+    let max_n = largest(p, PlanKind::P2pLumped);
     let mut v = json!({
+        "plan": kind.name(),
         "n": p.slaves(),
         "t_cyc_ns": p.params.t_cyc.as_ns(),
         "link_bps": p.params.bit_rate_bps,
@@ -234,6 +332,8 @@ pub fn plan_json(p: &CyclePlan, max_n: u32, events: bool) -> Value {
             "lumped_frames": p.lumped_only.lumped.frame_bytes.len(),
             "t_lmf_ns": p.lumped_only.lumped.t_lmf.as_ns(),
             "min_t_cyc_ns": p.lumped_only.min_t_cyc.as_ns(),
+            "t_idle_ns": p.lumped_only.t_idle.as_ns(),
+            "max_n_for_t_cyc": largest(p, PlanKind::LumpedOnly),
         },
         "params": {
             "slaves": p.params.slaves,

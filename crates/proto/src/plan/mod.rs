@@ -114,13 +114,51 @@ pub struct EventLevel {
     pub min_t_cyc: Duration,
 }
 
-/// The cycle of the lumped-only plan of ref. [3] on the same ring (SYSTEM.md section 4).
+/// Which communication plan a cycle is planned for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize)]
+pub enum PlanKind {
+    /// The paper's proposed plan: sync lumped frame, then point-to-point slices.
+    #[serde(rename = "p2p-lumped")]
+    P2pLumped,
+    /// The lumped-only plan of ref. [3]: one lumped frame, controllers in the slaves.
+    #[serde(rename = "lumped-only")]
+    LumpedOnly,
+}
+
+impl PlanKind {
+    /// The name used in options, scenarios and outputs.
+    pub fn name(self) -> &'static str {
+        match self {
+            PlanKind::P2pLumped => "p2p-lumped",
+            PlanKind::LumpedOnly => "lumped-only",
+        }
+    }
+}
+
+impl core::str::FromStr for PlanKind {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "p2p-lumped" => Ok(PlanKind::P2pLumped),
+            "lumped-only" => Ok(PlanKind::LumpedOnly),
+            other => Err(format!(
+                "unknown plan '{other}': expected p2p-lumped or lumped-only"
+            )),
+        }
+    }
+}
+
+/// The cycle of the lumped-only plan of ref. [3] on the same ring (SYSTEM.md section 4):
+/// `T_cyc = T_lmf + D_ms(n) + D_snm + T_rest + T_idle`, the sync phase of eq. 2 with this
+/// plan's larger slots and no P2P phase.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct LumpedOnlyPlan {
     /// Its lumped frames.
     pub lumped: LumpedTrain,
     /// Shortest cycle: T_lmf + D_ms(n) + D_snm + T_rest [ns].
     pub min_t_cyc: Duration,
+    /// Idle time left in T_cyc [ns]; negative when the cycle is too short.
+    pub t_idle: Duration,
 }
 
 /// The schedule of one cycle of the proposed plan with every term of eq. 1-2.
@@ -210,8 +248,10 @@ impl CyclePlan {
             + event_reserve * i64::from(reserve_slices)
             + event_slot.iter().copied().sum();
         let lo = LumpedTrain::new(params, &link, params.lumped_only_slot_bytes);
+        let lo_min = lo.t_lmf + d_ms + d_snm + params.t_rest;
         let lumped_only = LumpedOnlyPlan {
-            min_t_cyc: lo.t_lmf + d_ms + d_snm + params.t_rest,
+            min_t_cyc: lo_min,
+            t_idle: params.t_cyc - lo_min,
             lumped: lo,
         };
         Ok(CyclePlan {
@@ -269,13 +309,32 @@ impl CyclePlan {
         rows
     }
 
-    /// `Ok` when the cycle holds the plan both by eq. 1 and on the event-level ring path;
-    /// otherwise the shortfall of the tighter of the two.
+    /// The terms of the lumped-only plan's cycle in order; they add up to T_cyc exactly.
+    pub fn lumped_only_budget(&self) -> Vec<(String, Duration)> {
+        vec![
+            ("T_lmf".to_string(), self.lumped_only.lumped.t_lmf),
+            ("D_ms(n)".to_string(), self.d_ms),
+            ("D_snm".to_string(), self.d_snm),
+            ("T_rest".to_string(), self.params.t_rest),
+            ("T_idle".to_string(), self.lumped_only.t_idle),
+        ]
+    }
+
+    /// `Ok` when the cycle holds the proposed plan both by eq. 1 and on the event-level
+    /// ring path; otherwise the shortfall of the tighter of the two.
     pub fn check_fits(&self) -> Result<(), PlanError> {
-        let (needed, basis) = if self.event.min_t_cyc > self.min_t_cyc {
-            (self.event.min_t_cyc, "event level")
-        } else {
-            (self.min_t_cyc, "eq. 1")
+        self.check_fits_for(PlanKind::P2pLumped)
+    }
+
+    /// `Ok` when the cycle holds the given plan; otherwise its shortfall. For the proposed
+    /// plan both eq. 1 and the event-level path must fit.
+    pub fn check_fits_for(&self, kind: PlanKind) -> Result<(), PlanError> {
+        let (needed, basis) = match kind {
+            PlanKind::LumpedOnly => (self.lumped_only.min_t_cyc, "lumped-only plan"),
+            PlanKind::P2pLumped if self.event.min_t_cyc > self.min_t_cyc => {
+                (self.event.min_t_cyc, "event level")
+            }
+            PlanKind::P2pLumped => (self.min_t_cyc, "eq. 1"),
         };
         if needed > self.params.t_cyc {
             Err(PlanError::CycleTooShort {
@@ -296,16 +355,17 @@ impl CyclePlan {
     }
 }
 
-/// Largest number of slaves whose plan fits `params.t_cyc` (by eq. 1 and at event level),
-/// all other parameters as given; 0 when not even one slave fits.
-pub fn max_slaves(params: &RingParams) -> Result<u32, PlanError> {
+/// Largest number of slaves whose plan of kind `kind` fits `params.t_cyc` (the proposed
+/// plan: by eq. 1 and at event level), all other parameters as given; 0 when not even one
+/// slave fits.
+pub fn max_slaves(params: &RingParams, kind: PlanKind) -> Result<u32, PlanError> {
     params.validate()?;
     let fits = |n: u32| -> Result<bool, PlanError> {
         let p = RingParams {
             slaves: n,
             ..params.clone()
         };
-        Ok(CyclePlan::new(&p)?.check_fits().is_ok())
+        Ok(CyclePlan::new(&p)?.check_fits_for(kind).is_ok())
     };
     if !fits(1)? {
         return Ok(0);

@@ -88,7 +88,7 @@ fn hundred_axes_match_ethercat_order_of_magnitude() {
     // One frame: 12 + 12 + 800 + 4 = 828 B PDU → 846 B frame → 854 B → 68.32 µs on the wire.
     assert_eq!(lo.lumped.frame_bytes, vec![846]);
     assert_eq!(lo.lumped.t_lmf, ns(68_320));
-    // Plus D_ms(100) = 100·310 + 99·1000 and D_snm = 1310: 199.65 µs in all, the same order
+    // Plus D_ms(100) = 100·310 + 99·1000 and D_snm = 1310: 199.63 µs in all, the same order
     // of magnitude as the published 100 µs (docs/planner.md discusses the difference).
     assert_eq!(lo.min_t_cyc, ns(68_320 + 130_000 + 1_310));
     assert!(lo.min_t_cyc > Duration::from_us(50) && lo.min_t_cyc < Duration::from_us(300));
@@ -188,7 +188,7 @@ fn out_of_range_parameters_are_named() {
 #[test]
 fn max_slaves_is_the_largest_that_fits() {
     let params = RingParams::default();
-    let n = max_slaves(&params).expect("max");
+    let n = max_slaves(&params, PlanKind::P2pLumped).expect("max");
     assert!(n > 4);
     let at = |n| {
         CyclePlan::new(&RingParams {
@@ -203,7 +203,12 @@ fn max_slaves_is_the_largest_that_fits() {
         t_cyc: Duration::from_us(10),
         ..params
     };
-    assert_eq!(max_slaves(&tiny), Ok(0));
+    assert_eq!(max_slaves(&tiny, PlanKind::P2pLumped), Ok(0));
+    // The lumped-only plan has no P2P phase, so a longer ring fits the same cycle.
+    let lo = max_slaves(&params, PlanKind::LumpedOnly).expect("max");
+    assert!(lo > n);
+    let at_lo = |n| at(n).check_fits_for(PlanKind::LumpedOnly);
+    assert!(at_lo(lo).is_ok() && at_lo(lo + 1).is_err());
 }
 
 #[test]
@@ -288,6 +293,8 @@ proptest! {
     fn eq1_terms_sum_to_t_cyc(p in params()) {
         let plan = CyclePlan::new(&p).expect("plan");
         let sum: Duration = plan.budget().iter().map(|(_, d)| *d).sum();
+        prop_assert_eq!(sum, p.t_cyc);
+        let sum: Duration = plan.lumped_only_budget().iter().map(|(_, d)| *d).sum();
         prop_assert_eq!(sum, p.t_cyc);
         prop_assert_eq!(plan.t_syn, plan.t_lmf + plan.d_ms + plan.d_snm + p.t_rest);
         for (i, s) in plan.slot.iter().enumerate() {

@@ -1,0 +1,24 @@
+//! Any bytes into the command frame parser; whatever parses re-emits to itself.
+#![no_main]
+
+use libfuzzer_sys::fuzz_target;
+
+#[path = "seal.rs"]
+mod seal;
+use ringsync_wire::CommandRepr;
+
+fuzz_target!(|raw: &[u8]| {
+    check(raw);
+    if let Some(b) = seal::sealed(raw) {
+        check(&b);
+    }
+});
+
+fn check(data: &[u8]) {
+    if let Ok(r) = CommandRepr::parse(data) {
+        let mut buf = vec![0u8; r.buffer_len()];
+        let n = r.emit(&mut buf).expect("a parsed frame re-emits");
+        assert_eq!(CommandRepr::parse(&buf[..n]), Ok(r));
+    }
+}
+
