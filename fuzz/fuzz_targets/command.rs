@@ -1,18 +1,12 @@
 //! Any bytes into the command frame parser; whatever parses re-emits to itself.
 #![no_main]
 
-use libfuzzer_sys::fuzz_target;
-
 #[path = "seal.rs"]
+#[macro_use]
 mod seal;
 use ringsync_wire::CommandRepr;
 
-fuzz_target!(|raw: &[u8]| {
-    check(raw);
-    if let Some(b) = seal::sealed(raw) {
-        check(&b);
-    }
-});
+fuzz_raw_and_sealed!(check);
 
 fn check(data: &[u8]) {
     if let Ok(r) = CommandRepr::parse(data) {

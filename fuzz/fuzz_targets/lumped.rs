@@ -1,18 +1,12 @@
 //! Lumped frames of both kinds, through the owned parser and the in-place slot view.
 #![no_main]
 
-use libfuzzer_sys::fuzz_target;
-
 #[path = "seal.rs"]
+#[macro_use]
 mod seal;
 use ringsync_wire::{FeedbackSlot, Frame, LumpedOnlySlot, LumpedPayload, LumpedRepr, SlotCodec};
 
-fuzz_target!(|raw: &[u8]| {
-    check(raw);
-    if let Some(b) = seal::sealed(raw) {
-        check(&b);
-    }
-});
+fuzz_raw_and_sealed!(check);
 
 fn check(data: &[u8]) {
     let _ = LumpedRepr::<FeedbackSlot>::parse(data);

@@ -15,3 +15,16 @@ pub fn sealed(data: &[u8]) -> Option<Vec<u8>> {
     b[end..end + 4].copy_from_slice(&crc.to_le_bytes());
     Some(b)
 }
+
+/// Defines the fuzz target: `$check` runs on the raw input, then on its sealed copy.
+#[allow(unused_macros)] // the ethernet target seals its payload its own way
+macro_rules! fuzz_raw_and_sealed {
+    ($check:ident) => {
+        libfuzzer_sys::fuzz_target!(|raw: &[u8]| {
+            $check(raw);
+            if let Some(b) = seal::sealed(raw) {
+                $check(&b);
+            }
+        });
+    };
+}

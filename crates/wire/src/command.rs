@@ -11,7 +11,7 @@
 
 use crate::error::{Error, Result};
 use crate::field::{f32_at, finite, put_f32, put_u16, put_u64, u16_at, u64_at};
-use crate::header::{CRC_LEN, Common, FrameKind, HEADER_LEN, emit_common, parse_common};
+use crate::header::{CRC_LEN, Common, FrameKind, HEADER_LEN, emit_common, parse_fixed};
 
 /// Payload length of a command frame [B].
 pub const COMMAND_PAYLOAD_LEN: usize = 16;
@@ -34,14 +34,7 @@ pub struct CommandRepr {
 impl CommandRepr {
     /// Parses and checks a whole PDU (header, payload, CRC).
     pub fn parse(buf: &[u8]) -> Result<Self> {
-        let (common, p) = parse_common(buf, FrameKind::Command)?;
-        if p.len() != COMMAND_PAYLOAD_LEN {
-            return Err(Error::PayloadLength {
-                kind: FrameKind::Command,
-                expected: COMMAND_PAYLOAD_LEN,
-                got: p.len(),
-            });
-        }
+        let (common, p) = parse_fixed(buf, FrameKind::Command, COMMAND_PAYLOAD_LEN)?;
         let target = u16_at(p, 0);
         if target == 0 {
             return Err(Error::BadSlave(target));

@@ -311,6 +311,23 @@ pub(crate) fn parse_common(buf: &[u8], kind: FrameKind) -> Result<(Common, &[u8]
     Ok((common, &buf[HEADER_LEN..HEADER_LEN + len]))
 }
 
+/// [`parse_common`] for a kind whose payload has one fixed length.
+pub(crate) fn parse_fixed(
+    buf: &[u8],
+    kind: FrameKind,
+    payload_len: usize,
+) -> Result<(Common, &[u8])> {
+    let (common, p) = parse_common(buf, kind)?;
+    if p.len() != payload_len {
+        return Err(Error::PayloadLength {
+            kind,
+            expected: payload_len,
+            got: p.len(),
+        });
+    }
+    Ok((common, p))
+}
+
 /// Writes header (kind, common fields, payload length) into `buf`, lets `payload` fill the
 /// payload, then the CRC. `buf` must hold `HEADER_LEN + payload_len + CRC_LEN` bytes.
 pub(crate) fn emit_common(

@@ -16,7 +16,7 @@ use crate::error::{Error, Result};
 use crate::field::{
     f32_at, finite, i32_at, put_f32, put_i32, put_u16, put_u32, put_u64, u16_at, u32_at, u64_at,
 };
-use crate::header::{CRC_LEN, Common, FrameKind, HEADER_LEN, Status, emit_common, parse_common};
+use crate::header::{CRC_LEN, Common, FrameKind, HEADER_LEN, Status, emit_common, parse_fixed};
 
 /// Payload length of a response frame [B].
 pub const RESPONSE_PAYLOAD_LEN: usize = 28;
@@ -47,14 +47,7 @@ pub struct ResponseRepr {
 impl ResponseRepr {
     /// Parses and checks a whole PDU (header, payload, CRC).
     pub fn parse(buf: &[u8]) -> Result<Self> {
-        let (common, p) = parse_common(buf, FrameKind::Response)?;
-        if p.len() != RESPONSE_PAYLOAD_LEN {
-            return Err(Error::PayloadLength {
-                kind: FrameKind::Response,
-                expected: RESPONSE_PAYLOAD_LEN,
-                got: p.len(),
-            });
-        }
+        let (common, p) = parse_fixed(buf, FrameKind::Response, RESPONSE_PAYLOAD_LEN)?;
         let source = u16_at(p, 0);
         if source == 0 {
             return Err(Error::BadSlave(source));
