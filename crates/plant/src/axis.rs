@@ -132,12 +132,15 @@ impl TorqueAxis {
     /// The linear part as ẍ = g·u − a·ẋ: (a, g) = (b/J [1/s], K_a/J [rad/(s²·V)]); `None`
     /// when Coulomb friction makes the axis nonlinear.
     pub fn linear(&self) -> Option<(f64, f64)> {
-        (self.friction.coulomb == 0.0).then(|| {
-            (
-                self.friction.viscous / self.inertia,
-                self.torque_constant / self.inertia,
-            )
-        })
+        (self.friction.coulomb == 0.0).then(|| self.linear_part())
+    }
+
+    /// (a, g) of the axis without its Coulomb friction (and saturation).
+    pub fn linear_part(&self) -> (f64, f64) {
+        (
+            self.friction.viscous / self.inertia,
+            self.torque_constant / self.inertia,
+        )
     }
 }
 
@@ -316,6 +319,15 @@ impl AxisModel {
         match self {
             AxisModel::Torque(a) => a.linear(),
             AxisModel::Velocity(a) => Some(a.linear()),
+        }
+    }
+
+    /// (a, g) of the axis with Coulomb friction and saturation left out (the linearisation
+    /// used by the discrete-time stability check).
+    pub fn linear_part(&self) -> (f64, f64) {
+        match self {
+            AxisModel::Torque(a) => a.linear_part(),
+            AxisModel::Velocity(a) => a.linear(),
         }
     }
     /// H and C of this axis in the theory's units (SYSTEM.md 3.4): torque mode

@@ -1,0 +1,87 @@
+//! Errors of the control layer.
+
+/// A bad parameter or a call that does not fit the configuration.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ControlError {
+    /// A parameter outside its allowed range (NaN included).
+    #[error("{name} = {value} is invalid: expected {expected}")]
+    InvalidParameter {
+        /// Parameter name, e.g. `kp[2]` or `a_max`.
+        name: String,
+        /// The value given.
+        value: f64,
+        /// The allowed range, with units.
+        expected: &'static str,
+    },
+    /// Coupling needs at least `min` axes.
+    #[error("{what} needs at least {min} axes, got {n}")]
+    TooFewAxes {
+        /// What needs them.
+        what: &'static str,
+        /// Axes given.
+        n: usize,
+        /// Axes needed.
+        min: usize,
+    },
+    /// An axis index past the last axis.
+    #[error("axis {axis} does not exist: there are {n} axes (0-based)")]
+    AxisOutOfRange {
+        /// Index given.
+        axis: usize,
+        /// Number of axes.
+        n: usize,
+    },
+    /// A numerical method did not converge.
+    #[error("{what} did not converge")]
+    NoConvergence {
+        /// Which computation.
+        what: &'static str,
+    },
+    /// A slice or vector of the wrong length.
+    #[error("{what}: expected {expected} values, got {got}")]
+    LengthMismatch {
+        /// Which slice.
+        what: &'static str,
+        /// Length needed.
+        expected: usize,
+        /// Length given.
+        got: usize,
+    },
+}
+
+/// Checks that `value` is finite and ≥ `min` (or > `min` when `strict`).
+pub(crate) fn check(
+    name: &str,
+    value: f64,
+    min: f64,
+    strict: bool,
+    expected: &'static str,
+) -> Result<f64, ControlError> {
+    let ok = value.is_finite() && if strict { value > min } else { value >= min };
+    if ok {
+        Ok(value)
+    } else {
+        Err(ControlError::InvalidParameter {
+            name: name.to_string(),
+            value,
+            expected,
+        })
+    }
+}
+
+/// Checks a slice's length.
+pub(crate) fn check_len(
+    what: &'static str,
+    expected: usize,
+    got: usize,
+) -> Result<(), ControlError> {
+    if expected == got {
+        Ok(())
+    } else {
+        Err(ControlError::LengthMismatch {
+            what,
+            expected,
+            got,
+        })
+    }
+}

@@ -1,0 +1,284 @@
+//! Control laws behind one trait (SYSTEM.md sections 3.2-3.3).
+//!
+//! A law is a pure function of the error history and the cycle's inputs: it reads the
+//! latest samples (and their history, for its estimator), the desired states at the command
+//! application times (feed-forward) and those times, and writes one command per axis in
+//! volts, clipped to the drive's range. [`Controller`] owns the history and turns raw
+//! feedback into error samples.
+//!
+//! All laws are O(n) per cycle and allocate nothing after construction.
+
+mod pd;
+mod ring;
+mod sync;
+
+pub use pd::Pd;
+pub use ring::RingCoupled;
+pub use sync::{Sign, SyncController, SyncParams};
+
+use crate::error::{ControlError, check, check_len};
+use crate::estimator::ErrorHistory;
+use crate::trajectory::State;
+
+/// Per-axis gains (diagonal matrices as vectors) and drive limits. Gains are in volts:
+/// K_P [V/rad], K_D and K_E [V·s/rad], K_C [V·s/rad], K_H [V·s²/rad].
+#[derive(Debug, Clone, PartialEq)]
+pub struct Gains {
+    /// Proportional gain K_P [V/rad], > 0.
+    pub kp: Vec<f64>,
+    /// Derivative gain K_D [V·s/rad], > 0.
+    pub kd: Vec<f64>,
+    /// Velocity-error gain K_E of the sync controller [V·s/rad], ≥ 0.
+    pub ke: Vec<f64>,
+    /// Acceleration feed-forward K_H [V·s²/rad].
+    pub kh: Vec<f64>,
+    /// Velocity feed-forward K_C [V·s/rad].
+    pub kc: Vec<f64>,
+    /// Drive range ±u_max [V], > 0.
+    pub u_max: Vec<f64>,
+}
+
+impl Gains {
+    /// The same gains on every one of `n` axes, no feed-forward, ±10 V drives.
+    pub fn uniform(n: usize, kp: f64, kd: f64, ke: f64) -> Self {
+        Gains {
+            kp: vec![kp; n],
+            kd: vec![kd; n],
+            ke: vec![ke; n],
+            kh: vec![0.0; n],
+            kc: vec![0.0; n],
+            u_max: vec![10.0; n],
+        }
+    }
+
+    /// Number of axes.
+    pub fn axes(&self) -> usize {
+        self.kp.len()
+    }
+
+    /// Checks lengths and ranges; the error names the gain and axis, e.g. `kd[2]`.
+    pub fn validate(&self) -> Result<(), ControlError> {
+        let n = self.kp.len();
+        for (what, v) in [
+            ("kd", &self.kd),
+            ("ke", &self.ke),
+            ("kh", &self.kh),
+            ("kc", &self.kc),
+            ("u_max", &self.u_max),
+        ] {
+            check_len(what, n, v.len())?;
+        }
+        for i in 0..n {
+            check(&format!("kp[{i}]"), self.kp[i], 0.0, true, "> 0 V/rad")?;
+            check(&format!("kd[{i}]"), self.kd[i], 0.0, true, "> 0 V·s/rad")?;
+            check(&format!("ke[{i}]"), self.ke[i], 0.0, false, ">= 0 V·s/rad")?;
+            check(
+                &format!("kh[{i}]"),
+                self.kh[i],
+                f64::MIN,
+                false,
+                "a finite gain in V·s²/rad",
+            )?;
+            check(
+                &format!("kc[{i}]"),
+                self.kc[i],
+                f64::MIN,
+                false,
+                "a finite gain in V·s/rad",
+            )?;
+            check(&format!("u_max[{i}]"), self.u_max[i], 0.0, true, "> 0 V")?;
+        }
+        Ok(())
+    }
+
+    /// Feed-forward K_H·ẍ^d + K_C·ẋ^d of axis `i` [V].
+    #[inline]
+    pub(crate) fn feed_forward(&self, i: usize, d: &State) -> f64 {
+        self.kh[i] * d.a + self.kc[i] * d.v
+    }
+}
+
+/// What a law needs besides the error history, for one cycle.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ControlInput {
+    /// Desired state of each axis at its command's application time (for feed-forward).
+    pub desired: Vec<State>,
+    /// When each axis's command takes effect [s], on the clock of the sample times.
+    pub apply_time: Vec<f64>,
+    /// Cycle time T_cyc [s]: the spacing of the samples in the history.
+    pub t_cyc: f64,
+}
+
+impl ControlInput {
+    /// Inputs for `n` axes: at rest, applied at t = 0, cycle `t_cyc` [s].
+    pub fn new(n: usize, t_cyc: f64) -> Self {
+        ControlInput {
+            desired: vec![State::default(); n],
+            apply_time: vec![0.0; n],
+            t_cyc,
+        }
+    }
+
+    pub(crate) fn check(&self, n: usize) -> Result<(), ControlError> {
+        check_len("desired states", n, self.desired.len())?;
+        check_len("apply times", n, self.apply_time.len())?;
+        check("t_cyc", self.t_cyc, 0.0, true, "> 0 s")?;
+        Ok(())
+    }
+}
+
+/// The commands of one cycle.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ControlOutput {
+    /// Command per axis after clipping to ±u_max [V].
+    pub u: Vec<f64>,
+    /// The command before clipping [V].
+    pub u_raw: Vec<f64>,
+    /// Whether the command was clipped.
+    pub saturated: Vec<bool>,
+}
+
+impl ControlOutput {
+    /// Zero commands for `n` axes.
+    pub fn new(n: usize) -> Self {
+        ControlOutput {
+            u: vec![0.0; n],
+            u_raw: vec![0.0; n],
+            saturated: vec![false; n],
+        }
+    }
+
+    /// Stores the raw command of axis `i` and its clipped value.
+    #[inline]
+    pub(crate) fn set(&mut self, i: usize, raw: f64, u_max: f64) {
+        let (u, sat) = ringsync_plant::saturate(raw, u_max);
+        self.u_raw[i] = raw;
+        self.u[i] = u;
+        self.saturated[i] = sat;
+    }
+
+    pub(crate) fn check(&self, n: usize) -> Result<(), ControlError> {
+        check_len("commands", n, self.u.len())?;
+        check_len("raw commands", n, self.u_raw.len())?;
+        check_len("saturation flags", n, self.saturated.len())
+    }
+}
+
+/// A control law: commands from the error history (newest sample first) and the cycle's
+/// inputs.
+pub trait ControlLaw {
+    /// Short name used in outputs: `pd`, `sync` or `ring-coupled`.
+    fn name(&self) -> &'static str;
+    /// Number of axes.
+    fn axes(&self) -> usize;
+    /// Computes this cycle's commands. Pure: the same history and input give the same
+    /// output.
+    fn compute(
+        &self,
+        history: &ErrorHistory,
+        input: &ControlInput,
+        out: &mut ControlOutput,
+    ) -> Result<(), ControlError>;
+}
+
+/// Where the velocity error ė comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum VelocitySource {
+    /// ė = ẋ^d − v with the velocity the slave reports.
+    Reported,
+    /// ė = (e[m] − e[m−1]) / (t_m − t_{m−1}) from successive position samples (0 for the
+    /// first sample).
+    Differenced,
+}
+
+/// Feedback of one cycle: the latest sample of every axis.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Feedback {
+    /// Measured position [rad].
+    pub position: Vec<f64>,
+    /// Measured velocity [rad/s] (used with [`VelocitySource::Reported`]).
+    pub velocity: Vec<f64>,
+    /// Sampling instant [s].
+    pub sample_time: Vec<f64>,
+    /// Desired state at the sampling instant.
+    pub desired: Vec<State>,
+    /// Whether this cycle brought a new sample of the axis (false: keep the old one).
+    pub fresh: Vec<bool>,
+}
+
+impl Feedback {
+    /// Feedback for `n` axes, all zero and fresh.
+    pub fn new(n: usize) -> Self {
+        Feedback {
+            position: vec![0.0; n],
+            velocity: vec![0.0; n],
+            sample_time: vec![0.0; n],
+            desired: vec![State::default(); n],
+            fresh: vec![true; n],
+        }
+    }
+}
+
+/// A law with its error history: feed it each cycle's feedback, get the commands.
+#[derive(Debug, Clone)]
+pub struct Controller<L> {
+    /// The law.
+    pub law: L,
+    /// Error samples so far.
+    pub history: ErrorHistory,
+    /// Where ė comes from.
+    pub velocity: VelocitySource,
+}
+
+impl<L: ControlLaw> Controller<L> {
+    /// A controller with an empty history.
+    pub fn new(law: L, velocity: VelocitySource) -> Self {
+        let n = law.axes();
+        Controller {
+            law,
+            history: ErrorHistory::new(n),
+            velocity,
+        }
+    }
+
+    /// Takes this cycle's fresh samples into the history, then computes the commands.
+    pub fn update(
+        &mut self,
+        fb: &Feedback,
+        input: &ControlInput,
+        out: &mut ControlOutput,
+    ) -> Result<(), ControlError> {
+        let n = self.law.axes();
+        for (what, len) in [
+            ("positions", fb.position.len()),
+            ("velocities", fb.velocity.len()),
+            ("sample times", fb.sample_time.len()),
+            ("desired states at sampling", fb.desired.len()),
+            ("fresh flags", fb.fresh.len()),
+        ] {
+            check_len(what, n, len)?;
+        }
+        for i in 0..n {
+            if !fb.fresh[i] {
+                continue;
+            }
+            let e = fb.desired[i].x - fb.position[i];
+            let de = match self.velocity {
+                VelocitySource::Reported => fb.desired[i].v - fb.velocity[i],
+                VelocitySource::Differenced => {
+                    let dt = fb.sample_time[i] - self.history.t[i];
+                    if self.history.count[i] > 0 && dt > 0.0 {
+                        (e - self.history.e[i][0]) / dt
+                    } else {
+                        0.0
+                    }
+                }
+            };
+            self.history.push(i, e, de, fb.sample_time[i])?;
+        }
+        self.law.compute(&self.history, input, out)
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,54 @@
+//! Standard PD, the paper's baseline: u = K_P·e + K_D·ė, each axis on its own latest sample,
+//! with optional feed-forward K_H·ẍ^d + K_C·ẋ^d.
+
+use super::{ControlInput, ControlLaw, ControlOutput, Gains};
+use crate::error::ControlError;
+use crate::estimator::ErrorHistory;
+
+/// The standard PD controller.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Pd {
+    gains: Gains,
+    feed_forward: bool,
+}
+
+impl Pd {
+    /// A checked PD law; with `feed_forward` the K_H and K_C terms are added.
+    pub fn new(gains: Gains, feed_forward: bool) -> Result<Self, ControlError> {
+        gains.validate()?;
+        Ok(Pd {
+            gains,
+            feed_forward,
+        })
+    }
+}
+
+impl ControlLaw for Pd {
+    fn name(&self) -> &'static str {
+        "pd"
+    }
+    fn axes(&self) -> usize {
+        self.gains.axes()
+    }
+    fn compute(
+        &self,
+        h: &ErrorHistory,
+        input: &ControlInput,
+        out: &mut ControlOutput,
+    ) -> Result<(), ControlError> {
+        let n = self.axes();
+        input.check(n)?;
+        out.check(n)?;
+        let g = &self.gains;
+        for i in 0..n {
+            let ff = if self.feed_forward {
+                g.feed_forward(i, &input.desired[i])
+            } else {
+                0.0
+            };
+            let raw = ff + g.kp[i] * h.e[i][0] + g.kd[i] * h.de[i][0];
+            out.set(i, raw, g.u_max[i]);
+        }
+        Ok(())
+    }
+}

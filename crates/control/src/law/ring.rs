@@ -1,0 +1,84 @@
+//! A ring-coupled cross-coupled controller in the style of Sun et al. (2007), the
+//! literature baseline: each axis is coupled to its two ring neighbours only,
+//!
+//! ```text
+//! E_k = e_k + α·(2·e_k − e'_{k−1} − e'_{k+1}),   i.e. E = (I + αL)·e with the ring Laplacian L
+//! u_k = K_H,k·ẍ^d_k + K_C,k·ẋ^d_k + K_P,k·E_k + K_D,k·Ė_k
+//! ```
+//!
+//! (indices modulo n; Ė likewise from ė). The neighbours' samples are extrapolated to this
+//! axis's application time by the same estimator as the sync controller. This is the
+//! adjacent-coupling structure of Sun's ring approach as commonly restated; the original
+//! paper's exact law was not available to check it against.
+
+use super::{ControlInput, ControlLaw, ControlOutput, Gains};
+use crate::error::{ControlError, check};
+use crate::estimator::{ErrorHistory, EstimatorKind};
+
+/// The ring-coupled controller.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RingCoupled {
+    gains: Gains,
+    alpha: f64,
+    estimator: EstimatorKind,
+}
+
+impl RingCoupled {
+    /// A checked controller: n ≥ 2, α ≥ 0.
+    pub fn new(gains: Gains, alpha: f64, estimator: EstimatorKind) -> Result<Self, ControlError> {
+        gains.validate()?;
+        if gains.axes() < 2 {
+            return Err(ControlError::TooFewAxes {
+                what: "ring coupling",
+                n: gains.axes(),
+                min: 2,
+            });
+        }
+        check("alpha", alpha, 0.0, false, ">= 0 (dimensionless)")?;
+        Ok(RingCoupled {
+            gains,
+            alpha,
+            estimator,
+        })
+    }
+}
+
+impl ControlLaw for RingCoupled {
+    fn name(&self) -> &'static str {
+        "ring-coupled"
+    }
+    fn axes(&self) -> usize {
+        self.gains.axes()
+    }
+    fn compute(
+        &self,
+        h: &ErrorHistory,
+        input: &ControlInput,
+        out: &mut ControlOutput,
+    ) -> Result<(), ControlError> {
+        let n = self.axes();
+        input.check(n)?;
+        out.check(n)?;
+        let g = &self.gains;
+        let est = self.estimator;
+        let a = self.alpha;
+        // Neighbour j's sample extrapolated to axis k's application time.
+        let ahead = |j: usize, k: usize| {
+            let d = (input.apply_time[k] - h.t[j]) / input.t_cyc;
+            (
+                est.estimate(&h.e[j], h.count[j], d),
+                est.estimate(&h.de[j], h.count[j], d),
+            )
+        };
+        for k in 0..n {
+            let (pe, pde) = ahead((k + n - 1) % n, k);
+            let (ne, nde) = ahead((k + 1) % n, k);
+            let (e0, de0) = (h.e[k][0], h.de[k][0]);
+            let big_e = e0 + a * (2.0 * e0 - pe - ne);
+            let big_de = de0 + a * (2.0 * de0 - pde - nde);
+            let raw = g.feed_forward(k, &input.desired[k]) + g.kp[k] * big_e + g.kd[k] * big_de;
+            out.set(k, raw, g.u_max[k]);
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,371 @@
+use nalgebra::DMatrix;
+use proptest::prelude::*;
+
+use super::*;
+use crate::coupling::Coupling;
+use crate::estimator::{DEPTH, EstimatorKind};
+
+/// A random cycle: history, inputs and gains for n axes.
+#[derive(Debug, Clone)]
+struct Case {
+    hist: ErrorHistory,
+    input: ControlInput,
+    gains: Gains,
+    params: SyncParams,
+}
+
+fn case() -> impl Strategy<Value = Case> {
+    (2usize..10).prop_flat_map(|n| {
+        (
+            prop::collection::vec(
+                (
+                    prop::array::uniform4(-1.0f64..1.0),
+                    prop::array::uniform4(-5.0f64..5.0),
+                    1usize..=DEPTH,
+                    -0.003f64..0.0,
+                ),
+                n,
+            ),
+            prop::collection::vec(
+                (
+                    0.0f64..0.002,
+                    -2.0f64..2.0,
+                    -20.0f64..20.0,
+                    -100.0f64..100.0,
+                ),
+                n,
+            ),
+            prop::collection::vec(
+                (
+                    0.1f64..10.0,
+                    0.1f64..5.0,
+                    0.0f64..2.0,
+                    -0.1f64..0.1,
+                    -0.5f64..0.5,
+                ),
+                n,
+            ),
+            (
+                0.0f64..3.0,
+                0.0f64..0.01,
+                0.0f64..0.1,
+                prop_oneof![
+                    Just(EstimatorKind::Hold),
+                    Just(EstimatorKind::Linear),
+                    Just(EstimatorKind::Paper)
+                ],
+                any::<bool>(),
+                prop_oneof![
+                    Just(Sign::Exact),
+                    (0.01f64..1.0).prop_map(Sign::BoundaryLayer)
+                ],
+                100.0f64..5000.0,
+            ),
+        )
+            .prop_map(
+                move |(h, inp, g, (alpha, dh, dc, estimator, own, sign, t0))| {
+                    let mut hist = ErrorHistory::new(n);
+                    let mut input = ControlInput::new(n, 1e-3);
+                    let mut gains = Gains::uniform(n, 1.0, 1.0, 0.0);
+                    for i in 0..n {
+                        hist.e[i] = h[i].0;
+                        hist.de[i] = h[i].1;
+                        hist.count[i] = h[i].2;
+                        hist.t[i] = t0 + h[i].3;
+                        input.apply_time[i] = t0 + inp[i].0;
+                        input.desired[i] = State {
+                            x: inp[i].1,
+                            v: inp[i].2,
+                            a: inp[i].3,
+                        };
+                        gains.kp[i] = g[i].0;
+                        gains.kd[i] = g[i].1;
+                        gains.ke[i] = g[i].2;
+                        gains.kh[i] = g[i].3;
+                        gains.kc[i] = g[i].4;
+                        gains.u_max[i] = 1e6;
+                    }
+                    let params = SyncParams {
+                        alpha,
+                        delta_h: dh,
+                        delta_c: dc,
+                        sign,
+                        estimator,
+                        extrapolate_own: own,
+                    };
+                    Case {
+                        hist,
+                        input,
+                        gains,
+                        params,
+                    }
+                },
+            )
+    })
+}
+
+/// Eq. 14 term by term, O(n²), with (I + αT)⁻¹ from an explicit matrix inverse.
+fn naive_sync(c: &Case) -> Vec<f64> {
+    let (h, inp, g, p) = (&c.hist, &c.input, &c.gains, &c.params);
+    let n = h.axes();
+    let t = inp.t_cyc;
+    let est = p.estimator;
+    let kk = 1.0 / (n - 1) as f64;
+    let m = DMatrix::from_fn(
+        n,
+        n,
+        |i, j| if i == j { 1.0 + p.alpha } else { -p.alpha * kk },
+    );
+    let inv = m.try_inverse().expect("I + αT is invertible");
+    let w = DMatrix::from_fn(n, 1, |i, _| g.ke[i] * h.de[i][0]);
+    let inv_term = inv * w;
+    let na = inp.desired.iter().map(|d| d.a * d.a).sum::<f64>().sqrt();
+    let nv = inp.desired.iter().map(|d| d.v * d.v).sum::<f64>().sqrt();
+    let kn = p.delta_h * na + p.delta_c * nv;
+    (0..n)
+        .map(|k| {
+            let mut others_e = 0.0;
+            let mut others_de = 0.0;
+            for j in (0..n).filter(|&j| j != k) {
+                let d = (inp.apply_time[k] - h.t[j]) / t;
+                others_e += est.estimate(&h.e[j], h.count[j], d);
+                others_de += est.estimate(&h.de[j], h.count[j], d);
+            }
+            let d_own = (inp.apply_time[k] - h.t[k]) / t;
+            let (own_e, own_de) = if p.extrapolate_own {
+                (
+                    est.estimate(&h.e[k], h.count[k], d_own),
+                    est.estimate(&h.de[k], h.count[k], d_own),
+                )
+            } else {
+                (h.e[k][0], h.de[k][0])
+            };
+            let big_e = (1.0 + p.alpha) * own_e - p.alpha * kk * others_e;
+            let big_de = (1.0 + p.alpha) * own_de - p.alpha * kk * others_de;
+            let sgn = match p.sign {
+                _ if kn == 0.0 => 0.0,
+                Sign::Exact => {
+                    if big_de > 0.0 {
+                        1.0
+                    } else if big_de < 0.0 {
+                        -1.0
+                    } else {
+                        0.0
+                    }
+                }
+                Sign::BoundaryLayer(phi) => (big_de / phi).clamp(-1.0, 1.0),
+            };
+            let d = &inp.desired[k];
+            g.kh[k] * d.a
+                + g.kc[k] * d.v
+                + g.kp[k] * big_e
+                + g.kd[k] * big_de
+                + inv_term[(k, 0)]
+                + kn * sgn
+        })
+        .collect()
+}
+
+proptest! {
+    /// The O(n) implementation equals eq. 14 written out term by term.
+    #[test]
+    fn sync_controller_matches_naive_eq14(c in case()) {
+        let law = SyncController::new(c.gains.clone(), c.params).expect("law");
+        let mut out = ControlOutput::new(c.hist.axes());
+        law.compute(&c.hist, &c.input, &mut out).expect("compute");
+        let want = naive_sync(&c);
+        for (got, want) in out.u_raw.iter().zip(&want) {
+            prop_assert!((got - want).abs() <= 1e-9 * (1.0 + want.abs()), "{got} vs {want}");
+        }
+    }
+}
+
+/// With the Hold estimator the sync law is eq. 9: K_P·E + K_D·Ė + (I + αT)⁻¹·K_E·ė with
+/// E = (I + αT)·e.
+#[test]
+fn hold_estimator_gives_eq9() {
+    let n = 4;
+    let mut hist = ErrorHistory::new(n);
+    let e = [0.1, -0.2, 0.05, 0.3];
+    let de = [1.0, 0.5, -0.7, 0.0];
+    for i in 0..n {
+        hist.push(i, e[i], de[i], 1.0).expect("push");
+    }
+    let mut input = ControlInput::new(n, 1e-3);
+    input.apply_time = vec![1.00013, 1.000145, 1.00016, 1.000175];
+    let gains = Gains::uniform(n, 3.182, 1.591, 0.75);
+    let params = SyncParams {
+        estimator: EstimatorKind::Hold,
+        ..SyncParams::reference()
+    };
+    let law = SyncController::new(gains, params).expect("law");
+    let mut out = ControlOutput::new(n);
+    law.compute(&hist, &input, &mut out).expect("compute");
+    let c = Coupling::new(n, 0.5).expect("coupling");
+    let (mut big_e, mut big_de, mut inv) = ([0.0; 4], [0.0; 4], [0.0; 4]);
+    c.coupled(&e, &mut big_e).expect("E");
+    c.coupled(&de, &mut big_de).expect("Ė");
+    c.inverse(&de.map(|x| 0.75 * x), &mut inv).expect("inverse");
+    for k in 0..n {
+        let want = 3.182 * big_e[k] + 1.591 * big_de[k] + inv[k];
+        assert!((out.u[k] - want).abs() < 1e-12, "{} vs {want}", out.u[k]);
+    }
+}
+
+/// With α = 0 and K_E = 0 the sync law is standard PD.
+#[test]
+fn sync_without_coupling_is_pd() {
+    let n = 3;
+    let mut hist = ErrorHistory::new(n);
+    for i in 0..n {
+        hist.push(i, 0.1 * i as f64, -0.3, 0.0).expect("push");
+    }
+    let input = ControlInput::new(n, 1e-3);
+    let gains = Gains::uniform(n, 2.0, 0.5, 0.0);
+    let sync = SyncController::new(
+        gains.clone(),
+        SyncParams {
+            alpha: 0.0,
+            ..SyncParams::reference()
+        },
+    )
+    .expect("sync");
+    let pd = Pd::new(gains, false).expect("pd");
+    let (mut a, mut b) = (ControlOutput::new(n), ControlOutput::new(n));
+    sync.compute(&hist, &input, &mut a).expect("sync");
+    pd.compute(&hist, &input, &mut b).expect("pd");
+    assert_eq!(a.u, b.u);
+    assert!((b.u[2] - (2.0 * 0.2 + 0.5 * -0.3)).abs() < 1e-15);
+}
+
+#[test]
+fn pd_feed_forward_and_saturation() {
+    let mut hist = ErrorHistory::new(2);
+    hist.push(0, 1.0, 0.0, 0.0).expect("push");
+    hist.push(1, 10.0, 0.0, 0.0).expect("push");
+    let mut input = ControlInput::new(2, 1e-3);
+    input.desired[0] = State {
+        x: 0.0,
+        v: 2.0,
+        a: 4.0,
+    };
+    let mut gains = Gains::uniform(2, 3.0, 1.0, 0.0);
+    gains.kh = vec![0.5; 2];
+    gains.kc = vec![0.25; 2];
+    let mut out = ControlOutput::new(2);
+    Pd::new(gains.clone(), true)
+        .expect("pd")
+        .compute(&hist, &input, &mut out)
+        .expect("compute");
+    assert!((out.u[0] - (3.0 + 0.5 * 4.0 + 0.25 * 2.0)).abs() < 1e-15);
+    assert_eq!(
+        (out.u[1], out.u_raw[1], out.saturated[1]),
+        (10.0, 30.0, true)
+    );
+    Pd::new(gains, false)
+        .expect("pd")
+        .compute(&hist, &input, &mut out)
+        .expect("compute");
+    assert_eq!(out.u[0], 3.0);
+}
+
+#[test]
+fn ring_law_with_hold_is_the_laplacian() {
+    let n = 5;
+    let mut hist = ErrorHistory::new(n);
+    let e = [0.3, -0.1, 0.2, 0.0, 0.4];
+    for (i, &ei) in e.iter().enumerate() {
+        hist.push(i, ei, 0.0, 0.0).expect("push");
+    }
+    let law =
+        RingCoupled::new(Gains::uniform(n, 2.0, 1.0, 0.0), 0.5, EstimatorKind::Hold).expect("ring");
+    let mut out = ControlOutput::new(n);
+    law.compute(&hist, &ControlInput::new(n, 1e-3), &mut out)
+        .expect("compute");
+    let mut big = [0.0; 5];
+    crate::coupling::ring_coupled(&e, 0.5, &mut big).expect("ring");
+    for (u, b) in out.u.iter().zip(big) {
+        assert!((u - 2.0 * b).abs() < 1e-15);
+    }
+}
+
+#[test]
+fn controller_builds_errors_from_feedback() {
+    let n = 2;
+    let law = Pd::new(Gains::uniform(n, 1.0, 1.0, 0.0), false).expect("pd");
+    let mut c = Controller::new(law, VelocitySource::Differenced);
+    let mut fb = Feedback::new(n);
+    let input = ControlInput::new(n, 1e-3);
+    let mut out = ControlOutput::new(n);
+    // Axis 0 lags a ramp x^d = 2t by 0.01 + 0.5·t: e grows at 0.5 rad/s.
+    for m in 0..5 {
+        let t = m as f64 * 1e-3;
+        fb.sample_time = vec![t; n];
+        fb.desired[0] = State {
+            x: 2.0 * t,
+            v: 2.0,
+            a: 0.0,
+        };
+        fb.position[0] = 2.0 * t - 0.01 - 0.5 * t;
+        c.update(&fb, &input, &mut out).expect("update");
+    }
+    assert!((c.history.e[0][0] - (0.01 + 0.5 * 4e-3)).abs() < 1e-15);
+    assert!((c.history.de[0][0] - 0.5).abs() < 1e-9);
+    // A stale sample is not pushed again.
+    fb.fresh[0] = false;
+    c.update(&fb, &input, &mut out).expect("update");
+    assert_eq!(c.history.count[0], 4);
+    assert!((c.history.e[0][1] - (0.01 + 0.5 * 3e-3)).abs() < 1e-15);
+}
+
+#[test]
+fn bad_configurations_are_named() {
+    let name = |e: ControlError| match e {
+        ControlError::InvalidParameter { name, .. } => name,
+        other => panic!("{other:?}"),
+    };
+    assert!(matches!(
+        SyncController::new(Gains::uniform(1, 1.0, 1.0, 1.0), SyncParams::reference()),
+        Err(ControlError::TooFewAxes { n: 1, min: 2, .. })
+    ));
+    assert!(matches!(
+        RingCoupled::new(Gains::uniform(1, 1.0, 1.0, 1.0), 0.5, EstimatorKind::Hold),
+        Err(ControlError::TooFewAxes { .. })
+    ));
+    let mut g = Gains::uniform(3, 1.0, 1.0, 1.0);
+    g.kp[2] = f64::NAN;
+    assert_eq!(name(Pd::new(g, false).expect_err("nan")), "kp[2]");
+    let mut g = Gains::uniform(3, 1.0, 1.0, 1.0);
+    g.kd[1] = -1.0;
+    assert_eq!(name(Pd::new(g, false).expect_err("neg")), "kd[1]");
+    let bad = SyncParams {
+        sign: Sign::BoundaryLayer(0.0),
+        ..SyncParams::reference()
+    };
+    assert_eq!(
+        name(SyncController::new(Gains::uniform(3, 1.0, 1.0, 1.0), bad).expect_err("phi")),
+        "boundary_layer"
+    );
+    let bad = SyncParams {
+        alpha: -1.0,
+        ..SyncParams::reference()
+    };
+    assert_eq!(
+        name(SyncController::new(Gains::uniform(3, 1.0, 1.0, 1.0), bad).expect_err("alpha")),
+        "alpha"
+    );
+    let mut g = Gains::uniform(3, 1.0, 1.0, 1.0);
+    g.ke.pop();
+    assert!(matches!(
+        Pd::new(g, false),
+        Err(ControlError::LengthMismatch { what: "ke", .. })
+    ));
+    // Mismatched input at compute time is an error, not a panic.
+    let law = Pd::new(Gains::uniform(3, 1.0, 1.0, 1.0), false).expect("pd");
+    let r = law.compute(
+        &ErrorHistory::new(3),
+        &ControlInput::new(2, 1e-3),
+        &mut ControlOutput::new(3),
+    );
+    assert!(matches!(r, Err(ControlError::LengthMismatch { .. })));
+}

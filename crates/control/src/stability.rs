@@ -1,0 +1,249 @@
+//! Stability analysis (SYSTEM.md section 3.4).
+//!
+//! **Continuous-time conditions of the paper**, evaluated numerically along a trajectory
+//! (x = x^d, ẋ = ẋ^d) in the controller's units (H in V·s²/rad, C in V·s/rad):
+//!
+//! 1. λ_min(K_E) ≥ ‖α·T·(½Ḣ − C)‖: the paper bounds the right side by c₁‖x‖ + c₂‖ẋ‖; here
+//!    it is evaluated at each point, and the margin is λ_min(K_E) minus its largest value;
+//! 2. Δ_H ≥ ‖K_H − H(x)‖ and Δ_C ≥ ‖K_C − C(x, ẋ)‖.
+//!
+//! Norms are spectral norms (largest singular value). The continuous argument says nothing
+//! about a given T_cyc, so beside it stands:
+//!
+//! **The discrete-time check**: the spectral radius of the sampled closed loop of linear
+//! axes (ẍ = g·u − a·ẋ; Coulomb friction and saturation left out) with each axis's
+//! sample-to-actuation delay, regulating to a final position (x^d = 0, ẋ^d = 0, so K_N = 0
+//! and the loop is linear). The state per axis is x, ẋ, the command still held, and the three
+//! previous samples of e and ė that the estimators read: 9n states. The loop matrix is built
+//! column by column by running the law's own `compute` on unit states, so what is checked is
+//! exactly the code that runs. Velocity feedback is the reported (exact) velocity.
+
+use nalgebra::DMatrix;
+use nalgebra::linalg::{SVD, Schur};
+use ringsync_plant::{Discretised, Dynamics};
+
+use crate::error::{ControlError, check, check_len};
+use crate::estimator::ErrorHistory;
+use crate::law::{ControlInput, ControlLaw, ControlOutput, Gains};
+use crate::trajectory::Trajectory;
+
+/// What the continuous-time conditions give along a trajectory.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ContinuousReport {
+    /// Points evaluated.
+    pub points: usize,
+    /// λ_min(K_E) [V·s/rad].
+    pub lambda_min_ke: f64,
+    /// Largest ‖α·T·(½Ḣ − C)‖ along the trajectory [V·s/rad].
+    pub cond1_bound: f64,
+    /// Time of that largest value [s].
+    pub cond1_worst_time: f64,
+    /// λ_min(K_E) − the largest bound; ≥ 0 when condition 1 holds.
+    pub cond1_margin: f64,
+    /// Largest ‖K_H − H(x)‖ [V·s²/rad].
+    pub cond2_h_norm: f64,
+    /// Δ_H minus it; ≥ 0 when the H part of condition 2 holds.
+    pub cond2_h_margin: f64,
+    /// Largest ‖K_C − C(x, ẋ)‖ [V·s/rad].
+    pub cond2_c_norm: f64,
+    /// Δ_C minus it; ≥ 0 when the C part of condition 2 holds.
+    pub cond2_c_margin: f64,
+}
+
+impl ContinuousReport {
+    /// Condition 1 holds along the trajectory.
+    pub fn condition1_holds(&self) -> bool {
+        self.cond1_margin >= 0.0
+    }
+    /// Condition 2 holds along the trajectory.
+    pub fn condition2_holds(&self) -> bool {
+        self.cond2_h_margin >= 0.0 && self.cond2_c_margin >= 0.0
+    }
+}
+
+fn spectral_norm(m: DMatrix<f64>) -> Result<f64, ControlError> {
+    let svd = SVD::try_new(m, false, false, 1e-14, 10_000).ok_or(ControlError::NoConvergence {
+        what: "singular value decomposition",
+    })?;
+    Ok(svd.singular_values.iter().copied().fold(0.0, f64::max))
+}
+
+/// Evaluates conditions 1 and 2 at `points` evenly spaced instants of [0, `t_end`] s along
+/// the axes' desired trajectories. `gains` gives K_E, K_H, K_C; `alpha`, `delta_h`,
+/// `delta_c` as in [`crate::law::SyncParams`].
+pub fn continuous_conditions<D: Dynamics + ?Sized, T: Trajectory>(
+    dynamics: &D,
+    trajectories: &[T],
+    gains: &Gains,
+    (alpha, delta_h, delta_c): (f64, f64, f64),
+    t_end: f64,
+    points: usize,
+) -> Result<ContinuousReport, ControlError> {
+    let n = dynamics.dof();
+    if n < 2 {
+        return Err(ControlError::TooFewAxes {
+            what: "the stability conditions",
+            n,
+            min: 2,
+        });
+    }
+    check_len("trajectories", n, trajectories.len())?;
+    check_len("gains", n, gains.axes())?;
+    gains.validate()?;
+    check("alpha", alpha, 0.0, false, ">= 0")?;
+    check("t_end", t_end, 0.0, false, ">= 0 s")?;
+    let points = points.max(1);
+    let k = 1.0 / (n - 1) as f64;
+    let t_mat = DMatrix::from_fn(n, n, |i, j| if i == j { 1.0 } else { -k });
+    let (mut x, mut v) = (vec![0.0; n], vec![0.0; n]);
+    let (mut h, mut c, mut hd) = (vec![0.0; n * n], vec![0.0; n * n], vec![0.0; n * n]);
+    let mut r = ContinuousReport {
+        points,
+        lambda_min_ke: gains.ke.iter().copied().fold(f64::INFINITY, f64::min),
+        cond1_bound: 0.0,
+        cond1_worst_time: 0.0,
+        cond1_margin: 0.0,
+        cond2_h_norm: 0.0,
+        cond2_h_margin: 0.0,
+        cond2_c_norm: 0.0,
+        cond2_c_margin: 0.0,
+    };
+    for p in 0..points {
+        let t = if points == 1 {
+            0.0
+        } else {
+            t_end * p as f64 / (points - 1) as f64
+        };
+        for (i, tr) in trajectories.iter().enumerate() {
+            let s = tr.at(t);
+            x[i] = s.x;
+            v[i] = s.v;
+        }
+        dynamics.inertia(&x, &mut h);
+        dynamics.coriolis(&x, &v, &mut c);
+        dynamics.inertia_rate(&x, &v, &mut hd);
+        let inner = DMatrix::from_fn(n, n, |i, j| 0.5 * hd[i * n + j] - c[i * n + j]);
+        let bound = spectral_norm(&t_mat * inner * alpha)?;
+        if bound > r.cond1_bound {
+            r.cond1_bound = bound;
+            r.cond1_worst_time = t;
+        }
+        let kh_h = DMatrix::from_fn(
+            n,
+            n,
+            |i, j| if i == j { gains.kh[i] } else { 0.0 } - h[i * n + j],
+        );
+        let kc_c = DMatrix::from_fn(
+            n,
+            n,
+            |i, j| if i == j { gains.kc[i] } else { 0.0 } - c[i * n + j],
+        );
+        r.cond2_h_norm = r.cond2_h_norm.max(spectral_norm(kh_h)?);
+        r.cond2_c_norm = r.cond2_c_norm.max(spectral_norm(kc_c)?);
+    }
+    r.cond1_margin = r.lambda_min_ke - r.cond1_bound;
+    r.cond2_h_margin = delta_h - r.cond2_h_norm;
+    r.cond2_c_margin = delta_c - r.cond2_c_norm;
+    Ok(r)
+}
+
+/// The discrete-time check's result.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DiscreteReport {
+    /// Spectral radius of the closed-loop matrix.
+    pub spectral_radius: f64,
+    /// Size of the closed-loop state (9 per axis).
+    pub states: usize,
+}
+
+impl DiscreteReport {
+    /// Asymptotically stable: spectral radius < 1.
+    pub fn is_stable(&self) -> bool {
+        self.spectral_radius < 1.0
+    }
+}
+
+/// States per axis in the discrete-time check.
+const PER_AXIS: usize = 9;
+
+/// The spectral radius of the sampled closed loop of `law` on linear axes `(a, g)`
+/// (ẍ = g·u − a·ẋ, see [`ringsync_plant::AxisModel::linear_part`]), period `t_cyc` [s], and
+/// per-axis sample-to-actuation delays `delays` [s] (0 ≤ delay ≤ T_cyc). All axes sample at
+/// the same instant.
+pub fn discrete_check(
+    law: &dyn ControlLaw,
+    axes: &[(f64, f64)],
+    t_cyc: f64,
+    delays: &[f64],
+) -> Result<DiscreteReport, ControlError> {
+    let n = law.axes();
+    check_len("axes", n, axes.len())?;
+    check_len("delays", n, delays.len())?;
+    check("t_cyc", t_cyc, 0.0, true, "> 0 s")?;
+    let mut disc = Vec::with_capacity(n);
+    for (i, (&(a, g), &d)) in axes.iter().zip(delays).enumerate() {
+        check(&format!("axes[{i}].a"), a, 0.0, false, ">= 0 1/s")?;
+        check(&format!("axes[{i}].g"), g, 0.0, true, "> 0 rad/(s²·V)")?;
+        disc.push(Discretised::new(a, g, t_cyc, d).ok_or_else(|| {
+            ControlError::InvalidParameter {
+                name: format!("delays[{i}]"),
+                value: d,
+                expected: "0 <= delay <= t_cyc",
+            }
+        })?);
+    }
+    let dim = PER_AXIS * n;
+    let mut m = DMatrix::<f64>::zeros(dim, dim);
+    let mut hist = ErrorHistory::new(n);
+    let mut input = ControlInput::new(n, t_cyc);
+    input.apply_time.copy_from_slice(delays);
+    let mut out = ControlOutput::new(n);
+    let mut z = vec![0.0; dim];
+    for col in 0..dim {
+        z.fill(0.0);
+        z[col] = 1.0;
+        for i in 0..n {
+            let s = &z[i * PER_AXIS..(i + 1) * PER_AXIS];
+            // Regulation to x^d = 0: e = −x, ė = −ẋ.
+            hist.e[i] = [-s[0], s[3], s[4], s[5]];
+            hist.de[i] = [-s[1], s[6], s[7], s[8]];
+            hist.count[i] = 4;
+            hist.t[i] = 0.0;
+        }
+        law.compute(&hist, &input, &mut out)?;
+        for i in 0..n {
+            let s = &z[i * PER_AXIS..(i + 1) * PER_AXIS];
+            let d = &disc[i];
+            let (x, v, u_prev, u) = (s[0], s[1], s[2], out.u_raw[i]);
+            let next = [
+                d.phi[0][0] * x + d.phi[0][1] * v + d.gamma1[0] * u_prev + d.gamma0[0] * u,
+                d.phi[1][0] * x + d.phi[1][1] * v + d.gamma1[1] * u_prev + d.gamma0[1] * u,
+                u,
+                -x,
+                s[3],
+                s[4],
+                -v,
+                s[6],
+                s[7],
+            ];
+            for (r, val) in next.into_iter().enumerate() {
+                m[(i * PER_AXIS + r, col)] = val;
+            }
+        }
+    }
+    let schur = Schur::try_new(m, 1e-13, 100_000).ok_or(ControlError::NoConvergence {
+        what: "Schur decomposition of the loop matrix",
+    })?;
+    let rho = schur
+        .complex_eigenvalues()
+        .iter()
+        .map(|l| l.norm())
+        .fold(0.0, f64::max);
+    Ok(DiscreteReport {
+        spectral_radius: rho,
+        states: dim,
+    })
+}
+
+#[cfg(test)]
+mod tests;
