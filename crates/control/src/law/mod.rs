@@ -136,6 +136,9 @@ pub struct ControlOutput {
     pub u_raw: Vec<f64>,
     /// Whether the command was clipped.
     pub saturated: Vec<bool>,
+    /// Per-axis scratch of the laws (estimated slopes, sample instants): lets a law keep
+    /// pass-one results for pass two without allocating.
+    pub(crate) work: Vec<[f64; 3]>,
 }
 
 impl ControlOutput {
@@ -145,6 +148,7 @@ impl ControlOutput {
             u: vec![0.0; n],
             u_raw: vec![0.0; n],
             saturated: vec![false; n],
+            work: vec![[0.0; 3]; n],
         }
     }
 
@@ -160,7 +164,8 @@ impl ControlOutput {
     pub(crate) fn check(&self, n: usize) -> Result<(), ControlError> {
         check_len("commands", n, self.u.len())?;
         check_len("raw commands", n, self.u_raw.len())?;
-        check_len("saturation flags", n, self.saturated.len())
+        check_len("saturation flags", n, self.saturated.len())?;
+        check_len("scratch", n, self.work.len())
     }
 }
 

@@ -122,6 +122,7 @@ impl ControlLaw for SyncController {
             let s = (h.t[j] - t_ref) * inv_t;
             let v = est.slope(&h.e[j], c);
             let w = est.slope(&h.de[j], c);
+            out.work[j] = [v, w, s];
             se += h.e[j][0];
             sv += v;
             ssv += s * v;
@@ -139,12 +140,9 @@ impl ControlLaw for SyncController {
         let den = self.coupling.denominator();
         // Pass 2: each axis's command.
         for k in 0..n {
-            let c = h.count[k];
-            let s = (h.t[k] - t_ref) * inv_t;
+            let [v, w, s] = out.work[k];
             let f = (input.apply_time[k] - t_ref) * inv_t;
             let (e0, de0) = (h.e[k][0], h.de[k][0]);
-            let v = est.slope(&h.e[k], c);
-            let w = est.slope(&h.de[k], c);
             let others_e = (se - e0) + f * (sv - v) - (ssv - s * v);
             let others_de = (sde - de0) + f * (sw - w) - (ssw - s * w);
             let (own_e, own_de) = if p.extrapolate_own {
