@@ -8,9 +8,7 @@
 //! ```
 
 use ringsync_control::stability::{continuous_conditions, discrete_check};
-use ringsync_control::{
-    ControlLaw, Cosine, EstimatorKind, Gains, Pd, SyncController, SyncParams,
-};
+use ringsync_control::{ControlLaw, Cosine, EstimatorKind, Gains, Pd, SyncController, SyncParams};
 use ringsync_plant::{AxisModel, Friction, IndependentAxes, TorqueAxis};
 
 const DELAYS: [f64; 4] = [130e-6, 145e-6, 160e-6, 175e-6];
@@ -24,23 +22,46 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut models = Vec::new();
     for i in 0..4 {
         let ka = rated[i] / 10.0;
-        models.push(AxisModel::Torque(TorqueAxis::new(j_over_ka[i] * ka, ka, Friction::viscous(b[i]), 10.0)?));
+        models.push(AxisModel::Torque(TorqueAxis::new(
+            j_over_ka[i] * ka,
+            ka,
+            Friction::viscous(b[i]),
+            10.0,
+        )?));
     }
     let linear: Vec<(f64, f64)> = models.iter().map(|m| m.linear_part()).collect();
-    println!("Discrete-time check (T_cyc = 1 ms, delays 130/145/160/175 µs, Coulomb friction and saturation left out):");
+    println!(
+        "Discrete-time check (T_cyc = 1 ms, delays 130/145/160/175 µs, Coulomb friction and saturation left out):"
+    );
     let mut row = |name: &str, law: &dyn ControlLaw| -> Result<(), Box<dyn std::error::Error>> {
         let r = discrete_check(law, &linear, 1e-3, &DELAYS)?;
         let verdict = if r.is_stable() { "stable" } else { "UNSTABLE" };
-        println!("  {name:<28} spectral radius {:.6}  {verdict}", r.spectral_radius);
+        println!(
+            "  {name:<28} spectral radius {:.6}  {verdict}",
+            r.spectral_radius
+        );
         Ok(())
     };
-    row("standard PD", &Pd::new(Gains::uniform(4, 3.182, 1.591, 0.0), false)?)?;
-    for est in [EstimatorKind::Hold, EstimatorKind::Linear, EstimatorKind::Paper] {
-        let params = SyncParams { estimator: est, ..SyncParams::reference() };
+    row(
+        "standard PD",
+        &Pd::new(Gains::uniform(4, 3.182, 1.591, 0.0), false)?,
+    )?;
+    for est in [
+        EstimatorKind::Hold,
+        EstimatorKind::Linear,
+        EstimatorKind::Paper,
+    ] {
+        let params = SyncParams {
+            estimator: est,
+            ..SyncParams::reference()
+        };
         let law = SyncController::new(Gains::uniform(4, 3.182, 1.591, 0.75), params)?;
         row(&format!("sync, estimator {}", est.name()), &law)?;
     }
-    row("standard PD, K_D × 100", &Pd::new(Gains::uniform(4, 3.182, 159.1, 0.0), false)?)?;
+    row(
+        "standard PD, K_D × 100",
+        &Pd::new(Gains::uniform(4, 3.182, 159.1, 0.0), false)?,
+    )?;
 
     let plant = IndependentAxes::new(models);
     let traj = vec![Cosine::with_peak_speed(15.12, 2.0)?; 4];
@@ -52,13 +73,21 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         r.lambda_min_ke,
         r.cond1_bound,
         r.cond1_margin,
-        if r.condition1_holds() { "holds" } else { "fails" }
+        if r.condition1_holds() {
+            "holds"
+        } else {
+            "fails"
+        }
     );
     println!(
         "  condition 2: ‖K_H − H‖ = {:.4} V·s²/rad, ‖K_C − C‖ = {:.3e} V·s/rad against Δ_H = Δ_C = 0: {}",
         r.cond2_h_norm,
         r.cond2_c_norm,
-        if r.condition2_holds() { "holds" } else { "fails (K_N = 0 in the reference scenario)" }
+        if r.condition2_holds() {
+            "holds"
+        } else {
+            "fails (K_N = 0 in the reference scenario)"
+        }
     );
     Ok(())
 }

@@ -9,15 +9,18 @@ use std::hint::black_box;
 
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use ringsync_control::{
-    ControlInput, ControlOutput, Controller, EstimatorKind, Feedback, Gains, State,
-    SyncController, SyncParams, VelocitySource,
+    ControlInput, ControlOutput, Controller, EstimatorKind, Feedback, Gains, State, SyncController,
+    SyncParams, VelocitySource,
 };
 use ringsync_plant::{Friction, SignModel, TorqueAxis};
 
 fn controller_step(c: &mut Criterion) {
     let mut g = c.benchmark_group("controller_step_sync_paper");
     for n in [4usize, 64, 1024] {
-        let params = SyncParams { estimator: EstimatorKind::Paper, ..SyncParams::reference() };
+        let params = SyncParams {
+            estimator: EstimatorKind::Paper,
+            ..SyncParams::reference()
+        };
         let law = SyncController::new(Gains::uniform(n, 3.182, 1.591, 0.75), params).expect("law");
         let mut ctl = Controller::new(law, VelocitySource::Reported);
         let mut fb = Feedback::new(n);
@@ -26,7 +29,11 @@ fn controller_step(c: &mut Criterion) {
         for i in 0..n {
             fb.position[i] = 0.01 * i as f64;
             fb.velocity[i] = -0.1;
-            fb.desired[i] = State { x: 0.02 * i as f64, v: 1.0, a: 3.0 };
+            fb.desired[i] = State {
+                x: 0.02 * i as f64,
+                v: 1.0,
+                a: 3.0,
+            };
             input.apply_time[i] = 130e-6 + 1e-6 * i as f64;
             input.desired[i] = fb.desired[i];
         }
@@ -39,7 +46,8 @@ fn controller_step(c: &mut Criterion) {
                 for a in input.apply_time.iter_mut() {
                     *a += 1e-3;
                 }
-                ctl.update(black_box(&fb), black_box(&input), &mut out).expect("update");
+                ctl.update(black_box(&fb), black_box(&input), &mut out)
+                    .expect("update");
                 black_box(&out.u);
             })
         });
@@ -52,8 +60,22 @@ fn plant_interval(c: &mut Criterion) {
     let (j, ka, b, tc) = (4.96e-4, 0.0318, 1e-5, 0.00636);
     let cases = [
         ("viscous_exact", Friction::viscous(b)),
-        ("coulomb_exact", Friction { viscous: b, coulomb: tc, sign: SignModel::Exact }),
-        ("coulomb_smooth_rk4_10us", Friction { viscous: b, coulomb: tc, sign: SignModel::Smooth { v_s: 1e-3 } }),
+        (
+            "coulomb_exact",
+            Friction {
+                viscous: b,
+                coulomb: tc,
+                sign: SignModel::Exact,
+            },
+        ),
+        (
+            "coulomb_smooth_rk4_10us",
+            Friction {
+                viscous: b,
+                coulomb: tc,
+                sign: SignModel::Smooth { v_s: 1e-3 },
+            },
+        ),
     ];
     for (name, friction) in cases {
         let axis = TorqueAxis::new(j, ka, friction, 10.0).expect("axis");

@@ -112,10 +112,9 @@ impl ErrorHistory {
                 n: self.axes(),
             });
         }
-        self.e[i].rotate_right(1);
-        self.e[i][0] = e;
-        self.de[i].rotate_right(1);
-        self.de[i][0] = de;
+        let (h, dh) = (self.e[i], self.de[i]);
+        self.e[i] = [e, h[0], h[1], h[2]];
+        self.de[i] = [de, dh[0], dh[1], dh[2]];
         self.t[i] = t;
         self.count[i] = (self.count[i] + 1).min(DEPTH);
         Ok(())

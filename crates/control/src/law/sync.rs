@@ -66,7 +66,13 @@ impl SyncParams {
 pub struct SyncController {
     gains: Gains,
     params: SyncParams,
-    coupling: Coupling,
+    /// P = p_diag·I and Q = q_off·(1·1ᵀ − I) of I + αT.
+    p_diag: f64,
+    q_off: f64,
+    /// 1 / (1 + α·n/(n−1)).
+    inv_den: f64,
+    /// 1 / n.
+    inv_n: f64,
 }
 
 impl SyncController {
@@ -79,10 +85,14 @@ impl SyncController {
         if let Sign::BoundaryLayer(phi) = params.sign {
             check("boundary_layer", phi, 0.0, true, "> 0 rad/s")?;
         }
+        let (p_diag, q_off) = coupling.split();
         Ok(SyncController {
+            inv_n: 1.0 / gains.axes() as f64,
             gains,
             params,
-            coupling,
+            p_diag,
+            q_off,
+            inv_den: 1.0 / coupling.denominator(),
         })
     }
 
@@ -116,7 +126,7 @@ impl ControlLaw for SyncController {
         // Pass 1: sums over all axes.
         let (mut se, mut sv, mut ssv) = (0.0, 0.0, 0.0);
         let (mut sde, mut sw, mut ssw) = (0.0, 0.0, 0.0);
-        let (mut ske, mut a2, mut v2) = (0.0, 0.0, 0.0);
+        let mut ske = 0.0;
         for j in 0..n {
             let c = h.count[j];
             let s = (h.t[j] - t_ref) * inv_t;
@@ -130,14 +140,19 @@ impl ControlLaw for SyncController {
             sw += w;
             ssw += s * w;
             ske += g.ke[j] * h.de[j][0];
-            let d = &input.desired[j];
-            a2 += d.a * d.a;
-            v2 += d.v * d.v;
         }
-        let mean_ke = ske / n as f64;
-        let kn = p.delta_h * a2.sqrt() + p.delta_c * v2.sqrt();
-        let (p_diag, q_off) = self.coupling.split();
-        let den = self.coupling.denominator();
+        let mean_ke = ske * self.inv_n;
+        // K_N = Δ_H·‖ẍ^d‖ + Δ_C·‖ẋ^d‖, only when the robust term is on.
+        let kn = if p.delta_h == 0.0 && p.delta_c == 0.0 {
+            0.0
+        } else {
+            let (a2, v2) = input
+                .desired
+                .iter()
+                .fold((0.0, 0.0), |(a2, v2), d| (a2 + d.a * d.a, v2 + d.v * d.v));
+            p.delta_h * a2.sqrt() + p.delta_c * v2.sqrt()
+        };
+        let (p_diag, q_off, inv_den) = (self.p_diag, self.q_off, self.inv_den);
         // Pass 2: each axis's command.
         for k in 0..n {
             let [v, w, s] = out.work[k];
@@ -153,7 +168,7 @@ impl ControlLaw for SyncController {
             // E' = P·e − Q·e' (eq. 14): (1+α)·own − α/(n−1)·Σ_{j≠k} e'_jk.
             let big_e = p_diag * own_e - q_off * others_e;
             let big_de = p_diag * own_de - q_off * others_de;
-            let inv = mean_ke + (g.ke[k] * de0 - mean_ke) / den;
+            let inv = mean_ke + (g.ke[k] * de0 - mean_ke) * inv_den;
             let sgn = match p.sign {
                 _ if kn == 0.0 => 0.0,
                 Sign::Exact if big_de == 0.0 => 0.0,
