@@ -33,7 +33,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     println!(
         "Discrete-time check (T_cyc = 1 ms, delays 130/145/160/175 µs, Coulomb friction and saturation left out):"
     );
-    let mut row = |name: &str, law: &dyn ControlLaw| -> Result<(), Box<dyn std::error::Error>> {
+    let row = |name: &str, law: &dyn ControlLaw| -> Result<(), Box<dyn std::error::Error>> {
         let r = discrete_check(law, &linear, 1e-3, &DELAYS)?;
         let verdict = if r.is_stable() { "stable" } else { "UNSTABLE" };
         println!(
