@@ -16,34 +16,14 @@ use ringsync_control::{
     ControlInput, ControlLaw, ControlOutput, Controller, Cosine, EstimatorKind, Feedback, Gains,
     Metrics, Pd, Summary, SyncController, SyncParams, Trajectory, VelocitySource,
 };
-use ringsync_plant::{AxisModel, Friction, Plant, SignModel, TorqueAxis};
+use ringsync_plant::{Plant, SignModel};
 
 const T_CYC: f64 = 1e-3;
 const CYCLES: usize = 4000;
 const DELAYS: [f64; 4] = [130e-6, 145e-6, 160e-6, 175e-6];
 
-/// The reference axes: SGM7J-01A..08A with loads, K_a = rated torque / 10 V.
-fn reference_axes() -> Result<Vec<AxisModel>, ringsync_plant::PlantError> {
-    // Rated torque [N·m] (0.318 is not 1/π), J/K_a [s²·V/rad], viscous b [N·m·s/rad].
-    #[allow(clippy::approx_constant)]
-    let rated = [0.318, 0.637, 1.27, 2.39];
-    let j_over_ka = [0.0156, 0.0161, 0.0158, 0.0164];
-    let b = [1e-5, 2e-5, 4e-5, 8e-5];
-    (0..4)
-        .map(|i| {
-            let ka = rated[i] / 10.0;
-            let friction = Friction {
-                viscous: b[i],
-                coulomb: 0.02 * rated[i],
-                sign: SignModel::Smooth { v_s: 1e-3 },
-            };
-            TorqueAxis::new(j_over_ka[i] * ka, ka, friction, 10.0).map(AxisModel::Torque)
-        })
-        .collect()
-}
-
 fn run<L: ControlLaw>(law: L) -> Result<Summary, Box<dyn std::error::Error>> {
-    let models = reference_axes()?;
+    let models = ringsync_plant::reference::axes(Some(SignModel::Smooth { v_s: 1e-3 }))?;
     let mut plant = ringsync_plant::IndependentAxes::new(models.clone());
     let command = Cosine::with_peak_speed(15.12, 2.0)?;
     let mut ctl = Controller::new(law, VelocitySource::Reported);

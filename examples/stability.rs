@@ -9,26 +9,13 @@
 
 use ringsync_control::stability::{continuous_conditions, discrete_check};
 use ringsync_control::{ControlLaw, Cosine, EstimatorKind, Gains, Pd, SyncController, SyncParams};
-use ringsync_plant::{AxisModel, Friction, IndependentAxes, TorqueAxis};
+use ringsync_plant::IndependentAxes;
 
 const DELAYS: [f64; 4] = [130e-6, 145e-6, 160e-6, 175e-6];
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    // Rated torque [N·m] (0.318 is not 1/π), J/K_a [s²·V/rad], viscous b [N·m·s/rad].
-    #[allow(clippy::approx_constant)]
-    let rated = [0.318, 0.637, 1.27, 2.39];
-    let j_over_ka = [0.0156, 0.0161, 0.0158, 0.0164];
-    let b = [1e-5, 2e-5, 4e-5, 8e-5];
-    let mut models = Vec::new();
-    for i in 0..4 {
-        let ka = rated[i] / 10.0;
-        models.push(AxisModel::Torque(TorqueAxis::new(
-            j_over_ka[i] * ka,
-            ka,
-            Friction::viscous(b[i]),
-            10.0,
-        )?));
-    }
+    // The reference axes without Coulomb friction: the check linearises anyway.
+    let models = ringsync_plant::reference::axes(None)?;
     let linear: Vec<(f64, f64)> = models.iter().map(|m| m.linear_part()).collect();
     println!(
         "Discrete-time check (T_cyc = 1 ms, delays 130/145/160/175 µs, Coulomb friction and saturation left out):"

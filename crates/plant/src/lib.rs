@@ -14,6 +14,7 @@ mod axis;
 mod encoder;
 mod error;
 pub mod integrate;
+pub mod reference;
 
 pub use arm::{ArmParams, TwoLinkArm};
 pub use axis::{

@@ -176,14 +176,23 @@ pub trait ControlLaw {
     fn name(&self) -> &'static str;
     /// Number of axes.
     fn axes(&self) -> usize;
-    /// Computes this cycle's commands. Pure: the same history and input give the same
-    /// output.
+    /// The law itself, on inputs whose lengths [`ControlLaw::compute`] has checked.
+    fn evaluate(&self, history: &ErrorHistory, input: &ControlInput, out: &mut ControlOutput);
+    /// Computes this cycle's commands after checking that history, input and output all
+    /// have [`ControlLaw::axes`] axes. Pure: the same history and input give the same output.
     fn compute(
         &self,
         history: &ErrorHistory,
         input: &ControlInput,
         out: &mut ControlOutput,
-    ) -> Result<(), ControlError>;
+    ) -> Result<(), ControlError> {
+        let n = self.axes();
+        check_len("error history", n, history.axes())?;
+        input.check(n)?;
+        out.check(n)?;
+        self.evaluate(history, input, out);
+        Ok(())
+    }
 }
 
 /// Where the velocity error ė comes from.

@@ -30,15 +30,8 @@ impl ControlLaw for Pd {
     fn axes(&self) -> usize {
         self.gains.axes()
     }
-    fn compute(
-        &self,
-        h: &ErrorHistory,
-        input: &ControlInput,
-        out: &mut ControlOutput,
-    ) -> Result<(), ControlError> {
+    fn evaluate(&self, h: &ErrorHistory, input: &ControlInput, out: &mut ControlOutput) {
         let n = self.axes();
-        input.check(n)?;
-        out.check(n)?;
         let g = &self.gains;
         for i in 0..n {
             let ff = if self.feed_forward {
@@ -49,6 +42,5 @@ impl ControlLaw for Pd {
             let raw = ff + g.kp[i] * h.e[i][0] + g.kd[i] * h.de[i][0];
             out.set(i, raw, g.u_max[i]);
         }
-        Ok(())
     }
 }

@@ -10,19 +10,7 @@ const DELAYS: [f64; 4] = [130e-6, 145e-6, 160e-6, 175e-6];
 
 /// The reference axes (SYSTEM.md section 6) without Coulomb friction.
 fn reference_axes() -> Vec<AxisModel> {
-    // Rated torques of SGM7J-01A..08A [N·m] (0.318 is not 1/π).
-    #[allow(clippy::approx_constant)]
-    let rated = [0.318, 0.637, 1.27, 2.39];
-    let ratio = [0.0156, 0.0161, 0.0158, 0.0164];
-    let b = [1e-5, 2e-5, 4e-5, 8e-5];
-    (0..4)
-        .map(|i| {
-            let ka = rated[i] / 10.0;
-            AxisModel::Torque(
-                TorqueAxis::new(ratio[i] * ka, ka, Friction::viscous(b[i]), 10.0).expect("axis"),
-            )
-        })
-        .collect()
+    ringsync_plant::reference::axes(None).expect("axes")
 }
 
 fn linear(axes: &[AxisModel]) -> Vec<(f64, f64)> {
