@@ -105,6 +105,7 @@ impl ErrorHistory {
     }
 
     /// Adds a sample of axis `i` taken at `t` [s].
+    #[inline]
     pub fn push(&mut self, i: usize, e: f64, de: f64, t: f64) -> Result<(), ControlError> {
         if i >= self.axes() {
             return Err(ControlError::AxisOutOfRange {

@@ -50,6 +50,7 @@ impl ControlLaw for RingCoupled {
     fn axes(&self) -> usize {
         self.gains.axes()
     }
+    #[inline]
     fn evaluate(&self, h: &ErrorHistory, input: &ControlInput, out: &mut ControlOutput) {
         let n = self.axes();
         let g = &self.gains;

@@ -109,6 +109,7 @@ impl ControlLaw for SyncController {
     fn axes(&self) -> usize {
         self.gains.axes()
     }
+    #[inline]
     fn evaluate(&self, h: &ErrorHistory, input: &ControlInput, out: &mut ControlOutput) {
         let n = self.axes();
         let g = &self.gains;
