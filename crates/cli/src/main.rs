@@ -2,6 +2,7 @@
 //! (Huang et al. 2015). Thin: parse, call the library crates, print.
 
 mod plan_cmd;
+mod scenario_cmd;
 
 use std::process::ExitCode;
 
@@ -44,6 +45,11 @@ struct Cli {
 enum Command {
     /// Cycle-time planner (eq. 1-2): how fast a ring of n axes can cycle and where the time goes.
     Plan(plan_cmd::PlanArgs),
+    /// Built-in scenarios: list them, print one as editable TOML, validate a file.
+    #[command(subcommand)]
+    Scenario(scenario_cmd::ScenarioCmd),
+    /// Stability analysis of a scenario: discrete-time spectral radius and the paper's conditions.
+    Check(scenario_cmd::CheckArgs),
 }
 
 /// Writes `text` to standard output. A closed pipe (`ringsync plan | head`) ends the output
@@ -86,6 +92,8 @@ fn main() -> ExitCode {
     };
     let result = match cli.command {
         Command::Plan(args) => plan_cmd::run(&args),
+        Command::Scenario(cmd) => scenario_cmd::run(&cmd),
+        Command::Check(args) => scenario_cmd::check(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,0 +1,83 @@
+//! `ringsync scenario` and `ringsync check`.
+
+use clap::{Args, Subcommand};
+use ringsync_sim::{Scenario, ScenarioError, builtin, builtin_names};
+
+use crate::{CliError, out};
+
+/// `ringsync scenario …`
+#[derive(Subcommand, Debug)]
+pub enum ScenarioCmd {
+    /// List the built-in scenarios.
+    List,
+    /// Print a built-in scenario as commented TOML, ready to copy and edit.
+    Show {
+        /// Name of a built-in scenario.
+        name: String,
+    },
+    /// Check a scenario file (or built-in name): parse and validate, print the error or "ok".
+    Validate {
+        /// Scenario file or built-in name.
+        scenario: String,
+    },
+}
+
+pub(crate) fn usage(e: ScenarioError) -> CliError {
+    CliError::Usage(e.to_string())
+}
+
+pub(crate) fn run(cmd: &ScenarioCmd) -> Result<(), CliError> {
+    match cmd {
+        ScenarioCmd::List => {
+            let mut text = String::new();
+            for name in builtin_names() {
+                let s = Scenario::load(name).map_err(usage)?;
+                text.push_str(&format!("{name:<14} {}\n", s.description));
+            }
+            out(&text)
+        }
+        ScenarioCmd::Show { name } => match builtin(name) {
+            Some(text) => out(text),
+            None => Err(CliError::Usage(format!(
+                "unknown scenario '{name}': built-in scenarios are {}",
+                builtin_names().collect::<Vec<_>>().join(", ")
+            ))),
+        },
+        ScenarioCmd::Validate { scenario } => {
+            let s = Scenario::load(scenario).map_err(usage)?;
+            out(&format!(
+                "{scenario}: ok ({}, {} axes)\n",
+                s.name,
+                s.axes_count()
+            ))
+        }
+    }
+}
+
+/// Options of `ringsync check`.
+#[derive(Args, Debug)]
+pub struct CheckArgs {
+    /// Scenario file or built-in name (see `ringsync scenario list`).
+    scenario: String,
+    /// Points of the trajectory at which the paper's conditions are evaluated.
+    #[arg(long, default_value_t = 4001, value_parser = clap::value_parser!(u32).range(1..=1_000_000))]
+    points: u32,
+    /// Print one JSON object instead of the text.
+    #[arg(long)]
+    json: bool,
+}
+
+pub(crate) fn check(args: &CheckArgs) -> Result<(), CliError> {
+    let s = Scenario::load(&args.scenario).map_err(usage)?;
+    let r = ringsync_sim::check::check(&s, args.points as usize).map_err(|e| match e {
+        ringsync_sim::check::CheckError::Scenario(e) => usage(e),
+        other => CliError::Failure(other.into()),
+    })?;
+    if args.json {
+        let text = serde_json::to_string_pretty(&ringsync_report::check_json(&r))
+            .map_err(|e| CliError::Failure(e.into()))?;
+        out(&format!("{text}\n"))
+    } else {
+        out(&ringsync_report::check_text(&r))
+    }
+}
