@@ -1,6 +1,7 @@
 //! The sans-IO ringsync protocol layer: integer-nanosecond [time](time) and the
-//! [cycle plan](plan) of eq. 1-2. The master and slave state machines join it later.
+//! [cycle plan](plan) of eq. 1-2, and the sans-IO ring [nodes](node).
 
+pub mod node;
 pub mod plan;
 pub mod time;
 

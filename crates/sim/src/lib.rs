@@ -1,9 +1,12 @@
-//! Scenarios (and, next, the deterministic co-simulator) of ringsync.
+//! Scenarios and the deterministic co-simulator of ringsync.
 //!
 //! A [`Scenario`] is a TOML file in which every parameter of the reference scenario
 //! (SYSTEM.md section 6) is a field; see `scenarios/paper-2015.toml`, the built-in one.
 
 pub mod check;
+mod rng;
+pub mod run;
 pub mod scenario;
 
+pub use run::{RunOptions, RunResult, run};
 pub use scenario::{Scenario, ScenarioError, builtin, builtin_names};

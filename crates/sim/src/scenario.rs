@@ -236,14 +236,19 @@ impl Default for ClockSpec {
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct Faults {
-    /// Probability that a frame is lost on a hop.
+    /// Probability that a frame is lost on one trip round the ring (spread over its n + 1
+    /// hops).
     pub loss: f64,
-    /// Probability that a frame arrives corrupted on a hop.
+    /// Probability that a frame is corrupted on one trip round the ring.
     pub corruption: f64,
     /// W: cycles without a valid command before a slave goes to its safe state.
     pub watchdog_cycles: u32,
     /// Following-error limit [rad].
     pub following_error_limit: f64,
+    /// A slave (1-based) that stops answering at `silent_from`; 0 for none.
+    pub silent_slave: u32,
+    /// When the silent slave goes silent.
+    pub silent_from: Dur,
 }
 
 impl Default for Faults {
@@ -253,6 +258,8 @@ impl Default for Faults {
             corruption: 0.0,
             watchdog_cycles: 5,
             following_error_limit: 1.0,
+            silent_slave: 0,
+            silent_from: Dur(Duration::ZERO),
         }
     }
 }
@@ -643,6 +650,13 @@ impl Scenario {
                 "faults.watchdog_cycles",
                 f.watchdog_cycles,
                 "1 ..= 100000",
+            ));
+        }
+        if f.silent_slave > self.ring.slaves {
+            return Err(out_of_range(
+                "faults.silent_slave",
+                f.silent_slave,
+                "0 (none) ..= ring.slaves",
             ));
         }
         if !(f.following_error_limit.is_finite() && f.following_error_limit > 0.0) {

@@ -256,6 +256,12 @@ impl<L: ControlLaw> Controller<L> {
     }
 
     /// Takes this cycle's fresh samples into the history, then computes the commands.
+    ///
+    /// The estimators assume one sample per cycle. When a fresh sample comes after g missed
+    /// cycles (its sampling instant g + 1 cycles after the last one), g samples linearly
+    /// interpolated between the two are pushed first, so the spacing stays T_cyc; after
+    /// more than [`DEPTH`](crate::estimator::DEPTH) − 1 missed cycles the history starts
+    /// afresh.
     pub fn update(
         &mut self,
         fb: &Feedback,
@@ -277,6 +283,30 @@ impl<L: ControlLaw> Controller<L> {
                 continue;
             }
             let e = fb.desired[i].x - fb.position[i];
+            let t = fb.sample_time[i];
+            let h = &mut self.history;
+            if h.count[i] > 0 {
+                let steps = ((t - h.t[i]) / input.t_cyc).round();
+                if steps > crate::estimator::DEPTH as f64 {
+                    h.count[i] = 0;
+                } else if steps >= 2.0 {
+                    let (e0, de0, t0) = (h.e[i][0], h.de[i][0], h.t[i]);
+                    let de_new = match self.velocity {
+                        VelocitySource::Reported => fb.desired[i].v - fb.velocity[i],
+                        VelocitySource::Differenced => (e - e0) / (t - t0),
+                    };
+                    let g = steps as usize - 1;
+                    for j in 1..=g {
+                        let f = j as f64 / steps;
+                        h.push(
+                            i,
+                            e0 + f * (e - e0),
+                            de0 + f * (de_new - de0),
+                            t0 + f * (t - t0),
+                        )?;
+                    }
+                }
+            }
             let de = match self.velocity {
                 VelocitySource::Reported => fb.desired[i].v - fb.velocity[i],
                 VelocitySource::Differenced => {
@@ -291,6 +321,19 @@ impl<L: ControlLaw> Controller<L> {
             self.history.push(i, e, de, fb.sample_time[i])?;
         }
         self.law.compute(&self.history, input, out)
+    }
+}
+
+/// A boxed law is a law (for choosing the law at run time, e.g. from a scenario).
+impl<L: ControlLaw + ?Sized> ControlLaw for Box<L> {
+    fn name(&self) -> &'static str {
+        (**self).name()
+    }
+    fn axes(&self) -> usize {
+        (**self).axes()
+    }
+    fn evaluate(&self, history: &ErrorHistory, input: &ControlInput, out: &mut ControlOutput) {
+        (**self).evaluate(history, input, out)
     }
 }
 

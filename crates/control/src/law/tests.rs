@@ -318,6 +318,29 @@ fn controller_builds_errors_from_feedback() {
     assert!((c.history.e[0][1] - (0.01 + 0.5 * 3e-3)).abs() < 1e-15);
 }
 
+/// A missed sample leaves no gap in the history: the missing cycle is interpolated, so the
+/// estimators keep seeing one sample per cycle.
+#[test]
+fn missed_samples_are_interpolated() {
+    let law = Pd::new(Gains::uniform(1, 1.0, 1.0, 0.0), false).expect("pd");
+    let mut c = Controller::new(law, VelocitySource::Reported);
+    let mut fb = Feedback::new(1);
+    let input = ControlInput::new(1, 1e-3);
+    let mut out = ControlOutput::new(1);
+    // e = 0.5·m (x^d = 0, x = −0.5·m) sampled at m·1 ms, with cycle 3 missing.
+    for m in [0usize, 1, 2, 4] {
+        fb.sample_time[0] = m as f64 * 1e-3;
+        fb.position[0] = -0.5 * m as f64;
+        c.update(&fb, &input, &mut out).expect("update");
+    }
+    assert_eq!(c.history.e[0], [2.0, 1.5, 1.0, 0.5]);
+    assert!((c.history.t[0] - 4e-3).abs() < 1e-15);
+    // A gap longer than the history starts it afresh.
+    fb.sample_time[0] = 10e-3;
+    c.update(&fb, &input, &mut out).expect("update");
+    assert_eq!(c.history.count[0], 1);
+}
+
 #[test]
 fn bad_configurations_are_named() {
     let name = |e: ControlError| match e {

@@ -1,0 +1,317 @@
+//! The slave node of the proposed plan: takes the master's timestamp from the passing lumped
+//! frame (clock sync), writes its feedback into its own slot, applies its command when it
+//! arrives and answers after T_ti, and goes to its safe state (0 V, FAULT | WATCHDOG) when no
+//! valid command arrives for W cycles.
+//!
+//! Sampling: at synchronised time k·T_cyc the slave latches its encoder count; the velocity
+//! is the count difference over the window that ends there, so the driver is asked for the
+//! count twice per cycle ([`Slave::poll_timeout`], [`Slave::handle_sample`]).
+
+use std::collections::VecDeque;
+
+use ringsync_wire::{
+    CommandRepr, Common, FeedbackSlot, Frame, FrameKind, LumpedPayload, ResponseRepr, SlotCodec,
+    Status,
+};
+
+use super::Transmit;
+use super::clock::SyncClock;
+use crate::time::{Duration, Instant};
+
+/// Configuration of one slave.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SlaveConfig {
+    /// Address on the ring, 1..=n.
+    pub address: u16,
+    /// Cycle time T_cyc.
+    pub cycle: Duration,
+    /// D_i: master send time of a frame to its first bit at this slave (from the cycle plan).
+    pub path_delay: Duration,
+    /// T_ti: last bit of the command in to first bit of the response out.
+    pub response_delay: Duration,
+    /// Encoder-difference window for the velocity.
+    pub velocity_window: Duration,
+    /// W: cycles without a valid command before the safe state.
+    pub watchdog_cycles: u32,
+    /// Whether to synchronise the clock to the master.
+    pub clock_sync: bool,
+    /// Drive range ±u_max [V].
+    pub u_max: f64,
+}
+
+/// Something the driver must act on.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum SlaveEvent {
+    /// Apply this command to the drive [V] from now on.
+    Apply {
+        /// The command after clipping [V].
+        u: f64,
+    },
+    /// The watchdog expired: the drive is at 0 V from now on.
+    WatchdogExpired,
+}
+
+/// What the hardware does with a received frame.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FrameOutcome {
+    /// Forward it (possibly modified) after the residence time.
+    Forward,
+    /// It was for this slave; it ends here.
+    Consumed,
+    /// Bad frame (CRC, format); dropped and counted.
+    Dropped,
+}
+
+/// Counters that explain every lost cycle.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct SlaveCounters {
+    /// Lumped frames taken (clock syncs).
+    pub syncs: u64,
+    /// Valid commands applied.
+    pub commands: u64,
+    /// Frames dropped for a bad CRC or format.
+    pub bad_frames: u64,
+    /// Commands seen again (retries of an already applied cycle).
+    pub duplicates: u64,
+}
+
+/// Which encoder latch comes next.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Latch {
+    /// Start of the velocity window.
+    Window,
+    /// The sampling instant.
+    Sample,
+}
+
+/// A slave.
+#[derive(Debug, Clone)]
+pub struct Slave {
+    cfg: SlaveConfig,
+    clock: SyncClock,
+    /// Index k of the next sampling instant k·T_cyc.
+    k: i64,
+    latch: Latch,
+    window_counts: i64,
+    sample: FeedbackSlot,
+    u: f64,
+    status: Status,
+    cycles_without_command: u32,
+    last_cycle_applied: Option<u32>,
+    seq: u16,
+    out: VecDeque<Transmit>,
+    events: VecDeque<SlaveEvent>,
+    counters: SlaveCounters,
+}
+
+impl Slave {
+    /// A slave at rest, its first sampling instant at synchronised time 0.
+    pub fn new(cfg: SlaveConfig) -> Self {
+        let clock = SyncClock::new(cfg.clock_sync);
+        Slave {
+            cfg,
+            clock,
+            k: 0,
+            latch: Latch::Window,
+            window_counts: 0,
+            sample: FeedbackSlot::default(),
+            u: 0.0,
+            status: Status::CLOCK_UNLOCKED,
+            cycles_without_command: 0,
+            last_cycle_applied: None,
+            seq: 0,
+            out: VecDeque::new(),
+            events: VecDeque::new(),
+            counters: SlaveCounters::default(),
+        }
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &SlaveConfig {
+        &self.cfg
+    }
+    /// The synchronised clock.
+    pub fn clock(&self) -> &SyncClock {
+        &self.clock
+    }
+    /// Counters.
+    pub fn counters(&self) -> SlaveCounters {
+        self.counters
+    }
+    /// Status bits.
+    pub fn status(&self) -> Status {
+        self.status
+    }
+    /// The command applied now [V].
+    pub fn command(&self) -> f64 {
+        self.u
+    }
+
+    fn sample_instant(&self) -> Instant {
+        Instant::from_ns(self.k * self.cfg.cycle.as_ns())
+    }
+
+    /// Local time of the next encoder latch; call [`Slave::handle_sample`] then.
+    pub fn poll_timeout(&self) -> Instant {
+        let at = match self.latch {
+            Latch::Window => self.sample_instant() - self.cfg.velocity_window,
+            Latch::Sample => self.sample_instant(),
+        };
+        self.clock.to_local(at)
+    }
+
+    /// The encoder count latched at local time `now` (the time [`Slave::poll_timeout`] gave).
+    pub fn handle_sample(&mut self, now: Instant, counts: i64) {
+        match self.latch {
+            Latch::Window => {
+                self.window_counts = counts;
+                self.latch = Latch::Sample;
+            }
+            Latch::Sample => {
+                let w = self.cfg.velocity_window.as_ns() as f64 * 1e-9;
+                let velocity = (counts - self.window_counts) as f64 / w;
+                let sync_now = self.clock.to_sync(now);
+                self.sample = FeedbackSlot {
+                    position: clamp_i32(counts),
+                    velocity: clamp_i32(velocity.round() as i64),
+                    sample_time_ns: sync_now.as_ns().max(0) as u64,
+                    status: self.status,
+                    written: true,
+                };
+                self.latch = Latch::Window;
+                self.k += 1;
+                self.tick_watchdog();
+            }
+        }
+    }
+
+    fn tick_watchdog(&mut self) {
+        if self.status.contains(Status::WATCHDOG) {
+            return;
+        }
+        self.cycles_without_command += 1;
+        if self.cycles_without_command > self.cfg.watchdog_cycles {
+            self.u = 0.0;
+            self.status = self.status.with(Status::FAULT).with(Status::WATCHDOG);
+            self.events.push_back(SlaveEvent::WatchdogExpired);
+        }
+    }
+
+    /// A frame whose first bit arrived at local `rx_start` and last bit at `rx_end`. A lumped
+    /// frame is modified in place (this slave's slot, then the CRC).
+    pub fn handle_frame(
+        &mut self,
+        rx_start: Instant,
+        rx_end: Instant,
+        bytes: &mut [u8],
+    ) -> FrameOutcome {
+        let Ok(mut frame) = Frame::new_checked(&mut bytes[..]) else {
+            self.counters.bad_frames += 1;
+            return FrameOutcome::Dropped;
+        };
+        let kind = match frame.check() {
+            Ok(k) => k,
+            Err(_) => {
+                self.counters.bad_frames += 1;
+                return FrameOutcome::Dropped;
+            }
+        };
+        match kind {
+            FrameKind::Lumped => {
+                let Ok(mut p) = LumpedPayload::new_checked(frame.payload_mut(), kind) else {
+                    self.counters.bad_frames += 1;
+                    return FrameOutcome::Dropped;
+                };
+                let sent = Instant::from_ns(p.master_time_ns() as i64);
+                if let Some(k) = p.slot_index(self.cfg.address) {
+                    self.clock.sync(rx_start, sent, self.cfg.path_delay);
+                    self.counters.syncs += 1;
+                    if self.clock.is_locked() {
+                        self.status =
+                            Status::from_bits(self.status.bits() & !Status::CLOCK_UNLOCKED.bits())
+                                .unwrap_or(self.status);
+                    }
+                    if let Some(slot) = p.slot_bytes_mut(k) {
+                        // Infallible for a feedback slot of the right length.
+                        let _ = self.sample.emit(slot);
+                    }
+                    frame.fill_crc();
+                }
+                FrameOutcome::Forward
+            }
+            FrameKind::Command => {
+                let Ok(cmd) = CommandRepr::parse(bytes) else {
+                    self.counters.bad_frames += 1;
+                    return FrameOutcome::Dropped;
+                };
+                if cmd.target != self.cfg.address {
+                    return FrameOutcome::Forward;
+                }
+                self.take_command(&cmd, rx_end);
+                FrameOutcome::Consumed
+            }
+            FrameKind::Response | FrameKind::LumpedOnly => FrameOutcome::Forward,
+        }
+    }
+
+    fn take_command(&mut self, cmd: &CommandRepr, rx_end: Instant) {
+        if self.last_cycle_applied == Some(cmd.common.cycle) {
+            self.counters.duplicates += 1;
+        } else if !self.status.contains(Status::FAULT) {
+            let (u, sat) = ringsync_plant::saturate(f64::from(cmd.command_v), self.cfg.u_max);
+            self.u = u;
+            let mut st = self.status;
+            st = Status::from_bits(st.bits() & !Status::SATURATED.bits()).unwrap_or(st);
+            if sat {
+                st = st.with(Status::SATURATED);
+            }
+            if cmd.common.flags.contains(ringsync_wire::Flags::STOP) {
+                st = st.with(Status::STOPPING);
+            }
+            self.status = st;
+            self.events.push_back(SlaveEvent::Apply { u });
+            self.counters.commands += 1;
+        }
+        self.last_cycle_applied = Some(cmd.common.cycle);
+        if !self.status.contains(Status::WATCHDOG) {
+            self.cycles_without_command = 0;
+        }
+        self.seq = self.seq.wrapping_add(1);
+        let resp = ResponseRepr {
+            common: Common {
+                cycle: cmd.common.cycle,
+                seq: self.seq,
+                retry: cmd.common.retry,
+                ..Common::default()
+            },
+            source: self.cfg.address,
+            status: self.status,
+            echo_cycle: cmd.common.cycle,
+            position: self.sample.position,
+            velocity: self.sample.velocity,
+            sample_time_ns: self.sample.sample_time_ns,
+            applied_v: self.u as f32,
+        };
+        let mut buf = vec![0u8; resp.buffer_len()];
+        if resp.emit(&mut buf).is_ok() {
+            self.out.push_back(Transmit {
+                at: rx_end + self.cfg.response_delay,
+                bytes: buf,
+            });
+        }
+    }
+
+    /// The next frame this slave originates (responses).
+    pub fn poll_transmit(&mut self) -> Option<Transmit> {
+        self.out.pop_front()
+    }
+
+    /// The next event for the driver.
+    pub fn poll_event(&mut self) -> Option<SlaveEvent> {
+        self.events.pop_front()
+    }
+}
+
+fn clamp_i32(v: i64) -> i32 {
+    v.clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32
+}

@@ -1,0 +1,747 @@
+//! The deterministic co-simulator: the sans-IO master and slaves of `ringsync-proto` driven
+//! by an event queue ordered by (time, sequence), on modelled links and oscillators, with
+//! the servo plants integrated exactly between events.
+//!
+//! - **Links**: every hop adds PHY tx + cable + PHY rx (the cycle plan's L), plus a uniform
+//!   random jitter in [0, jitter]. `loss` and `corruption` are probabilities per full trip
+//!   round the ring (n + 1 hops): each hop loses a frame with 1 − (1 − loss)^(1/(n+1)), or
+//!   flips one of its bits (its CRC then fails where it is checked) likewise. Forwarding
+//!   slaves are cut-through: first bit out T_t after first bit in.
+//! - **Closed-form paths**: a frame that slaves only forward (a command on its way to its
+//!   target, a response on its way to the master) costs no event per hop; its arrival at the
+//!   node that consumes it is computed at once, loss, corruption and jitter draws included.
+//!   The lumped frame is processed at every slave (each writes its slot).
+//! - **Oscillators**: slave i's local clock reads offset_i + t·(1 + drift_i), truncated to the
+//!   timestamp resolution; the master's clock is the reference (true time).
+//! - **Plants**: each axis advances exactly (piecewise for Coulomb friction) from one event to
+//!   the next with its command held.
+//!
+//! Same scenario and seed → the same events in the same order → identical outputs.
+//! Assumptions beyond the paper are listed in [`ASSUMPTIONS`].
+
+use std::cmp::Reverse;
+use std::collections::BinaryHeap;
+
+use ringsync_control::{Coupling, Metrics, Summary};
+use ringsync_plant::{AxisModel, Encoder};
+use ringsync_proto::node::{
+    FrameOutcome, Master, MasterConfig, MasterCounters, MasterEvent, Slave, SlaveConfig,
+    SlaveCounters, SlaveEvent, StopReason,
+};
+use ringsync_proto::plan::{FrameRef, Node};
+use ringsync_proto::{CyclePlan, Instant, PlanKind};
+use ringsync_wire::{Frame, FrameKind};
+
+use crate::rng::Rng;
+use crate::scenario::{Scenario, ScenarioError};
+
+/// Assumptions of the simulation that the paper does not state.
+pub const ASSUMPTIONS: &[&str] = &[
+    "the master's clock is the reference; slave oscillators are offset and drift uniformly within the scenario's bounds",
+    "slaves sample their encoders at synchronised time k·T_cyc; velocity is the encoder difference over the velocity window",
+    "the master runs the law at the start of the P2P phase; time slices are fixed from the event-level cycle plan (plus jitter allowance)",
+    "a command takes effect at its last bit at the slave; frames on a link never contend (the schedule keeps them apart)",
+    "Track-RMSE and Sync-RMSE use the true axis positions at each cycle start (k·T_cyc), one sample per cycle",
+    "Coulomb friction uses the exact sign with stiction unless the scenario asks for the smooth tanh model",
+];
+
+/// One frame passage at a node, recorded for tests and traces (true time).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PassageLog {
+    /// Cycle index k of the frame.
+    pub cycle: i64,
+    /// Which frame.
+    pub frame: FrameRef,
+    /// Where.
+    pub node: Node,
+    /// First bit in [ns].
+    pub rx_start: Instant,
+    /// Last bit in [ns].
+    pub rx_end: Instant,
+}
+
+/// Options of a run besides the scenario.
+#[derive(Debug, Clone, Default)]
+pub struct RunOptions {
+    /// Record every frame passage of cycles `[from, to)` (for tests and the timing figure).
+    pub log_cycles: Option<(i64, i64)>,
+    /// Record the per-cycle trace rows.
+    pub trace: bool,
+}
+
+/// One row of the trace: one cycle, one axis.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TraceRow {
+    /// Cycle start [s].
+    pub t: f64,
+    /// Axis, 1-based.
+    pub axis: usize,
+    /// Desired position at the cycle start [rad].
+    pub x_d: f64,
+    /// True position at the cycle start [rad].
+    pub x: f64,
+    /// e = x_d − x [rad].
+    pub e: f64,
+    /// ε [rad].
+    pub eps: f64,
+    /// Command computed in this cycle [V].
+    pub u: f64,
+    /// Sampling instant of the sample the command used [s].
+    pub sample_time: f64,
+    /// When this cycle's command took effect at the slave [s] (NaN if it never arrived).
+    pub apply_time: f64,
+    /// Slave clock minus true time at the cycle start [ns].
+    pub clock_error_ns: f64,
+}
+
+/// Link-level counters.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct LinkCounters {
+    /// Frames lost on a hop.
+    pub lost: u64,
+    /// Frames corrupted on a hop.
+    pub corrupted: u64,
+    /// Events processed.
+    pub events: u64,
+}
+
+/// What a run produced.
+#[derive(Debug, Clone)]
+pub struct RunResult {
+    /// Scenario name.
+    pub scenario: String,
+    /// Cycles run.
+    pub cycles: i64,
+    /// Metrics (eq. 26-27) and per-axis figures.
+    pub summary: Summary,
+    /// Master counters.
+    pub master: MasterCounters,
+    /// Per-slave counters.
+    pub slaves: Vec<SlaveCounters>,
+    /// Link counters.
+    pub links: LinkCounters,
+    /// Largest |clock error| over the second half of the run, per slave [ns].
+    pub clock_error_max_ns: Vec<f64>,
+    /// RMS clock error over the second half of the run, per slave [ns].
+    pub clock_error_rms_ns: Vec<f64>,
+    /// Watchdog expiries: (slave, true time [s]).
+    pub watchdog: Vec<(usize, f64)>,
+    /// The group stop, if any: (time [s], reason).
+    pub group_stop: Option<(f64, StopReason)>,
+    /// Trace rows (with [`RunOptions::trace`]).
+    pub trace: Vec<TraceRow>,
+    /// Frame passages (with [`RunOptions::log_cycles`]).
+    pub passages: Vec<PassageLog>,
+}
+
+/// What can stop a run from starting.
+#[derive(Debug, thiserror::Error)]
+pub enum RunError {
+    /// The scenario is invalid.
+    #[error(transparent)]
+    Scenario(#[from] ScenarioError),
+    /// A plan the simulator does not run yet.
+    #[error("{0}")]
+    Unsupported(String),
+}
+
+#[derive(Debug)]
+enum Ev {
+    /// The master's next timeout; `generation` invalidates stale timers.
+    Master { generation: u64 },
+    /// Slave i's encoder latch; `generation` invalidates stale timers.
+    Sample { slave: usize, generation: u64 },
+    /// A frame's last bit reaches `node` (0 = master).
+    Arrive {
+        node: usize,
+        rx_start: i64,
+        bytes: Vec<u8>,
+        corrupted: bool,
+    },
+    /// Slave i's response leaves (first bit).
+    SlaveSend { slave: usize, bytes: Vec<u8> },
+    /// Cycle start: read the true plant states.
+    Probe { k: i64 },
+}
+
+struct Queued {
+    t: i64,
+    seq: u64,
+    ev: Ev,
+}
+
+impl PartialEq for Queued {
+    fn eq(&self, o: &Self) -> bool {
+        (self.t, self.seq) == (o.t, o.seq)
+    }
+}
+impl Eq for Queued {}
+impl PartialOrd for Queued {
+    fn partial_cmp(&self, o: &Self) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(o))
+    }
+}
+impl Ord for Queued {
+    fn cmp(&self, o: &Self) -> std::cmp::Ordering {
+        (self.t, self.seq).cmp(&(o.t, o.seq))
+    }
+}
+
+/// A slave's oscillator.
+#[derive(Debug, Clone, Copy)]
+struct Oscillator {
+    offset: f64,
+    rate: f64,
+    res: i64,
+}
+
+impl Oscillator {
+    fn local(&self, t: i64) -> Instant {
+        let l = (self.offset + t as f64 * self.rate).floor() as i64;
+        Instant::from_ns(l - l.rem_euclid(self.res))
+    }
+    /// The first true time at which the local clock reads at least `l`.
+    fn true_at(&self, l: Instant) -> i64 {
+        let mut t = ((l.as_ns() as f64 - self.offset) / self.rate).ceil() as i64;
+        while self.local(t) < l {
+            t += 1;
+        }
+        t
+    }
+}
+
+struct Axis {
+    model: AxisModel,
+    encoder: Encoder,
+    x: f64,
+    v: f64,
+    t: i64,
+    u: f64,
+}
+
+impl Axis {
+    fn advance(&mut self, t: i64) {
+        if t > self.t {
+            self.model
+                .step(&mut self.x, &mut self.v, self.u, (t - self.t) as f64 * 1e-9);
+            self.t = t;
+        }
+    }
+}
+
+struct Sim<'a> {
+    s: &'a Scenario,
+    q: BinaryHeap<Reverse<Queued>>,
+    seq: u64,
+    master: Master,
+    slaves: Vec<Slave>,
+    osc: Vec<Oscillator>,
+    axes: Vec<Axis>,
+    gens: Vec<u64>,
+    master_gen: u64,
+    link_rng: Vec<Rng>,
+    n: usize,
+    hop: i64,
+    residence: i64,
+    jitter: i64,
+    frame_ns: [i64; 3],
+    /// Per-hop loss and corruption probabilities.
+    hop_loss: f64,
+    hop_corruption: f64,
+    end: i64,
+    counters: LinkCounters,
+    opts: RunOptions,
+    passages: Vec<PassageLog>,
+    probe_x: Vec<f64>,
+    probe_xd: Vec<f64>,
+    probe_clock: Vec<f64>,
+    apply_time: Vec<f64>,
+    coupling: Option<Coupling>,
+    metrics: Metrics,
+    eps: Vec<f64>,
+    trace: Vec<TraceRow>,
+    clock_max: Vec<f64>,
+    clock_sq: Vec<f64>,
+    clock_count: u64,
+    watchdog: Vec<(usize, f64)>,
+    group_stop: Option<(f64, StopReason)>,
+    /// Trace rows of the last computed cycle, waiting for its commands' apply times.
+    pending: Vec<TraceRow>,
+}
+
+/// Runs a scenario. Only the proposed plan (`p2p-lumped`) runs for now.
+pub fn run(s: &Scenario, opts: RunOptions) -> Result<RunResult, RunError> {
+    s.validate()?;
+    if s.ring.plan != PlanKind::P2pLumped {
+        return Err(RunError::Unsupported(
+            "the simulator runs the p2p-lumped plan; the lumped-only plan of ref. [3] is not implemented yet".into(),
+        ));
+    }
+    let mut sim = Sim::new(s, opts)?;
+    sim.run();
+    Ok(sim.finish())
+}
+
+fn scenario_err(key: &str, e: impl ToString) -> ScenarioError {
+    ScenarioError::OutOfRange {
+        key: key.into(),
+        value: "?".into(),
+        allowed: e.to_string(),
+    }
+}
+
+impl<'a> Sim<'a> {
+    fn new(s: &'a Scenario, opts: RunOptions) -> Result<Self, RunError> {
+        let n = s.axes_count();
+        let plan = CyclePlan::new(&s.ring_params()).map_err(|e| scenario_err("ring", e))?;
+        let models = s
+            .axis_models()
+            .map_err(|(i, e)| scenario_err(&format!("axis[{i}]"), e))?;
+        let law = s.law().map_err(|e| scenario_err("control", e))?;
+        let trajectories = s
+            .trajectories()
+            .map_err(|e| scenario_err("trajectory", e))?;
+        let encoders: Vec<Encoder> = (0..n)
+            .map(|i| Encoder::new(1u32 << s.axis[i % s.axis.len()].encoder_bits))
+            .collect::<Result<_, _>>()
+            .map_err(|e| scenario_err("axis", e))?;
+        let mut cfg = MasterConfig::from_plan(
+            &plan,
+            s.ring.jitter.0,
+            encoders.iter().map(|e| e.resolution()).collect(),
+            s.faults.following_error_limit,
+        );
+        cfg.stop_deceleration = 200.0;
+        cfg.watchdog_cycles = s.faults.watchdog_cycles;
+        let master = Master::new(cfg, law, s.velocity_source(), trajectories);
+        let slaves: Vec<Slave> = (0..n)
+            .map(|i| {
+                Slave::new(SlaveConfig {
+                    address: (i + 1) as u16,
+                    cycle: s.ring.cycle.0,
+                    path_delay: plan.d_c[i],
+                    response_delay: s.ring.response_delay.0,
+                    velocity_window: s.axis[i % s.axis.len()].velocity_window.0,
+                    watchdog_cycles: s.faults.watchdog_cycles,
+                    clock_sync: s.clock.sync,
+                    u_max: s.axis[i % s.axis.len()].u_max,
+                })
+            })
+            .collect();
+        let osc: Vec<Oscillator> = (0..n)
+            .map(|i| {
+                let mut r = Rng::stream(s.seed, 1_000 + i as u64);
+                Oscillator {
+                    offset: r.symmetric(s.clock.initial_offset.0.as_ns() as f64),
+                    rate: 1.0 + r.symmetric(s.clock.drift_ppm) * 1e-6,
+                    res: s.clock.timestamp_resolution.0.as_ns(),
+                }
+            })
+            .collect();
+        let axes = models
+            .into_iter()
+            .zip(encoders)
+            .map(|(model, encoder)| Axis {
+                model,
+                encoder,
+                x: 0.0,
+                v: 0.0,
+                t: 0,
+                u: 0.0,
+            })
+            .collect();
+        let frame_ns = [
+            plan.lumped.frame_time[0].as_ns(),
+            plan.t_cmf.as_ns(),
+            plan.t_rmf.as_ns(),
+        ];
+        let cycles = s.duration.0.as_ns() / s.ring.cycle.0.as_ns();
+        let mut sim = Sim {
+            s,
+            q: BinaryHeap::new(),
+            seq: 0,
+            master,
+            slaves,
+            osc,
+            axes,
+            gens: vec![0; n],
+            master_gen: 0,
+            link_rng: (0..=n).map(|h| Rng::stream(s.seed, h as u64)).collect(),
+            n,
+            hop: plan.hop.as_ns(),
+            residence: s.ring.residence.0.as_ns(),
+            jitter: s.ring.jitter.0.as_ns(),
+            frame_ns,
+            hop_loss: 1.0 - (1.0 - s.faults.loss).powf(1.0 / (n + 1) as f64),
+            hop_corruption: 1.0 - (1.0 - s.faults.corruption).powf(1.0 / (n + 1) as f64),
+            end: cycles * s.ring.cycle.0.as_ns(),
+            counters: LinkCounters::default(),
+            opts,
+            passages: Vec::new(),
+            probe_x: vec![0.0; n],
+            probe_xd: vec![0.0; n],
+            probe_clock: vec![0.0; n],
+            apply_time: vec![f64::NAN; n],
+            coupling: Coupling::new(n, 0.0).ok(),
+            metrics: Metrics::new(n),
+            eps: vec![0.0; n],
+            trace: Vec::new(),
+            clock_max: vec![0.0; n],
+            clock_sq: vec![0.0; n],
+            clock_count: 0,
+            watchdog: Vec::new(),
+            group_stop: None,
+            pending: Vec::new(),
+        };
+        sim.schedule_master();
+        for i in 0..n {
+            sim.schedule_sample(i);
+        }
+        for k in 0..cycles {
+            sim.push(k * s.ring.cycle.0.as_ns(), Ev::Probe { k });
+        }
+        Ok(sim)
+    }
+
+    fn push(&mut self, t: i64, ev: Ev) {
+        self.seq += 1;
+        self.q.push(Reverse(Queued {
+            t,
+            seq: self.seq,
+            ev,
+        }));
+    }
+
+    fn schedule_master(&mut self) {
+        self.master_gen += 1;
+        let t = self.master.poll_timeout().as_ns();
+        if t < self.end {
+            let generation = self.master_gen;
+            self.push(t, Ev::Master { generation });
+        }
+    }
+
+    fn schedule_sample(&mut self, i: usize) {
+        self.gens[i] += 1;
+        let t = self.osc[i].true_at(self.slaves[i].poll_timeout());
+        let generation = self.gens[i];
+        self.push(
+            t,
+            Ev::Sample {
+                slave: i,
+                generation,
+            },
+        );
+    }
+
+    fn frame_ns(&self, bytes: &[u8]) -> i64 {
+        match Frame::new_checked(bytes).map(|f| f.kind_byte()) {
+            Ok(1) => self.frame_ns[0],
+            Ok(2) => self.frame_ns[1],
+            _ => self.frame_ns[2],
+        }
+    }
+
+    /// Sends `bytes` from node `from` (0 = master), first bit out at true `t_tx`: follows
+    /// the ring to the first node that processes it (closed form over pure forwarders).
+    fn send(&mut self, from: usize, t_tx: i64, mut bytes: Vec<u8>) {
+        let (kind, target) = match Frame::new_checked(&bytes[..]) {
+            Ok(f) => {
+                let kind = f.kind_byte();
+                let target = if kind == FrameKind::Command as u8 && f.payload().len() >= 2 {
+                    usize::from(u16::from_le_bytes([f.payload()[0], f.payload()[1]]))
+                } else {
+                    0
+                };
+                (kind, target)
+            }
+            Err(_) => return,
+        };
+        let dur = self.frame_ns(&bytes);
+        let mut node = from;
+        let mut tx = t_tx;
+        let mut corrupted = false;
+        loop {
+            let next = (node + 1) % (self.n + 1);
+            let rng = &mut self.link_rng[node];
+            let mut rx = tx + self.hop;
+            if self.jitter > 0 {
+                rx += (rng.unit() * (self.jitter + 1) as f64) as i64;
+            }
+            if rng.chance(self.hop_loss) {
+                self.counters.lost += 1;
+                return;
+            }
+            if rng.chance(self.hop_corruption) {
+                let bit = (rng.next_u64() % (bytes.len() as u64 * 8)) as usize;
+                bytes[bit / 8] ^= 1 << (bit % 8);
+                if !corrupted {
+                    self.counters.corrupted += 1;
+                }
+                corrupted = true;
+            }
+            // Who processes it: every slave a lumped frame; the target a command; the master
+            // everything that comes back round.
+            let stops = next == 0
+                || kind == FrameKind::Lumped as u8
+                || (kind == FrameKind::Command as u8 && next == target);
+            if stops {
+                self.push(
+                    rx + dur,
+                    Ev::Arrive {
+                        node: next,
+                        rx_start: rx,
+                        bytes,
+                        corrupted,
+                    },
+                );
+                return;
+            }
+            if self.is_silent(next, rx) {
+                return; // a dead slave forwards nothing
+            }
+            tx = rx + self.residence;
+            node = next;
+        }
+    }
+
+    fn log(&mut self, node: usize, bytes: &[u8], rx_start: i64, rx_end: i64) {
+        let Some((from, to)) = self.opts.log_cycles else {
+            return;
+        };
+        let Ok(f) = Frame::new_checked(bytes) else {
+            return;
+        };
+        let cycle = i64::from(f.cycle());
+        if cycle < from || cycle >= to {
+            return;
+        }
+        let p = f.payload();
+        let frame = match f.kind_byte() {
+            1 => FrameRef::Lumped(0),
+            2 if p.len() >= 2 => FrameRef::Command(u32::from(u16::from_le_bytes([p[0], p[1]]))),
+            3 if p.len() >= 2 => FrameRef::Response(u32::from(u16::from_le_bytes([p[0], p[1]]))),
+            _ => return,
+        };
+        self.passages.push(PassageLog {
+            cycle,
+            frame,
+            node: if node == 0 {
+                Node::Master
+            } else {
+                Node::Slave(node as u32)
+            },
+            rx_start: Instant::from_ns(rx_start),
+            rx_end: Instant::from_ns(rx_end),
+        });
+    }
+
+    fn run(&mut self) {
+        while let Some(Reverse(Queued { t, ev, .. })) = self.q.pop() {
+            if t >= self.end {
+                // Let the last cycle's probe pass; nothing after the end counts.
+                if !matches!(ev, Ev::Probe { .. }) {
+                    continue;
+                }
+            }
+            self.counters.events += 1;
+            match ev {
+                Ev::Master { generation } if generation == self.master_gen => self.on_master(t),
+                Ev::Master { .. } => {}
+                Ev::Sample { slave, generation } if generation == self.gens[slave] => {
+                    self.on_sample(slave, t)
+                }
+                Ev::Sample { .. } => {}
+                Ev::Arrive {
+                    node,
+                    rx_start,
+                    mut bytes,
+                    corrupted,
+                } => {
+                    let _ = corrupted;
+                    self.log(node, &bytes, rx_start, t);
+                    if self.is_silent(node, t) {
+                        continue;
+                    }
+                    if node == 0 {
+                        self.master.handle_frame(Instant::from_ns(t), &bytes);
+                        self.drain_master(t);
+                        self.schedule_master();
+                    } else {
+                        self.on_slave_frame(node - 1, rx_start, t, &mut bytes);
+                    }
+                }
+                Ev::SlaveSend { slave, bytes } => self.send(slave + 1, t, bytes),
+                Ev::Probe { k } => self.on_probe(k, t),
+            }
+        }
+    }
+
+    fn on_master(&mut self, t: i64) {
+        self.master.handle_timeout(Instant::from_ns(t));
+        self.drain_master(t);
+        self.schedule_master();
+    }
+
+    fn drain_master(&mut self, _t: i64) {
+        while let Some(tx) = self.master.poll_transmit() {
+            self.send(0, tx.at.as_ns(), tx.bytes);
+        }
+        while let Some(ev) = self.master.poll_event() {
+            match ev {
+                MasterEvent::Computed { k } => self.on_computed(k),
+                MasterEvent::GroupStop { at, reason } => {
+                    if self.group_stop.is_none() {
+                        self.group_stop = Some((at.as_ns() as f64 * 1e-9, reason));
+                    }
+                }
+            }
+        }
+    }
+
+    /// Whether `node` (1-based slave) has gone silent by `t`: it neither forwards nor answers.
+    fn is_silent(&self, node: usize, t: i64) -> bool {
+        let f = &self.s.faults;
+        f.silent_slave != 0 && node == f.silent_slave as usize && t >= f.silent_from.0.as_ns()
+    }
+
+    fn on_sample(&mut self, i: usize, t: i64) {
+        self.axes[i].advance(t);
+        let counts = self.axes[i].encoder.counts(self.axes[i].x);
+        let local = self.osc[i].local(t);
+        self.slaves[i].handle_sample(local, counts);
+        self.drain_slave(i, t);
+        self.schedule_sample(i);
+    }
+
+    fn on_slave_frame(&mut self, i: usize, rx_start: i64, rx_end: i64, bytes: &mut Vec<u8>) {
+        let (ls, le) = (self.osc[i].local(rx_start), self.osc[i].local(rx_end));
+        let before = self.slaves[i].poll_timeout();
+        match self.slaves[i].handle_frame(ls, le, bytes) {
+            FrameOutcome::Forward => {
+                let b = std::mem::take(bytes);
+                self.send(i + 1, rx_start + self.residence, b);
+            }
+            FrameOutcome::Consumed | FrameOutcome::Dropped => {}
+        }
+        self.drain_slave(i, rx_end);
+        if self.slaves[i].poll_timeout() != before {
+            self.schedule_sample(i);
+        }
+    }
+
+    fn drain_slave(&mut self, i: usize, t: i64) {
+        while let Some(ev) = self.slaves[i].poll_event() {
+            self.axes[i].advance(t);
+            match ev {
+                SlaveEvent::Apply { u } => {
+                    self.axes[i].u = u;
+                    self.apply_time[i] = t as f64 * 1e-9;
+                }
+                SlaveEvent::WatchdogExpired => {
+                    self.axes[i].u = 0.0;
+                    self.watchdog.push((i + 1, t as f64 * 1e-9));
+                }
+            }
+        }
+        while let Some(tx) = self.slaves[i].poll_transmit() {
+            let at = self.osc[i].true_at(tx.at);
+            self.push(
+                at,
+                Ev::SlaveSend {
+                    slave: i,
+                    bytes: tx.bytes,
+                },
+            );
+        }
+    }
+
+    /// Moves the waiting rows to the trace with the apply times seen since.
+    fn flush_trace(&mut self) {
+        for mut row in self.pending.drain(..) {
+            row.apply_time = self.apply_time[row.axis - 1];
+            self.trace.push(row);
+        }
+    }
+
+    fn on_probe(&mut self, k: i64, t: i64) {
+        self.flush_trace();
+        let ts = t as f64 * 1e-9;
+        for i in 0..self.n {
+            self.axes[i].advance(t);
+            self.probe_x[i] = self.axes[i].x;
+            self.probe_xd[i] = self.master.desired(i, ts).x;
+            let sync = self.slaves[i].clock().to_sync(self.osc[i].local(t));
+            self.probe_clock[i] = (sync.as_ns() - t) as f64;
+        }
+        let e: Vec<f64> = (0..self.n)
+            .map(|i| self.probe_xd[i] - self.probe_x[i])
+            .collect();
+        let u: Vec<f64> = self.axes.iter().map(|a| a.u).collect();
+        let sat: Vec<bool> = (0..self.n)
+            .map(|i| {
+                self.slaves[i]
+                    .status()
+                    .contains(ringsync_wire::Status::SATURATED)
+            })
+            .collect();
+        let _ = self.metrics.push(&e, &u, &sat);
+        let cycles = self.end / self.s.ring.cycle.0.as_ns();
+        if 2 * k >= cycles {
+            self.clock_count += 1;
+            for i in 0..self.n {
+                let c = self.probe_clock[i];
+                self.clock_max[i] = self.clock_max[i].max(c.abs());
+                self.clock_sq[i] += c * c;
+            }
+        }
+        if let Some(c) = &self.coupling {
+            let _ = c.sync_errors(&e, &mut self.eps);
+        }
+    }
+
+    fn on_computed(&mut self, k: i64) {
+        if !self.opts.trace {
+            return;
+        }
+        let r = self.master.record();
+        let t = k as f64 * self.s.ring.cycle.secs();
+        self.apply_time.fill(f64::NAN);
+        for i in 0..self.n {
+            self.pending.push(TraceRow {
+                t,
+                axis: i + 1,
+                x_d: self.probe_xd[i],
+                x: self.probe_x[i],
+                e: self.probe_xd[i] - self.probe_x[i],
+                eps: self.eps[i],
+                u: r.u[i],
+                sample_time: r.sample_time[i],
+                apply_time: f64::NAN,
+                clock_error_ns: self.probe_clock[i],
+            });
+        }
+    }
+
+    fn finish(mut self) -> RunResult {
+        self.flush_trace();
+        let n = self.clock_count.max(1) as f64;
+        RunResult {
+            scenario: self.s.name.clone(),
+            cycles: self.end / self.s.ring.cycle.0.as_ns(),
+            summary: self.metrics.summary(),
+            master: self.master.counters(),
+            slaves: self.slaves.iter().map(|s| s.counters()).collect(),
+            links: self.counters,
+            clock_error_max_ns: self.clock_max,
+            clock_error_rms_ns: self.clock_sq.iter().map(|s| (s / n).sqrt()).collect(),
+            watchdog: self.watchdog,
+            group_stop: self.group_stop,
+            trace: self.trace,
+            passages: self.passages,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests;
