@@ -3,6 +3,7 @@
 
 mod plan_cmd;
 mod scenario_cmd;
+mod sim_cmd;
 
 use std::process::ExitCode;
 
@@ -50,6 +51,10 @@ enum Command {
     Scenario(scenario_cmd::ScenarioCmd),
     /// Stability analysis of a scenario: discrete-time spectral radius and the paper's conditions.
     Check(scenario_cmd::CheckArgs),
+    /// Simulate a scenario: summary.json and trace.csv.
+    Sim(sim_cmd::SimArgs),
+    /// Reproduce the paper's Table 1 on the reference scenario (PD, sync, ring-coupled).
+    Reproduce(sim_cmd::ReproduceArgs),
 }
 
 /// Writes `text` to standard output. A closed pipe (`ringsync plan | head`) ends the output
@@ -94,6 +99,8 @@ fn main() -> ExitCode {
         Command::Plan(args) => plan_cmd::run(&args),
         Command::Scenario(cmd) => scenario_cmd::run(&cmd),
         Command::Check(args) => scenario_cmd::check(&args),
+        Command::Sim(args) => sim_cmd::sim(&args),
+        Command::Reproduce(args) => sim_cmd::reproduce(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

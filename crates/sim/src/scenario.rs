@@ -545,8 +545,20 @@ impl Scenario {
 
     /// A built-in scenario by name, or a scenario file by path.
     pub fn load(name_or_path: &str) -> Result<Self, ScenarioError> {
+        Scenario::load_with_hash(name_or_path).map(|(s, _)| s)
+    }
+
+    /// [`Scenario::load`], with the FNV-1a 64-bit hash of the scenario's text (it names the
+    /// exact input in every output).
+    pub fn load_with_hash(name_or_path: &str) -> Result<(Self, u64), ScenarioError> {
+        let text = Scenario::text(name_or_path)?;
+        let s = Scenario::from_toml(&text, name_or_path)?;
+        Ok((s, fnv1a(text.as_bytes())))
+    }
+
+    fn text(name_or_path: &str) -> Result<String, ScenarioError> {
         if let Some(text) = builtin(name_or_path) {
-            return Scenario::from_toml(text, name_or_path);
+            return Ok(text.to_string());
         }
         let path = std::path::Path::new(name_or_path);
         if !path.exists() {
@@ -556,11 +568,10 @@ impl Scenario {
                 names.join(", "),
             ));
         }
-        let text = std::fs::read_to_string(path).map_err(|e| ScenarioError::Io {
+        std::fs::read_to_string(path).map_err(|e| ScenarioError::Io {
             path: name_or_path.to_string(),
             reason: e.to_string(),
-        })?;
-        Scenario::from_toml(&text, name_or_path)
+        })
     }
 
     /// Number of axes n (= slaves).
@@ -820,6 +831,13 @@ impl Scenario {
         };
         Ok(vec![one; self.axes_count()])
     }
+}
+
+/// FNV-1a, 64 bits.
+pub fn fnv1a(bytes: &[u8]) -> u64 {
+    bytes.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &b| {
+        (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3)
+    })
 }
 
 /// Maps a control-layer error to the scenario key it came from.
