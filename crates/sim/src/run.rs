@@ -245,6 +245,8 @@ struct Sim<'a> {
     residence: i64,
     jitter: i64,
     frame_ns: [i64; 3],
+    /// Most slots per lumped frame (frame j carries slots from j·this).
+    slots_per_frame: usize,
     /// Per-hop loss and corruption probabilities.
     hop_loss: f64,
     hop_corruption: f64,
@@ -372,6 +374,7 @@ impl<'a> Sim<'a> {
             residence: s.ring.residence.0.as_ns(),
             jitter: s.ring.jitter.0.as_ns(),
             frame_ns,
+            slots_per_frame: plan.lumped.slots_per_frame,
             hop_loss: 1.0 - (1.0 - s.faults.loss).powf(1.0 / (n + 1) as f64),
             hop_corruption: 1.0 - (1.0 - s.faults.corruption).powf(1.0 / (n + 1) as f64),
             end: cycles * s.ring.cycle.0.as_ns(),
@@ -397,9 +400,8 @@ impl<'a> Sim<'a> {
         for i in 0..n {
             sim.schedule_sample(i);
         }
-        for k in 0..cycles {
-            sim.push(k * s.ring.cycle.0.as_ns(), Ev::Probe { k });
-        }
+        // Probes are scheduled one at a time, so the queue stays a few entries deep.
+        sim.push(0, Ev::Probe { k: 0 });
         Ok(sim)
     }
 
@@ -442,67 +444,90 @@ impl<'a> Sim<'a> {
         }
     }
 
-    /// Sends `bytes` from node `from` (0 = master), first bit out at true `t_tx`: follows
-    /// the ring to the first node that processes it (closed form over pure forwarders).
+    /// Sends `bytes` from node `from` (0 = master), first bit out at true `t_tx`, along the
+    /// ring to the first node that processes it: the master for everything that comes back
+    /// round, a command's target, and the slaves whose slots a lumped frame carries. Slaves in
+    /// between only forward (cut-through, in hardware) and cost no event.
     fn send(&mut self, from: usize, t_tx: i64, mut bytes: Vec<u8>) {
-        let (kind, target) = match Frame::new_checked(&bytes[..]) {
-            Ok(f) => {
-                let kind = f.kind_byte();
-                let target = if kind == FrameKind::Command as u8 && f.payload().len() >= 2 {
-                    usize::from(u16::from_le_bytes([f.payload()[0], f.payload()[1]]))
-                } else {
-                    0
-                };
-                (kind, target)
-            }
-            Err(_) => return,
+        let Ok(f) = Frame::new_checked(&bytes[..]) else {
+            return;
         };
-        let dur = self.frame_ns(&bytes);
-        let mut node = from;
-        let mut tx = t_tx;
-        let mut corrupted = false;
-        loop {
-            let next = (node + 1) % (self.n + 1);
-            let rng = &mut self.link_rng[node];
-            let mut rx = tx + self.hop;
-            if self.jitter > 0 {
-                rx += (rng.unit() * (self.jitter + 1) as f64) as i64;
+        let (kind, p) = (f.kind_byte(), f.payload());
+        let word = |at: usize| {
+            p.get(at..at + 2)
+                .map_or(0, |b| usize::from(u16::from_le_bytes([b[0], b[1]])))
+        };
+        let ring = self.n + 1;
+        // The node (0 = master) that processes the frame next.
+        let stop = if kind == FrameKind::Command as u8 && from == 0 {
+            word(0).min(self.n)
+        } else if kind == FrameKind::Lumped as u8 {
+            // Slots f..f+m belong to slaves f+1..=f+m.
+            let (first, count) = (word(8), word(10));
+            let next = from + 1;
+            if next <= first {
+                (first + 1).min(ring) % ring
+            } else if next <= first + count && next <= self.n {
+                next
+            } else {
+                0
             }
-            if rng.chance(self.hop_loss) {
+        } else {
+            0
+        };
+        let stop = if stop == 0 && from == 0 { ring } else { stop };
+        let hops = ((stop + ring - from) % ring).max(1) as i64;
+        let stop = stop % ring;
+        let dur = self.frame_ns(&bytes);
+        let rng = &mut self.link_rng[from];
+        let mut rx = t_tx + hops * self.hop + (hops - 1) * self.residence;
+        let mut corrupted = false;
+        if self.jitter > 0 {
+            // Per hop: jitter, loss and corruption draws hop by hop.
+            for _ in 0..hops {
+                rx += (rng.unit() * (self.jitter + 1) as f64) as i64;
+                if rng.chance(self.hop_loss) {
+                    self.counters.lost += 1;
+                    return;
+                }
+                if rng.chance(self.hop_corruption) {
+                    corrupted = true;
+                }
+            }
+        } else {
+            // No jitter: one draw each with the probability over all hops (same distribution).
+            let over = |p: f64| 1.0 - (1.0 - p).powi(hops as i32);
+            if rng.chance(over(self.hop_loss)) {
                 self.counters.lost += 1;
                 return;
             }
-            if rng.chance(self.hop_corruption) {
-                let bit = (rng.next_u64() % (bytes.len() as u64 * 8)) as usize;
-                bytes[bit / 8] ^= 1 << (bit % 8);
-                if !corrupted {
-                    self.counters.corrupted += 1;
-                }
-                corrupted = true;
-            }
-            // Who processes it: every slave a lumped frame; the target a command; the master
-            // everything that comes back round.
-            let stops = next == 0
-                || kind == FrameKind::Lumped as u8
-                || (kind == FrameKind::Command as u8 && next == target);
-            if stops {
-                self.push(
-                    rx + dur,
-                    Ev::Arrive {
-                        node: next,
-                        rx_start: rx,
-                        bytes,
-                        corrupted,
-                    },
-                );
-                return;
-            }
-            if self.is_silent(next, rx) {
-                return; // a dead slave forwards nothing
-            }
-            tx = rx + self.residence;
-            node = next;
+            corrupted = rng.chance(over(self.hop_corruption));
         }
+        if corrupted {
+            let bit = (rng.next_u64() % (bytes.len() as u64 * 8)) as usize;
+            bytes[bit / 8] ^= 1 << (bit % 8);
+            self.counters.corrupted += 1;
+        }
+        // A dead slave between sender and receiver forwards nothing.
+        let silent = self.s.faults.silent_slave as usize;
+        if silent != 0 && silent != stop {
+            let d = (silent + ring - from) % ring;
+            if d > 0 && (d as i64) < hops {
+                let at = t_tx + d as i64 * self.hop + (d as i64 - 1) * self.residence;
+                if self.is_silent(silent, at) {
+                    return;
+                }
+            }
+        }
+        self.push(
+            rx + dur,
+            Ev::Arrive {
+                node: stop,
+                rx_start: rx,
+                bytes,
+                corrupted,
+            },
+        );
     }
 
     fn log(&mut self, node: usize, bytes: &[u8], rx_start: i64, rx_end: i64) {
@@ -518,7 +543,10 @@ impl<'a> Sim<'a> {
         }
         let p = f.payload();
         let frame = match f.kind_byte() {
-            1 => FrameRef::Lumped(0),
+            1 if p.len() >= 10 => {
+                let first = usize::from(u16::from_le_bytes([p[8], p[9]]));
+                FrameRef::Lumped((first / self.slots_per_frame) as u32)
+            }
             2 if p.len() >= 2 => FrameRef::Command(u32::from(u16::from_le_bytes([p[0], p[1]]))),
             3 if p.len() >= 2 => FrameRef::Response(u32::from(u16::from_le_bytes([p[0], p[1]]))),
             _ => return,
@@ -665,6 +693,10 @@ impl<'a> Sim<'a> {
     }
 
     fn on_probe(&mut self, k: i64, t: i64) {
+        let next = t + self.s.ring.cycle.0.as_ns();
+        if next < self.end {
+            self.push(next, Ev::Probe { k: k + 1 });
+        }
         self.flush_trace();
         let ts = t as f64 * 1e-9;
         for i in 0..self.n {

@@ -289,12 +289,16 @@ pub struct Common {
     pub seq: u16,
 }
 
-/// Parses and checks the header and CRC of `buf` for a frame of kind `kind` whose payload
-/// must be `payload_len(kind, payload)`-checked by the caller. Returns the common fields and
-/// the payload slice.
-pub(crate) fn parse_common(buf: &[u8], kind: FrameKind) -> Result<(Common, &[u8])> {
+/// Parses the header of `buf` for a frame of kind `kind` and returns the common fields and
+/// the payload slice; the caller checks the payload. With `verify` the version, flags and
+/// CRC are checked too; without, the caller has just done so with [`Frame::check`].
+pub(crate) fn parse_common(buf: &[u8], kind: FrameKind, verify: bool) -> Result<(Common, &[u8])> {
     let frame = Frame::new_checked(buf)?;
-    let got = frame.check()?;
+    let got = if verify {
+        frame.check()?
+    } else {
+        FrameKind::from_u8(frame.kind_byte())?
+    };
     if got != kind {
         return Err(Error::WrongKind {
             expected: kind,
@@ -316,8 +320,9 @@ pub(crate) fn parse_fixed(
     buf: &[u8],
     kind: FrameKind,
     payload_len: usize,
+    verify: bool,
 ) -> Result<(Common, &[u8])> {
-    let (common, p) = parse_common(buf, kind)?;
+    let (common, p) = parse_common(buf, kind, verify)?;
     if p.len() != payload_len {
         return Err(Error::PayloadLength {
             kind,

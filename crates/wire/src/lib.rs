@@ -64,11 +64,12 @@ impl Pdu {
     /// (Ethernet padding) are ignored.
     pub fn parse(buf: &[u8]) -> Result<Self> {
         let frame = Frame::new_checked(buf)?;
+        // The header and CRC are checked once here; the kind's parser checks the payload.
         match frame.check()? {
-            FrameKind::Lumped => LumpedRepr::parse(buf).map(Pdu::Lumped),
-            FrameKind::Command => CommandRepr::parse(buf).map(Pdu::Command),
-            FrameKind::Response => ResponseRepr::parse(buf).map(Pdu::Response),
-            FrameKind::LumpedOnly => LumpedRepr::parse(buf).map(Pdu::LumpedOnly),
+            FrameKind::Lumped => LumpedRepr::parse_verified(buf).map(Pdu::Lumped),
+            FrameKind::Command => CommandRepr::parse_verified(buf).map(Pdu::Command),
+            FrameKind::Response => ResponseRepr::parse_verified(buf).map(Pdu::Response),
+            FrameKind::LumpedOnly => LumpedRepr::parse_verified(buf).map(Pdu::LumpedOnly),
         }
     }
 

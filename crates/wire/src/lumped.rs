@@ -190,7 +190,17 @@ fn check_prefix(payload: &[u8], kind: FrameKind, slot_len: usize) -> Result<(u16
 impl<S: SlotCodec> LumpedRepr<S> {
     /// Parses and checks a whole PDU (header, payload, CRC).
     pub fn parse(buf: &[u8]) -> Result<Self> {
-        let (common, payload) = parse_common(buf, S::KIND)?;
+        Self::parse_inner(buf, true)
+    }
+
+    /// Parses a PDU whose header and CRC the caller has just verified with
+    /// [`Frame::check`](crate::Frame::check); the payload is still checked.
+    pub fn parse_verified(buf: &[u8]) -> Result<Self> {
+        Self::parse_inner(buf, false)
+    }
+
+    fn parse_inner(buf: &[u8], verify: bool) -> Result<Self> {
+        let (common, payload) = parse_common(buf, S::KIND, verify)?;
         let (first_slot, count) = check_prefix(payload, S::KIND, S::LEN)?;
         let mut slots = Vec::with_capacity(count.into());
         for chunk in payload[LUMPED_PREFIX_LEN..].chunks_exact(S::LEN) {

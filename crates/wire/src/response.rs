@@ -47,7 +47,17 @@ pub struct ResponseRepr {
 impl ResponseRepr {
     /// Parses and checks a whole PDU (header, payload, CRC).
     pub fn parse(buf: &[u8]) -> Result<Self> {
-        let (common, p) = parse_fixed(buf, FrameKind::Response, RESPONSE_PAYLOAD_LEN)?;
+        Self::parse_inner(buf, true)
+    }
+
+    /// Parses a PDU whose header and CRC the caller has just verified with
+    /// [`Frame::check`](crate::Frame::check); the payload is still checked.
+    pub fn parse_verified(buf: &[u8]) -> Result<Self> {
+        Self::parse_inner(buf, false)
+    }
+
+    fn parse_inner(buf: &[u8], verify: bool) -> Result<Self> {
+        let (common, p) = parse_fixed(buf, FrameKind::Response, RESPONSE_PAYLOAD_LEN, verify)?;
         let source = u16_at(p, 0);
         if source == 0 {
             return Err(Error::BadSlave(source));

@@ -240,7 +240,7 @@ impl Slave {
                 FrameOutcome::Forward
             }
             FrameKind::Command => {
-                let Ok(cmd) = CommandRepr::parse(bytes) else {
+                let Ok(cmd) = CommandRepr::parse_verified(bytes) else {
                     self.counters.bad_frames += 1;
                     return FrameOutcome::Dropped;
                 };

@@ -24,7 +24,7 @@ fn one_cycle_matches_the_planner_to_the_nanosecond() {
         "",
         "[ring]\nslaves = 9\ncycle = \"2ms\"\nbit_rate = \"1G\"\n",
     ] {
-        let s = scenario(&format!("duration = \"20ms\"\n{IDEAL}{extra}"));
+        let s = scenario(&format!("duration = \"400ms\"\n{IDEAL}{extra}"));
         let k = 5;
         let r = run(
             &s,
@@ -37,10 +37,11 @@ fn one_cycle_matches_the_planner_to_the_nanosecond() {
         let plan = CyclePlan::new(&s.ring_params()).expect("plan");
         let tl = plan.timeline();
         let t0 = k * s.ring.cycle.0.as_ns();
-        // Every slave sees the lumped frame, each target its command, the master every
-        // response and the returning lumped frame: 2n + 1 + n passages.
+        // Every slave processes the lumped frame that carries its slot, each target its
+        // command, the master every response and every returning lumped frame.
         let n = s.axes_count();
-        assert_eq!(r.passages.len(), 3 * n + 1, "{:?}", r.passages);
+        let frames = plan.lumped.frame_slots.len();
+        assert_eq!(r.passages.len(), 3 * n + frames, "{:?}", r.passages);
         for p in &r.passages {
             let want = planned(&tl, p.frame, p.node).expect("planned passage");
             let got = (p.rx_start.as_ns() - t0, p.rx_end.as_ns() - t0);
