@@ -722,7 +722,37 @@ impl Scenario {
         self.axis_models().map_err(|(i, e)| plant_error(i, &e))?;
         self.trajectories()
             .map_err(|e| control_error(&e).prefixed("trajectory"))?;
+        // Positions travel as i32 encoder counts (docs/wire.md): the motion must fit.
+        let reach = self.trajectory_reach() + 1.0;
+        for (i, a) in self.axis.iter().enumerate() {
+            let counts = reach / std::f64::consts::TAU * f64::from(1u32 << a.encoder_bits);
+            if counts >= f64::from(i32::MAX) {
+                let max_bits = (f64::from(i32::MAX) * std::f64::consts::TAU / reach)
+                    .log2()
+                    .floor() as i64;
+                return Err(out_of_range(
+                    format!("axis[{i}].encoder_bits"),
+                    a.encoder_bits,
+                    format!(
+                        "1 ..= {max_bits} for this trajectory: positions up to {reach:.1} rad must fit the wire's i32 counts"
+                    ),
+                ));
+            }
+        }
         Ok(())
+    }
+
+    /// The largest |x^d| the trajectory reaches [rad].
+    pub fn trajectory_reach(&self) -> f64 {
+        match &self.trajectory {
+            TrajectorySpec::Cosine { peak_speed, period } => {
+                2.0 * peak_speed * period.secs() / std::f64::consts::TAU
+            }
+            TrajectorySpec::Trapezoid { distance, .. } => distance.abs(),
+            TrajectorySpec::Sequence { targets, .. } => {
+                targets.iter().fold(0.0, |m, (x, _)| m.max(x.abs()))
+            }
+        }
     }
 
     /// The gains of all n axes.

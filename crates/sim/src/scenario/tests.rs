@@ -99,6 +99,17 @@ fn out_of_range_values_name_key_value_and_range() {
 }
 
 #[test]
+fn encoder_counts_must_fit_the_wire() {
+    // The cosine reaches 9.6 rad: 2^31 counts per revolution would overflow the i32 field.
+    let e = err("[[axis]]\nencoder_bits = 31\n");
+    assert!(
+        e.starts_with("axis[0].encoder_bits = 31 is out of range: allowed 1 ..= 30"),
+        "{e}"
+    );
+    Scenario::from_toml("[[axis]]\nencoder_bits = 24\n", "ok").expect("valid");
+}
+
+#[test]
 fn coupled_controllers_need_two_axes() {
     let e = err("[ring]\nslaves = 1\n");
     assert!(
