@@ -5,7 +5,9 @@ use std::time::Instant as WallClock;
 
 use anyhow::Context as _;
 use clap::Args;
-use ringsync_report::sim::{ReproRow, repro_json, repro_table, summary_json, trace_csv};
+use ringsync_report::sim::{
+    ReproRow, repro_figures, repro_html, repro_json, repro_table, summary_json, trace_csv,
+};
 use ringsync_sim::run::{RunError, RunOptions, run};
 use ringsync_sim::scenario::{LawKind, Scenario};
 
@@ -102,36 +104,57 @@ pub(crate) fn reproduce(args: &ReproduceArgs) -> Result<(), CliError> {
     let wall = WallClock::now();
     let laws = [LawKind::Pd, LawKind::Sync, LawKind::RingCoupled];
     // One single-threaded simulation per case, the cases in parallel.
-    let results: Vec<Result<ReproRow, CliError>> = std::thread::scope(|scope| {
-        let handles: Vec<_> = laws
-            .iter()
-            .map(|&law| {
-                let mut s = base.clone();
-                s.control.law = law;
-                scope.spawn(move || {
-                    let r = run(&s, RunOptions::default()).map_err(run_error)?;
-                    Ok(ReproRow {
-                        plan: s.ring.plan.name(),
-                        controller: law.name(),
-                        track_rmse: r.summary.track_rmse,
-                        sync_rmse: r.summary.sync_rmse,
+    let results: Vec<Result<(ReproRow, ringsync_sim::RunResult), CliError>> =
+        std::thread::scope(|scope| {
+            let handles: Vec<_> = laws
+                .iter()
+                .map(|&law| {
+                    let mut s = base.clone();
+                    s.control.law = law;
+                    scope.spawn(move || {
+                        let r = run(
+                            &s,
+                            RunOptions {
+                                trace: law != LawKind::RingCoupled,
+                                ..RunOptions::default()
+                            },
+                        )
+                        .map_err(run_error)?;
+                        let row = ReproRow {
+                            plan: s.ring.plan.name(),
+                            controller: law.name(),
+                            track_rmse: r.summary.track_rmse,
+                            sync_rmse: r.summary.sync_rmse,
+                        };
+                        Ok((row, r))
                     })
                 })
-            })
-            .collect();
-        handles
-            .into_iter()
-            .map(|h| {
-                h.join().unwrap_or_else(|_| {
-                    Err(CliError::Failure(anyhow::anyhow!(
-                        "a simulation thread panicked"
-                    )))
+                .collect();
+            handles
+                .into_iter()
+                .map(|h| {
+                    h.join().unwrap_or_else(|_| {
+                        Err(CliError::Failure(anyhow::anyhow!(
+                            "a simulation thread panicked"
+                        )))
+                    })
                 })
-            })
-            .collect()
-    });
-    let rows = results.into_iter().collect::<Result<Vec<_>, _>>()?;
+                .collect()
+        });
+    let done = results.into_iter().collect::<Result<Vec<_>, _>>()?;
+    let rows: Vec<ReproRow> = done.iter().map(|(row, _)| row.clone()).collect();
     let table = repro_table(&rows);
+    let plan = ringsync_proto::CyclePlan::new(&base.ring_params()).ok();
+    let timing = plan.as_ref().and_then(ringsync_report::timing_svg);
+    let figures = repro_figures(timing, &done[0].1, &done[1].1);
+    for (name, svg) in &figures {
+        write(&args.out, name, svg)?;
+    }
+    write(
+        &args.out,
+        "report.html",
+        &repro_html(&base, &rows, &figures),
+    )?;
     let json = serde_json::to_string_pretty(&repro_json(&rows)).context("cannot format JSON")?;
     write(&args.out, "summary.json", &format!("{json}\n"))?;
     write(
@@ -143,7 +166,7 @@ pub(crate) fn reproduce(args: &ReproduceArgs) -> Result<(), CliError> {
         ),
     )?;
     out(&format!(
-        "Scenario {} ({} axes, {} s, estimator {}), Table 1 [rad]:\n\n{table}\nAssumptions of the scenario: scenarios/{}.toml; of the simulator: summary.json of `ringsync sim`.\nWrote {}/summary.json and table.md in {:.1} ms.\n",
+        "Scenario {} ({} axes, {} s, estimator {}), Table 1 [rad]:\n\n{table}\nAssumptions of the scenario: scenarios/{}.toml; of the simulator: summary.json of `ringsync sim`.\nWrote {}/summary.json, table.md, report.html and the figures (fig*.svg) in {:.1} ms.\n",
         base.name,
         base.axes_count(),
         base.duration.secs(),

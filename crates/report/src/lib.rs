@@ -3,6 +3,7 @@
 
 pub mod check;
 pub mod plan;
+pub mod plot;
 pub mod sim;
 mod svg;
 pub mod timing;
