@@ -348,12 +348,12 @@ simulated yet.</p>\n",
         cell(rc, 0, 5),
         cell(rc, 1, 7),
     );
-    let _ = write!(o, "<h2>Figures</h2>\n");
+    o.push_str("<h2>Figures</h2>\n");
     for (name, svg) in figures {
         let body = svg.split_once("?>\n").map_or(svg.as_str(), |(_, b)| b);
-        let _ = write!(
+        let _ = writeln!(
             o,
-            "<figure>{body}<figcaption class=\"note\">{name}</figcaption></figure>\n"
+            "<figure>{body}<figcaption class=\"note\">{name}</figcaption></figure>"
         );
     }
     let _ = write!(
