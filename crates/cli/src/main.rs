@@ -55,6 +55,8 @@ enum Command {
     Sim(sim_cmd::SimArgs),
     /// Reproduce the paper's Table 1 on the reference scenario (PD, sync, ring-coupled).
     Reproduce(sim_cmd::ReproduceArgs),
+    /// Sweep scenario keys (their product, several seeds each) in parallel: CSV and a figure.
+    Sweep(sim_cmd::SweepArgs),
 }
 
 /// Writes `text` to standard output. A closed pipe (`ringsync plan | head`) ends the output
@@ -101,6 +103,7 @@ fn main() -> ExitCode {
         Command::Check(args) => scenario_cmd::check(&args),
         Command::Sim(args) => sim_cmd::sim(&args),
         Command::Reproduce(args) => sim_cmd::reproduce(&args),
+        Command::Sweep(args) => sim_cmd::sweep(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -176,3 +176,181 @@ pub(crate) fn reproduce(args: &ReproduceArgs) -> Result<(), CliError> {
         wall.elapsed().as_secs_f64() * 1e3
     ))
 }
+
+/// The (key, value) pairs that name one case of a sweep.
+type Labels = Vec<(String, String)>;
+
+/// Options of `ringsync sweep`.
+#[derive(Args, Debug)]
+pub struct SweepArgs {
+    /// Scenario file or built-in name: the base of every case.
+    scenario: String,
+    /// A key and its values, e.g. `faults.loss=0,0.01,0.02`; several give their product.
+    #[arg(long = "set", value_name = "KEY=V1,V2,…", required = true)]
+    set: Vec<ringsync_sim::sweep::SweepAxis>,
+    /// Seeds per case (the scenario's seed, +1, …); means are over them.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    seeds: u32,
+    /// Give each case whose cycle is too short for its ring the shortest cycle that holds it (+10 %).
+    #[arg(long)]
+    auto_cycle: bool,
+    /// Directory for sweep.csv, means.csv and sweep.svg.
+    #[arg(long, value_name = "DIR")]
+    out: PathBuf,
+    /// Parallel simulations (default: the number of CPUs).
+    #[arg(long)]
+    jobs: Option<usize>,
+}
+
+pub(crate) fn sweep(args: &SweepArgs) -> Result<(), CliError> {
+    use std::fmt::Write as _;
+    use std::io::IsTerminal as _;
+    let text = Scenario::text(&args.scenario).map_err(usage)?;
+    let cases = ringsync_sim::sweep::cases(
+        &text,
+        &args.scenario,
+        &args.set,
+        args.seeds,
+        args.auto_cycle,
+    )
+    .map_err(usage)?;
+    create(&args.out)?;
+    let jobs = args
+        .jobs
+        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    let tty = std::io::stderr().is_terminal();
+    let wall = WallClock::now();
+    let results = ringsync_sim::sweep::run_all(&cases, jobs, &|done, total| {
+        if tty {
+            eprint!("\r  case {done}/{total}");
+        }
+    });
+    if tty {
+        eprintln!();
+    }
+    let keys: Vec<&str> = args.set.iter().map(|a| a.key.as_str()).collect();
+    let mut csv = format!(
+        "{},seed,track_rmse,sync_rmse,lumped_lost,retries,commands_lost,clock_error_max_ns,group_stop_s\n",
+        keys.join(",")
+    );
+    for (c, r) in cases.iter().zip(&results) {
+        let vals: Vec<&str> = c.labels.iter().map(|(_, v)| v.as_str()).collect();
+        match r {
+            Ok(r) => {
+                let _ = writeln!(
+                    csv,
+                    "{},{},{:.9},{:.9},{},{},{},{:.0},{}",
+                    vals.join(","),
+                    c.seed,
+                    r.summary.track_rmse,
+                    r.summary.sync_rmse,
+                    r.master.lumped_lost,
+                    r.master.retries,
+                    r.master.commands_lost,
+                    r.clock_error_max_ns.iter().copied().fold(0.0, f64::max),
+                    r.group_stop
+                        .map_or(String::new(), |(t, _)| format!("{t:.4}"))
+                );
+            }
+            Err(e) => return Err(CliError::Usage(format!("case {}: {e}", vals.join(" ")))),
+        }
+    }
+    write(&args.out, "sweep.csv", &csv)?;
+    // Means over seeds, per combination, in order.
+    let mut means: Vec<(Labels, Vec<(f64, f64)>)> = Vec::new();
+    for (c, r) in cases.iter().zip(&results) {
+        if let Ok(r) = r {
+            match means.last_mut() {
+                Some((l, v)) if *l == c.labels => {
+                    v.push((r.summary.track_rmse, r.summary.sync_rmse))
+                }
+                _ => means.push((
+                    c.labels.clone(),
+                    vec![(r.summary.track_rmse, r.summary.sync_rmse)],
+                )),
+            }
+        }
+    }
+    let mut mcsv = format!(
+        "{},runs,track_rmse_mean,sync_rmse_mean,sync_rmse_std\n",
+        keys.join(",")
+    );
+    let mut table = format!(
+        "| {} | runs | Track-RMSE [rad] | Sync-RMSE [rad] (± std over seeds) |\n|{}---:|---:|---:|\n",
+        keys.join(" | "),
+        "---|".repeat(keys.len())
+    );
+    for (labels, v) in &means {
+        let n = v.len() as f64;
+        let mt = v.iter().map(|x| x.0).sum::<f64>() / n;
+        let ms = v.iter().map(|x| x.1).sum::<f64>() / n;
+        let sd = (v.iter().map(|x| (x.1 - ms).powi(2)).sum::<f64>() / n).sqrt();
+        let vals: Vec<&str> = labels.iter().map(|(_, v)| v.as_str()).collect();
+        let _ = writeln!(
+            mcsv,
+            "{},{},{:.9},{:.9},{:.9}",
+            vals.join(","),
+            v.len(),
+            mt,
+            ms,
+            sd
+        );
+        let _ = writeln!(
+            table,
+            "| {} | {} | {:.5} | {:.7} ± {:.7} |",
+            vals.join(" | "),
+            v.len(),
+            mt,
+            ms,
+            sd
+        );
+    }
+    write(&args.out, "means.csv", &mcsv)?;
+    // Figure: mean Sync-RMSE against the first key, one line per value of the others.
+    let mut groups: Vec<(String, Vec<(f64, f64)>)> = Vec::new();
+    for (k, (labels, v)) in means.iter().enumerate() {
+        let name = labels[1..]
+            .iter()
+            .map(|(k, v)| format!("{k}={v}"))
+            .collect::<Vec<_>>()
+            .join(", ");
+        let x = labels[0].1.parse::<f64>().unwrap_or(k as f64);
+        let ms = v.iter().map(|x| x.1).sum::<f64>() / v.len() as f64;
+        match groups.iter_mut().find(|(n, _)| *n == name) {
+            Some((_, pts)) => pts.push((x, ms)),
+            None => groups.push((name, vec![(x, ms)])),
+        }
+    }
+    let series: Vec<ringsync_report::plot::Series<'_>> = groups
+        .into_iter()
+        .enumerate()
+        .map(|(i, (name, points))| ringsync_report::plot::Series {
+            name: if name.is_empty() {
+                "Sync-RMSE".into()
+            } else {
+                name
+            },
+            colour: ringsync_report::plot::PALETTE[i % ringsync_report::plot::PALETTE.len()],
+            points,
+        })
+        .collect();
+    let svg = ringsync_report::plot::line_chart(
+        &format!(
+            "Sync-RMSE against {} ({}, mean of {} seed{})",
+            keys[0],
+            args.scenario,
+            args.seeds,
+            if args.seeds == 1 { "" } else { "s" }
+        ),
+        keys[0],
+        "Sync-RMSE [rad]",
+        &series,
+    );
+    write(&args.out, "sweep.svg", &svg)?;
+    out(&format!(
+        "{table}\n{} runs on {jobs} threads in {:.2} s; wrote {}/sweep.csv, means.csv and sweep.svg\n",
+        cases.len(),
+        wall.elapsed().as_secs_f64(),
+        args.out.display()
+    ))
+}

@@ -143,3 +143,42 @@ fn bad_runs_are_one_line_and_exit_2() {
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("lumped-only"));
 }
+
+#[test]
+fn sweep_writes_rows_means_and_a_figure() {
+    let d = dir("sweep");
+    let sc = short_scenario();
+    let o = ringsync(&[
+        "sweep",
+        sc.to_str().expect("p"),
+        "--set",
+        "control.law=pd,sync",
+        "--set",
+        "faults.loss=0,0.02",
+        "--seeds",
+        "2",
+        "--out",
+        d.to_str().expect("p"),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let rows = std::fs::read_to_string(d.join("sweep.csv")).expect("sweep.csv");
+    assert_eq!(rows.lines().count(), 1 + 2 * 2 * 2);
+    assert!(rows.starts_with("control.law,faults.loss,seed,track_rmse,sync_rmse"));
+    let means = std::fs::read_to_string(d.join("means.csv")).expect("means.csv");
+    assert_eq!(means.lines().count(), 1 + 4);
+    assert!(
+        std::fs::read_to_string(d.join("sweep.svg"))
+            .expect("svg")
+            .contains("<polyline")
+    );
+    let o = ringsync(&[
+        "sweep",
+        sc.to_str().expect("p"),
+        "--set",
+        "faults.lost=0.1",
+        "--out",
+        d.to_str().expect("p"),
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert_eq!(String::from_utf8_lossy(&o.stderr).lines().count(), 1);
+}

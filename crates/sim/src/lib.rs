@@ -7,6 +7,7 @@ pub mod check;
 mod rng;
 pub mod run;
 pub mod scenario;
+pub mod sweep;
 
 pub use run::{RunOptions, RunResult, run};
 pub use scenario::{Scenario, ScenarioError, builtin, builtin_names};

@@ -556,7 +556,8 @@ impl Scenario {
         Ok((s, fnv1a(text.as_bytes())))
     }
 
-    fn text(name_or_path: &str) -> Result<String, ScenarioError> {
+    /// The TOML text of a built-in scenario or a scenario file.
+    pub fn text(name_or_path: &str) -> Result<String, ScenarioError> {
         if let Some(text) = builtin(name_or_path) {
             return Ok(text.to_string());
         }
