@@ -103,19 +103,30 @@ pub(crate) fn reproduce(args: &ReproduceArgs) -> Result<(), CliError> {
     create(&args.out)?;
     let wall = WallClock::now();
     let laws = [LawKind::Pd, LawKind::Sync, LawKind::RingCoupled];
+    let plans = [
+        ringsync_proto::PlanKind::P2pLumped,
+        ringsync_proto::PlanKind::LumpedOnly,
+    ];
+    let combos: Vec<(ringsync_proto::PlanKind, LawKind)> = plans
+        .iter()
+        .flat_map(|&p| laws.iter().map(move |&l| (p, l)))
+        .collect();
     // One single-threaded simulation per case, the cases in parallel.
     let results: Vec<Result<(ReproRow, ringsync_sim::RunResult), CliError>> =
         std::thread::scope(|scope| {
-            let handles: Vec<_> = laws
+            let handles: Vec<_> = combos
                 .iter()
-                .map(|&law| {
+                .map(|&(plan, law)| {
                     let mut s = base.clone();
                     s.control.law = law;
+                    s.ring.plan = plan;
+                    let figures =
+                        plan == ringsync_proto::PlanKind::P2pLumped && law != LawKind::RingCoupled;
                     scope.spawn(move || {
                         let r = run(
                             &s,
                             RunOptions {
-                                trace: law != LawKind::RingCoupled,
+                                trace: figures,
                                 ..RunOptions::default()
                             },
                         )

@@ -104,6 +104,11 @@ fn reproduce_writes_the_table_and_rows() {
     };
     let (pd, sync) = (get("pd"), get("sync"));
     get("ring-coupled");
+    assert_eq!(rows.len(), 6, "three controllers on both plans");
+    assert!(
+        rows.iter()
+            .any(|r| r["plan"] == "lumped-only" && r["controller"] == "sync")
+    );
     // The acceptance of the paper's result: the sync controller lowers both errors.
     assert!(sync.0 < pd.0 && sync.1 < pd.1, "pd {pd:?} sync {sync:?}");
     assert!(
@@ -133,7 +138,7 @@ fn bad_runs_are_one_line_and_exit_2() {
     }
     let sc = d.join("lo.toml");
     std::fs::create_dir_all(&d).expect("dir");
-    std::fs::write(&sc, "[ring]\nplan = \"lumped-only\"\n").expect("write");
+    std::fs::write(&sc, "[ring]\nplan = \"lumped-only\"\nslaves = 60\ncycle = \"2ms\"\n").expect("write");
     let o = ringsync(&[
         "sim",
         sc.to_str().expect("p"),
@@ -141,7 +146,7 @@ fn bad_runs_are_one_line_and_exit_2() {
         d.to_str().expect("p"),
     ]);
     assert_eq!(o.status.code(), Some(2));
-    assert!(String::from_utf8_lossy(&o.stderr).contains("lumped-only"));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("at most 46 slaves"));
 }
 
 #[test]

@@ -131,50 +131,74 @@ fn find(rows: &[ReproRow], plan: &str, ctl: &str) -> Option<(f64, f64)> {
         .map(|r| (r.track_rmse, r.sync_rmse))
 }
 
-/// The paper's Table 1 beside ours, as Markdown.
+/// The paper's Table 1 beside ours, as Markdown: for each metric, the paper's proposed plan,
+/// ours, the paper's ref. [3] (lumped-only plan, another test bench) and our lumped-only plan
+/// on the same plant.
 pub fn repro_table(rows: &[ReproRow]) -> String {
     let mut o = String::new();
     let f = |v: Option<(f64, f64)>, which: usize, digits: usize| match v {
         Some(p) => format!("{:.*}", digits, if which == 0 { p.0 } else { p.1 }),
-        None => "not simulated".into(),
+        None => "–".into(),
     };
     let _ = writeln!(
         o,
-        "| | Track-RMSE, paper | Track-RMSE, ringsync | Sync-RMSE, paper | Sync-RMSE, ringsync |"
+        "| | Track, paper | Track, ringsync | Track, paper ref. [3] | Track, ringsync lumped-only | Sync, paper | Sync, ringsync | Sync, paper ref. [3] | Sync, ringsync lumped-only |"
     );
-    let _ = writeln!(o, "|---|---:|---:|---:|---:|");
-    let ours = [
+    let _ = writeln!(o, "|---|---:|---:|---:|---:|---:|---:|---:|---:|");
+    let p2p = [
         find(rows, "p2p-lumped", "pd"),
         find(rows, "p2p-lumped", "sync"),
+    ];
+    let lo = [
+        find(rows, "lumped-only", "pd"),
+        find(rows, "lumped-only", "sync"),
     ];
     for (k, (name, p)) in PAPER_TABLE_1.iter().enumerate() {
         let _ = writeln!(
             o,
-            "| {name} | {} | {} | {} | {} |",
+            "| {name} | {} | {} | {} | {} | {} | {} | {} | {} |",
             p[0],
-            f(ours[k], 0, 5),
+            f(p2p[k], 0, 5),
+            p[1],
+            f(lo[k], 0, 5),
             p[2],
-            f(ours[k], 1, 7)
+            f(p2p[k], 1, 7),
+            p[3],
+            f(lo[k], 1, 7)
         );
     }
-    let red = |a: f64, b: f64| format!("{:.3} %", (1.0 - b / a) * 100.0);
-    let (ot, os) = match (ours[0], ours[1]) {
-        (Some(pd), Some(sy)) => (red(pd.0, sy.0), red(pd.1, sy.1)),
-        _ => ("–".into(), "–".into()),
+    let red = |a: Option<(f64, f64)>, b: Option<(f64, f64)>, w: usize| match (a, b) {
+        (Some(a), Some(b)) => {
+            let (x, y) = if w == 0 { (a.0, b.0) } else { (a.1, b.1) };
+            format!("{:.3} %", (1.0 - y / x) * 100.0)
+        }
+        _ => "–".into(),
     };
-    let _ = writeln!(o, "| reduction | 21.171 % | {ot} | 49.270 % | {os} |");
-    if let Some(rc) = find(rows, "p2p-lumped", "ring-coupled") {
+    let _ = writeln!(
+        o,
+        "| reduction | 21.171 % | {} | 20.564 % | {} | 49.270 % | {} | 45.717 % | {} |",
+        red(p2p[0], p2p[1], 0),
+        red(lo[0], lo[1], 0),
+        red(p2p[0], p2p[1], 1),
+        red(lo[0], lo[1], 1)
+    );
+    let rc = (
+        find(rows, "p2p-lumped", "ring-coupled"),
+        find(rows, "lumped-only", "ring-coupled"),
+    );
+    if rc.0.is_some() || rc.1.is_some() {
         let _ = writeln!(
             o,
-            "| ring-coupled (not in the paper) | – | {:.5} | – | {:.7} |",
-            rc.0, rc.1
+            "| ring-coupled (not in the paper) | – | {} | – | {} | – | {} | – | {} |",
+            f(rc.0, 0, 5),
+            f(rc.1, 0, 5),
+            f(rc.0, 1, 7),
+            f(rc.1, 1, 7)
         );
     }
     let _ = writeln!(
         o,
-        "\nPaper's ref. [3] column (lumped-only plan, another test bench): PD {} / {}, sync {} / {} (Track / Sync-RMSE, rad). \
-         The lumped-only plan is not simulated yet.",
-        PAPER_TABLE_1[0].1[1], PAPER_TABLE_1[0].1[3], PAPER_TABLE_1[1].1[1], PAPER_TABLE_1[1].1[3]
+        "\nTrack = Track-RMSE, Sync = Sync-RMSE [rad]. The paper measured its ref. [3] columns on another test bench; ringsync runs both plans on one plant."
     );
     o
 }
@@ -285,20 +309,6 @@ fn esc(s: &str) -> String {
 /// every assumption.
 pub fn repro_html(s: &Scenario, rows: &[ReproRow], figures: &[(&str, String)]) -> String {
     let mut o = String::new();
-    let get = |ctl: &str| find(rows, "p2p-lumped", ctl);
-    let cell = |v: Option<(f64, f64)>, which: usize, d: usize| {
-        v.map_or("–".to_string(), |p| {
-            format!("{:.*}", d, if which == 0 { p.0 } else { p.1 })
-        })
-    };
-    let (pd, sy, rc) = (get("pd"), get("sync"), get("ring-coupled"));
-    let red = |a: Option<(f64, f64)>, b: Option<(f64, f64)>, w: usize| match (a, b) {
-        (Some(a), Some(b)) => {
-            let (x, y) = if w == 0 { (a.0, b.0) } else { (a.1, b.1) };
-            format!("{:.3} %", (1.0 - y / x) * 100.0)
-        }
-        _ => "–".into(),
-    };
     let _ = write!(
         o,
         "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>ringsync: {name}</title>\
@@ -327,26 +337,31 @@ servo axes. Scenario <code>{name}</code>, seed {seed}, {n} axes, {dur} s, T<sub>
         cyc = s.ring.cycle.secs() * 1e3,
         est = s.control.estimator.name(),
     );
-    let _ = write!(
+    o.push_str("<h2>Table 1 [rad]</h2>\n");
+    let mut t = String::from("<table><tr><th></th>");
+    let table_md = repro_table(rows);
+    let mut lines = table_md.lines().filter(|l| l.starts_with('|'));
+    if let Some(head) = lines.next() {
+        for h in head.trim_matches('|').split('|').skip(1) {
+            let _ = write!(t, "<th>{}</th>", esc(h.trim()));
+        }
+        t.push_str("</tr>\n");
+    }
+    for line in lines.filter(|l| !l.starts_with("|---")) {
+        t.push_str("<tr>");
+        for c in line.trim_matches('|').split('|') {
+            let _ = write!(t, "<td>{}</td>", esc(c.trim()));
+        }
+        t.push_str("</tr>\n");
+    }
+    t.push_str("</table>\n");
+    o.push_str(&t);
+    let _ = writeln!(
         o,
-        "<h2>Table 1 [rad]</h2>\n<table><tr><th></th><th>Track-RMSE, paper</th><th>Track-RMSE, ringsync</th>\
-<th>Sync-RMSE, paper</th><th>Sync-RMSE, ringsync</th></tr>\n\
-<tr><td>standard PD</td><td>0.23267</td><td>{}</td><td>0.0039154</td><td>{}</td></tr>\n\
-<tr><td>sync controller</td><td>0.18341</td><td>{}</td><td>0.0019863</td><td>{}</td></tr>\n\
-<tr><td>reduction</td><td>21.171 %</td><td><b>{}</b></td><td>49.270 %</td><td><b>{}</b></td></tr>\n\
-<tr><td>ring-coupled (not in the paper)</td><td>–</td><td>{}</td><td>–</td><td>{}</td></tr></table>\n\
-<p class=\"note\">Track-RMSE = sqrt((1/N)·Σ<sub>j</sub>Σ<sub>i</sub> e<sub>i</sub>(j)²), Sync-RMSE likewise with ε (eq. 26-27), \
-one sample per cycle, the sum over the axes inside the root. The paper's ref. [3] columns (lumped-only plan, another \
-test bench: PD 0.25715 / 0.0059015, sync 0.20427 / 0.0032035) have no counterpart here yet: the lumped-only plan is not \
-simulated yet.</p>\n",
-        cell(pd, 0, 5),
-        cell(pd, 1, 7),
-        cell(sy, 0, 5),
-        cell(sy, 1, 7),
-        red(pd, sy, 0),
-        red(pd, sy, 1),
-        cell(rc, 0, 5),
-        cell(rc, 1, 7),
+        "<p class=\"note\">Track-RMSE = sqrt((1/N)·Σ<sub>j</sub>Σ<sub>i</sub> e<sub>i</sub>(j)²), Sync-RMSE likewise with ε (eq. 26-27), \
+one sample per cycle, the sum over the axes inside the root. The paper measured its ref. [3] columns (the lumped-only plan) on \
+another test bench; here both plans run on the same simulated plant. In the lumped-only plan the slaves run the law themselves \
+on what the frame carries: this cycle's data of the slaves before them, last cycle's of those after.</p>"
     );
     o.push_str("<h2>Figures</h2>\n");
     for (name, svg) in figures {

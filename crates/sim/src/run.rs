@@ -25,12 +25,12 @@ use std::collections::BinaryHeap;
 use ringsync_control::{Coupling, Metrics, Summary};
 use ringsync_plant::{AxisModel, Encoder};
 use ringsync_proto::node::{
-    FrameOutcome, Master, MasterConfig, MasterCounters, MasterEvent, Slave, SlaveConfig,
-    SlaveCounters, SlaveEvent, StopReason,
+    FrameOutcome, LumpedOnlyControl, Master, MasterConfig, MasterCounters, MasterEvent, Slave,
+    SlaveConfig, SlaveCounters, SlaveEvent, StopReason,
 };
 use ringsync_proto::plan::{FrameRef, Node};
 use ringsync_proto::{CyclePlan, Instant, PlanKind};
-use ringsync_wire::{Frame, FrameKind};
+use ringsync_wire::{Frame, FrameKind, SlotCodec};
 
 use crate::rng::Rng;
 use crate::scenario::{Scenario, ScenarioError};
@@ -244,7 +244,7 @@ struct Sim<'a> {
     hop: i64,
     residence: i64,
     jitter: i64,
-    frame_ns: [i64; 3],
+    frame_ns: [i64; 4],
     /// Most slots per lumped frame (frame j carries slots from j·this).
     slots_per_frame: usize,
     /// Per-hop loss and corruption probabilities.
@@ -274,10 +274,12 @@ struct Sim<'a> {
 /// Runs a scenario. Only the proposed plan (`p2p-lumped`) runs for now.
 pub fn run(s: &Scenario, opts: RunOptions) -> Result<RunResult, RunError> {
     s.validate()?;
-    if s.ring.plan != PlanKind::P2pLumped {
-        return Err(RunError::Unsupported(
-            "the simulator runs the p2p-lumped plan; the lumped-only plan of ref. [3] is not implemented yet".into(),
-        ));
+    let cap = ringsync_wire::lumped::slot_capacity(ringsync_wire::LumpedOnlySlot::LEN);
+    if s.ring.plan == PlanKind::LumpedOnly && s.axes_count() > cap {
+        return Err(RunError::Unsupported(format!(
+            "the simulator runs the lumped-only plan with one frame, so at most {cap} slaves; the scenario has {}",
+            s.axes_count()
+        )));
     }
     let mut sim = Sim::new(s, opts)?;
     sim.run();
@@ -307,18 +309,24 @@ impl<'a> Sim<'a> {
             .map(|i| Encoder::new(1u32 << s.axis[i % s.axis.len()].encoder_bits))
             .collect::<Result<_, _>>()
             .map_err(|e| scenario_err("axis", e))?;
-        let mut cfg = MasterConfig::from_plan(
-            &plan,
-            s.ring.jitter.0,
-            encoders.iter().map(|e| e.resolution()).collect(),
-            s.faults.following_error_limit,
-        );
+        let resolution: Vec<f64> = encoders.iter().map(|e| e.resolution()).collect();
+        let lumped_only = s.ring.plan == PlanKind::LumpedOnly;
+        let mut cfg = if lumped_only {
+            MasterConfig::lumped_only(&plan, resolution.clone(), s.faults.following_error_limit)
+        } else {
+            MasterConfig::from_plan(
+                &plan,
+                s.ring.jitter.0,
+                resolution.clone(),
+                s.faults.following_error_limit,
+            )
+        };
         cfg.stop_deceleration = 200.0;
         cfg.watchdog_cycles = s.faults.watchdog_cycles;
         let master = Master::new(cfg, law, s.velocity_source(), trajectories);
         let slaves: Vec<Slave> = (0..n)
             .map(|i| {
-                Slave::new(SlaveConfig {
+                let cfg = SlaveConfig {
                     address: (i + 1) as u16,
                     cycle: s.ring.cycle.0,
                     path_delay: plan.d_c[i],
@@ -327,9 +335,22 @@ impl<'a> Sim<'a> {
                     watchdog_cycles: s.faults.watchdog_cycles,
                     clock_sync: s.clock.sync,
                     u_max: s.axis[i % s.axis.len()].u_max,
-                })
+                };
+                if lumped_only {
+                    let control = LumpedOnlyControl {
+                        law: s.law().map_err(|e| scenario_err("control", e))?,
+                        velocity: s.velocity_source(),
+                        trajectories: s
+                            .trajectories()
+                            .map_err(|e| scenario_err("trajectory", e))?,
+                        resolution: resolution.clone(),
+                    };
+                    Ok(Slave::with_law(cfg, control))
+                } else {
+                    Ok(Slave::new(cfg))
+                }
             })
-            .collect();
+            .collect::<Result<_, ScenarioError>>()?;
         let osc: Vec<Oscillator> = (0..n)
             .map(|i| {
                 let mut r = Rng::stream(s.seed, 1_000 + i as u64);
@@ -356,6 +377,7 @@ impl<'a> Sim<'a> {
             plan.lumped.frame_time[0].as_ns(),
             plan.t_cmf.as_ns(),
             plan.t_rmf.as_ns(),
+            plan.lumped_only.lumped.frame_time[0].as_ns(),
         ];
         let cycles = s.duration.0.as_ns() / s.ring.cycle.0.as_ns();
         let mut sim = Sim {
@@ -440,6 +462,7 @@ impl<'a> Sim<'a> {
         match Frame::new_checked(bytes).map(|f| f.kind_byte()) {
             Ok(1) => self.frame_ns[0],
             Ok(2) => self.frame_ns[1],
+            Ok(4) => self.frame_ns[3],
             _ => self.frame_ns[2],
         }
     }
@@ -461,7 +484,7 @@ impl<'a> Sim<'a> {
         // The node (0 = master) that processes the frame next.
         let stop = if kind == FrameKind::Command as u8 && from == 0 {
             word(0).min(self.n)
-        } else if kind == FrameKind::Lumped as u8 {
+        } else if kind == FrameKind::Lumped as u8 || kind == FrameKind::LumpedOnly as u8 {
             // Slots f..f+m belong to slaves f+1..=f+m.
             let (first, count) = (word(8), word(10));
             let next = from + 1;

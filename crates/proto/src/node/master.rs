@@ -19,10 +19,13 @@ use ringsync_control::{
     AxisTrajectory, ControlInput, ControlLaw, ControlOutput, Controller, Feedback, State,
     Trajectory, VelocitySource,
 };
-use ringsync_wire::{CommandRepr, Common, FeedbackSlot, Flags, LumpedFrameRepr, Pdu, Status};
+use ringsync_wire::{
+    CommandRepr, Common, FeedbackSlot, Flags, LumpedFrameRepr, LumpedOnlyFrameRepr, LumpedOnlySlot,
+    Pdu, Status,
+};
 
 use super::Transmit;
-use crate::plan::{CyclePlan, FrameRef, Node};
+use crate::plan::{CyclePlan, FrameRef, Node, PlanKind};
 use crate::time::{Duration, Instant};
 
 /// Everything the master knows about the ring and the motion.
@@ -45,7 +48,8 @@ pub struct MasterConfig {
     pub turnaround: Duration,
     /// Number of reserve slices, ⌊n/4⌋ + 1.
     pub reserve_slices: u32,
-    /// Arrival of axis i's command (last bit at its slave) from the cycle start, first try.
+    /// Arrival of axis i's command (last bit at its slave) from the cycle start, first try;
+    /// with the lumped-only plan, the lumped frame's last bit at slave i.
     pub command_arrival: Vec<Duration>,
     /// Encoder resolution of each axis [rad per count].
     pub resolution: Vec<f64>,
@@ -55,9 +59,26 @@ pub struct MasterConfig {
     pub stop_deceleration: f64,
     /// W: consecutive cycles without a response from an axis before the group stops.
     pub watchdog_cycles: u32,
+    /// The communication plan. With the lumped-only plan the master only sends the lumped
+    /// frame; the slaves run the law.
+    pub plan: PlanKind,
 }
 
 impl MasterConfig {
+    /// The schedule of the lumped-only plan on the ring of `plan` (a single lumped frame).
+    pub fn lumped_only(plan: &CyclePlan, resolution: Vec<f64>, following_error_limit: f64) -> Self {
+        let mut c =
+            MasterConfig::from_plan(plan, Duration::ZERO, resolution, following_error_limit);
+        let lo = &plan.lumped_only.lumped;
+        c.plan = PlanKind::LumpedOnly;
+        c.lumped_slots = lo.frame_slots.clone();
+        c.lumped_offsets = (0..lo.frame_slots.len())
+            .map(|j| lo.frame_offset(j, plan.link.gap()))
+            .collect();
+        c.command_arrival = plan.d_c.iter().map(|d| *d + lo.frame_time[0]).collect();
+        c
+    }
+
     /// The schedule of `plan`, with `jitter` allowed per hop when waiting for a response.
     pub fn from_plan(
         plan: &CyclePlan,
@@ -93,6 +114,7 @@ impl MasterConfig {
             following_error_limit,
             stop_deceleration: 200.0,
             watchdog_cycles: 5,
+            plan: PlanKind::P2pLumped,
         }
     }
 
@@ -228,6 +250,8 @@ pub struct Master {
     deadline: Option<Instant>,
     /// Latest sample per axis and whether it arrived this cycle.
     latest: Vec<Option<FeedbackSlot>>,
+    /// Last returned lumped-only slots (the lumped-only plan).
+    lo_slots: Vec<LumpedOnlySlot>,
     fresh: Vec<bool>,
     lumped_back: usize,
     /// Slice bookkeeping: target (0-based) of the open slice, its retry count.
@@ -267,6 +291,7 @@ impl Master {
             open_at: None,
             deadline: None,
             latest: vec![None; n],
+            lo_slots: vec![LumpedOnlySlot::default(); n],
             fresh: vec![false; n],
             lumped_back: 0,
             open: None,
@@ -332,6 +357,9 @@ impl Master {
         if self.next_lumped < self.cfg.lumped_offsets.len() {
             return c + self.cfg.lumped_offsets[self.next_lumped];
         }
+        if self.cfg.plan == PlanKind::LumpedOnly {
+            return c + self.cfg.cycle;
+        }
         if !self.computed {
             return c + self.cfg.p2p_start;
         }
@@ -348,8 +376,25 @@ impl Master {
     pub fn handle_timeout(&mut self, now: Instant) {
         let c = self.cycle_start();
         if self.next_lumped < self.cfg.lumped_offsets.len() {
-            self.send_lumped(now);
+            if self.cfg.plan == PlanKind::LumpedOnly {
+                self.send_lumped_only(now);
+            } else {
+                self.send_lumped(now);
+            }
             self.next_lumped += 1;
+            return;
+        }
+        if self.cfg.plan == PlanKind::LumpedOnly {
+            if now >= c + self.cfg.cycle {
+                if self.lumped_back < self.cfg.lumped_offsets.len() {
+                    self.counters.lumped_lost +=
+                        (self.cfg.lumped_offsets.len() - self.lumped_back) as u64;
+                }
+                self.k += 1;
+                self.next_lumped = 0;
+                self.lumped_back = 0;
+                self.fresh.fill(false);
+            }
             return;
         }
         if !self.computed {
@@ -426,6 +471,50 @@ impl Master {
             master_time_ns: now.as_ns().max(0) as u64,
             first_slot: first as u16,
             slots: vec![FeedbackSlot::default(); self.cfg.lumped_slots[j]],
+        };
+        let mut buf = vec![0u8; repr.buffer_len()];
+        if repr.emit(&mut buf).is_ok() {
+            self.out.push_back(Transmit {
+                at: now,
+                bytes: buf,
+            });
+            self.counters.frames_sent += 1;
+        }
+    }
+
+    /// The lumped-only plan's frame: last cycle's returned slots (not written this cycle),
+    /// with the desired state at this cycle's sampling instant for monitoring.
+    fn send_lumped_only(&mut self, now: Instant) {
+        let j = self.next_lumped;
+        let first: usize = self.cfg.lumped_slots[..j].iter().sum();
+        let t = self.cycle_start().as_ns() as f64 * 1e-9;
+        let slots: Vec<LumpedOnlySlot> = (first..first + self.cfg.lumped_slots[j])
+            .map(|i| {
+                let d = self.desired(i, t);
+                let res = self.cfg.resolution[i];
+                let mut s = self.lo_slots[i];
+                s.feedback.written = false;
+                s.desired_position = (d.x / res)
+                    .round()
+                    .clamp(f64::from(i32::MIN), f64::from(i32::MAX))
+                    as i32;
+                s.desired_velocity = (d.v / res)
+                    .round()
+                    .clamp(f64::from(i32::MIN), f64::from(i32::MAX))
+                    as i32;
+                s
+            })
+            .collect();
+        self.seq = self.seq.wrapping_add(1);
+        let repr = LumpedOnlyFrameRepr {
+            common: Common {
+                cycle: self.k as u32,
+                seq: self.seq,
+                ..Common::default()
+            },
+            master_time_ns: now.as_ns().max(0) as u64,
+            first_slot: first as u16,
+            slots,
         };
         let mut buf = vec![0u8; repr.buffer_len()];
         if repr.emit(&mut buf).is_ok() {
@@ -622,7 +711,35 @@ impl Master {
                     }
                 }
             }
-            Ok(Pdu::Command(_)) | Ok(Pdu::LumpedOnly(_)) => {}
+            Ok(Pdu::LumpedOnly(l)) => {
+                if i64::from(l.common.cycle) != self.k & 0xFFFF_FFFF {
+                    return;
+                }
+                self.lumped_back += 1;
+                let r = &mut self.record;
+                r.k = self.k;
+                for (k, slot) in l.slots.iter().enumerate() {
+                    let i = usize::from(l.first_slot) + k;
+                    if i >= self.lo_slots.len() {
+                        continue;
+                    }
+                    self.lo_slots[i] = *slot;
+                    let f = slot.feedback;
+                    if !f.written {
+                        self.counters.samples_missing += 1;
+                    }
+                    r.fresh[i] = f.written;
+                    r.position[i] = f64::from(f.position) * self.cfg.resolution[i];
+                    r.sample_time[i] = f.sample_time_ns as f64 * 1e-9;
+                    r.u[i] = f64::from(slot.command_v);
+                    r.saturated[i] = f.status.contains(Status::SATURATED);
+                    r.apply_time[i] = r.sample_time[i];
+                }
+                if self.lumped_back == self.cfg.lumped_offsets.len() {
+                    self.events.push_back(MasterEvent::Computed { k: self.k });
+                }
+            }
+            Ok(Pdu::Command(_)) => {}
             Err(_) => self.counters.bad_frames += 1,
         }
     }

@@ -11,7 +11,7 @@ pub mod slave;
 
 pub use clock::SyncClock;
 pub use master::{CycleRecord, Master, MasterConfig, MasterCounters, MasterEvent, StopReason};
-pub use slave::{FrameOutcome, Slave, SlaveConfig, SlaveCounters, SlaveEvent};
+pub use slave::{FrameOutcome, LumpedOnlyControl, Slave, SlaveConfig, SlaveCounters, SlaveEvent};
 
 use crate::time::Instant;
 

@@ -9,14 +9,50 @@
 
 use std::collections::VecDeque;
 
+use ringsync_control::{
+    AxisTrajectory, ControlInput, ControlLaw, ControlOutput, Controller, Feedback, Trajectory,
+    VelocitySource,
+};
 use ringsync_wire::{
-    CommandRepr, Common, FeedbackSlot, Frame, FrameKind, LumpedPayload, ResponseRepr, SlotCodec,
-    Status,
+    CommandRepr, Common, FeedbackSlot, Frame, FrameKind, LumpedOnlySlot, LumpedPayload,
+    ResponseRepr, SlotCodec, Status,
 };
 
 use super::Transmit;
 use super::clock::SyncClock;
 use crate::time::{Duration, Instant};
+
+/// What a slave needs to run the control law itself (the lumped-only plan of ref. [3]).
+pub struct LumpedOnlyControl {
+    /// The law, for all n axes (the slave uses its own axis's command).
+    pub law: Box<dyn ControlLaw>,
+    /// Where ė comes from.
+    pub velocity: VelocitySource,
+    /// The desired motion of every axis (the slaves evaluate it themselves).
+    pub trajectories: Vec<AxisTrajectory>,
+    /// Encoder resolution of every axis [rad per count].
+    pub resolution: Vec<f64>,
+}
+
+impl std::fmt::Debug for LumpedOnlyControl {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("LumpedOnlyControl")
+            .field("law", &self.law.name())
+            .finish_non_exhaustive()
+    }
+}
+
+/// The law, history and scratch of a slave that controls its own axis.
+struct SlaveLaw {
+    trajectories: Vec<AxisTrajectory>,
+    resolution: Vec<f64>,
+    controller: Controller<Box<dyn ControlLaw>>,
+    fb: Feedback,
+    input: ControlInput,
+    out: ControlOutput,
+    /// Sampling instant of the newest sample taken into the history, per axis [ns].
+    seen: Vec<u64>,
+}
 
 /// Configuration of one slave.
 #[derive(Debug, Clone, PartialEq)]
@@ -85,7 +121,6 @@ enum Latch {
 }
 
 /// A slave.
-#[derive(Debug, Clone)]
 pub struct Slave {
     cfg: SlaveConfig,
     clock: SyncClock,
@@ -102,9 +137,44 @@ pub struct Slave {
     out: VecDeque<Transmit>,
     events: VecDeque<SlaveEvent>,
     counters: SlaveCounters,
+    law: Option<SlaveLaw>,
+}
+
+impl std::fmt::Debug for Slave {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Slave")
+            .field("cfg", &self.cfg)
+            .field("status", &self.status)
+            .finish_non_exhaustive()
+    }
 }
 
 impl Slave {
+    /// A slave of the lumped-only plan: it runs `control` on the data the lumped frame
+    /// carries and applies its own axis's command as the frame passes.
+    pub fn with_law(cfg: SlaveConfig, control: LumpedOnlyControl) -> Self {
+        let n = control.law.axes();
+        let t_cyc = cfg.cycle.as_ns() as f64 * 1e-9;
+        let LumpedOnlyControl {
+            law,
+            velocity,
+            trajectories,
+            resolution,
+        } = control;
+        let controller = Controller::new(law, velocity);
+        let mut s = Slave::new(cfg);
+        s.law = Some(SlaveLaw {
+            trajectories,
+            resolution,
+            controller,
+            fb: Feedback::new(n),
+            input: ControlInput::new(n, t_cyc),
+            out: ControlOutput::new(n),
+            seen: vec![u64::MAX; n],
+        });
+        s
+    }
+
     /// A slave at rest, its first sampling instant at synchronised time 0.
     pub fn new(cfg: SlaveConfig) -> Self {
         let clock = SyncClock::new(cfg.clock_sync);
@@ -123,6 +193,7 @@ impl Slave {
             out: VecDeque::new(),
             events: VecDeque::new(),
             counters: SlaveCounters::default(),
+            law: None,
         }
     }
 
@@ -250,8 +321,110 @@ impl Slave {
                 self.take_command(&cmd, rx_end);
                 FrameOutcome::Consumed
             }
+            FrameKind::LumpedOnly if self.law.is_some() => {
+                self.take_lumped_only(rx_start, rx_end, &mut frame);
+                FrameOutcome::Forward
+            }
             FrameKind::Response | FrameKind::LumpedOnly => FrameOutcome::Forward,
         }
+    }
+
+    /// The lumped-only plan: sync, write the fresh sample, run the law on what the frame
+    /// carries (this cycle's data of the slaves before, last cycle's of those after), apply
+    /// and record the own command.
+    fn take_lumped_only(
+        &mut self,
+        rx_start: Instant,
+        rx_end: Instant,
+        frame: &mut Frame<&mut [u8]>,
+    ) {
+        let me = usize::from(self.cfg.address) - 1;
+        let Ok(mut p) = LumpedPayload::new_checked(frame.payload_mut(), FrameKind::LumpedOnly)
+        else {
+            self.counters.bad_frames += 1;
+            return;
+        };
+        let Some(k_me) = p.slot_index(self.cfg.address) else {
+            return;
+        };
+        let sent = Instant::from_ns(p.master_time_ns() as i64);
+        self.clock.sync(rx_start, sent, self.cfg.path_delay);
+        self.counters.syncs += 1;
+        if self.clock.is_locked() {
+            self.status = Status::from_bits(self.status.bits() & !Status::CLOCK_UNLOCKED.bits())
+                .unwrap_or(self.status);
+        }
+        let first = usize::from(p.first_slot());
+        let now = self.clock.to_sync(rx_end);
+        let Some(law) = self.law.as_mut() else { return };
+        let n = law.seen.len();
+        for a in 0..n {
+            law.fb.fresh[a] = false;
+        }
+        for k in 0..usize::from(p.slot_count()) {
+            let a = first + k;
+            if a >= n {
+                break;
+            }
+            let slot = if a == me {
+                self.sample
+            } else {
+                match p.slot_bytes(k).map(LumpedOnlySlot::parse) {
+                    Some(Ok(s)) => s.feedback,
+                    _ => continue,
+                }
+            };
+            if slot.sample_time_ns == law.seen[a]
+                || slot.sample_time_ns == 0 && law.seen[a] != u64::MAX
+            {
+                continue;
+            }
+            let ts = slot.sample_time_ns as f64 * 1e-9;
+            let res = law.resolution[a];
+            law.fb.position[a] = f64::from(slot.position) * res;
+            law.fb.velocity[a] = f64::from(slot.velocity) * res;
+            law.fb.sample_time[a] = ts;
+            law.fb.desired[a] = law.trajectories[a].at(ts);
+            law.fb.fresh[a] = true;
+            law.seen[a] = slot.sample_time_ns;
+        }
+        let t = now.as_ns() as f64 * 1e-9;
+        for a in 0..n {
+            law.input.apply_time[a] = t;
+            law.input.desired[a] = law.trajectories[a].at(t);
+        }
+        let u = if law
+            .controller
+            .update(&law.fb, &law.input, &mut law.out)
+            .is_ok()
+        {
+            law.out.u[me]
+        } else {
+            0.0
+        };
+        if !self.status.contains(Status::FAULT) {
+            let (u, sat) = ringsync_plant::saturate(u, self.cfg.u_max);
+            self.u = u;
+            let mut st = Status::from_bits(self.status.bits() & !Status::SATURATED.bits())
+                .unwrap_or(self.status);
+            if sat {
+                st = st.with(Status::SATURATED);
+            }
+            self.status = st;
+            self.events.push_back(SlaveEvent::Apply { u });
+            self.counters.commands += 1;
+            self.cycles_without_command = 0;
+        }
+        if let Some(bytes) = p.slot_bytes_mut(k_me) {
+            let mut mine = LumpedOnlySlot::parse(bytes).unwrap_or_default();
+            mine.feedback = FeedbackSlot {
+                status: self.status,
+                ..self.sample
+            };
+            mine.command_v = self.u as f32;
+            let _ = mine.emit(bytes);
+        }
+        frame.fill_crc();
     }
 
     fn take_command(&mut self, cmd: &CommandRepr, rx_end: Instant) {

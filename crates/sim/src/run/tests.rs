@@ -187,14 +187,40 @@ fn a_silent_slave_stops_the_group_within_w_cycles() {
     );
 }
 
+/// The lumped-only plan of ref. [3]: the slaves run the law on what the frame carries.
 #[test]
-fn lumped_only_plan_is_refused_for_now() {
-    let e = run(
-        &scenario("[ring]\nplan = \"lumped-only\"\n"),
-        RunOptions::default(),
-    )
-    .expect_err("unsupported");
-    assert!(e.to_string().contains("lumped-only"), "{e}");
+fn lumped_only_plan_runs() {
+    let lo = |law: &str| {
+        let text = format!(
+            "duration = \"2s\"\n[ring]\nplan = \"lumped-only\"\n[control]\nlaw = \"{law}\"\n"
+        );
+        run(&scenario(&text), RunOptions::default()).expect("run")
+    };
+    let (pd, sync) = (lo("pd"), lo("sync"));
+    // One frame per cycle, no P2P phase, every slave applies a command each cycle.
+    assert_eq!(sync.master.frames_sent, 2000);
+    assert!(
+        sync.slaves.iter().all(|c| c.commands == 2000),
+        "{:?}",
+        sync.slaves
+    );
+    assert!(
+        sync.clock_error_max_ns.iter().all(|e| *e <= 24.0),
+        "{:?}",
+        sync.clock_error_max_ns
+    );
+    assert!(sync.group_stop.is_none() && sync.watchdog.is_empty());
+    // The sync controller still pulls the axes together.
+    assert!(
+        sync.summary.sync_rmse < pd.summary.sync_rmse,
+        "{} vs {}",
+        sync.summary.sync_rmse,
+        pd.summary.sync_rmse
+    );
+    // Too many slaves for one frame is refused with a reason.
+    let text = "[ring]\nplan = \"lumped-only\"\nslaves = 60\ncycle = \"2ms\"\n";
+    let e = run(&scenario(text), RunOptions::default()).expect_err("too many");
+    assert!(e.to_string().contains("at most 46 slaves"), "{e}");
 }
 
 /// With the network made negligible (400 Gbit/s, no PHY, cable or residence latency, ideal
