@@ -25,6 +25,9 @@ pub struct SimArgs {
     /// Seed for every random draw, instead of the scenario's.
     #[arg(long)]
     seed: Option<u64>,
+    /// Also write every frame the nodes send, with its simulated send time, as pcapng.
+    #[arg(long, value_name = "FILE")]
+    pcap: Option<PathBuf>,
 }
 
 fn run_error(e: RunError) -> CliError {
@@ -52,15 +55,20 @@ pub(crate) fn sim(args: &SimArgs) -> Result<(), CliError> {
     }
     create(&args.out)?;
     let wall = WallClock::now();
-    let r = run(
-        &s,
-        RunOptions {
-            trace: true,
-            ..RunOptions::default()
-        },
-    )
-    .map_err(run_error)?;
+    let opts = RunOptions {
+        trace: true,
+        capture: args.pcap.is_some(),
+        ..RunOptions::default()
+    };
+    let r = run(&s, opts).map_err(run_error)?;
     let elapsed = wall.elapsed();
+    if let Some(p) = &args.pcap {
+        std::fs::write(
+            p,
+            ringsync_report::pcap::pcapng(&r.captured, s.axes_count()),
+        )
+        .with_context(|| format!("cannot write {}", p.display()))?;
+    }
     let summary = summary_json(&s, hash, &r);
     let text = serde_json::to_string_pretty(&summary).context("cannot format JSON")?;
     write(&args.out, "summary.json", &format!("{text}\n"))?;

@@ -138,7 +138,11 @@ fn bad_runs_are_one_line_and_exit_2() {
     }
     let sc = d.join("lo.toml");
     std::fs::create_dir_all(&d).expect("dir");
-    std::fs::write(&sc, "[ring]\nplan = \"lumped-only\"\nslaves = 60\ncycle = \"2ms\"\n").expect("write");
+    std::fs::write(
+        &sc,
+        "[ring]\nplan = \"lumped-only\"\nslaves = 60\ncycle = \"2ms\"\n",
+    )
+    .expect("write");
     let o = ringsync(&[
         "sim",
         sc.to_str().expect("p"),
@@ -186,4 +190,39 @@ fn sweep_writes_rows_means_and_a_figure() {
     ]);
     assert_eq!(o.status.code(), Some(2));
     assert_eq!(String::from_utf8_lossy(&o.stderr).lines().count(), 1);
+}
+
+#[test]
+fn pcap_holds_every_frame_sent() {
+    let d = dir("pcap");
+    std::fs::create_dir_all(&d).expect("dir");
+    let sc = d.join("five.toml");
+    std::fs::write(&sc, "duration = \"5ms\"\n").expect("write");
+    let pcap = d.join("run.pcapng");
+    let o = ringsync(&[
+        "sim",
+        sc.to_str().expect("p"),
+        "--out",
+        d.to_str().expect("p"),
+        "--pcap",
+        pcap.to_str().expect("p"),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let b = std::fs::read(&pcap).expect("pcap");
+    assert_eq!(
+        &b[0..4],
+        &0x0A0D_0D0Au32.to_le_bytes(),
+        "section header block"
+    );
+    // Walk the blocks and count the packets: per cycle 5 lumped hops (master and 4 slaves),
+    // 4 commands and 4 responses.
+    let (mut at, mut packets) = (0usize, 0usize);
+    while at < b.len() {
+        let kind = u32::from_le_bytes(b[at..at + 4].try_into().expect("4"));
+        let len = u32::from_le_bytes(b[at + 4..at + 8].try_into().expect("4")) as usize;
+        packets += usize::from(kind == 6);
+        at += len;
+    }
+    assert_eq!(at, b.len());
+    assert_eq!(packets, 5 * 13);
 }

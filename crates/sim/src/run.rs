@@ -43,6 +43,7 @@ pub const ASSUMPTIONS: &[&str] = &[
     "a command takes effect at its last bit at the slave; frames on a link never contend (the schedule keeps them apart)",
     "Track-RMSE and Sync-RMSE use the true axis positions at each cycle start (k·T_cyc), one sample per cycle",
     "Coulomb friction uses the exact sign with stiction unless the scenario asks for the smooth tanh model",
+    "lumped-only plan: each slave evaluates the shared trajectory itself to form e_j = x^d_j(s_j) − x_j; the frame's desired fields carry the master's values for monitoring",
 ];
 
 /// One frame passage at a node, recorded for tests and traces (true time).
@@ -67,6 +68,19 @@ pub struct RunOptions {
     pub log_cycles: Option<(i64, i64)>,
     /// Record the per-cycle trace rows.
     pub trace: bool,
+    /// Record every frame a node sends (for `--pcap`).
+    pub capture: bool,
+}
+
+/// A frame as its sender put it on the wire.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Captured {
+    /// First bit out [ns, true time].
+    pub t: i64,
+    /// Sender: 0 = master, i = slave i.
+    pub node: usize,
+    /// The PDU.
+    pub bytes: Vec<u8>,
 }
 
 /// One row of the trace: one cycle, one axis.
@@ -132,6 +146,8 @@ pub struct RunResult {
     pub trace: Vec<TraceRow>,
     /// Frame passages (with [`RunOptions::log_cycles`]).
     pub passages: Vec<PassageLog>,
+    /// Frames sent (with [`RunOptions::capture`]).
+    pub captured: Vec<Captured>,
 }
 
 /// What can stop a run from starting.
@@ -269,6 +285,7 @@ struct Sim<'a> {
     group_stop: Option<(f64, StopReason)>,
     /// Trace rows of the last computed cycle, waiting for its commands' apply times.
     pending: Vec<TraceRow>,
+    captured: Vec<Captured>,
 }
 
 /// Runs a scenario. Only the proposed plan (`p2p-lumped`) runs for now.
@@ -417,6 +434,7 @@ impl<'a> Sim<'a> {
             watchdog: Vec::new(),
             group_stop: None,
             pending: Vec::new(),
+            captured: Vec::new(),
         };
         sim.schedule_master();
         for i in 0..n {
@@ -472,6 +490,13 @@ impl<'a> Sim<'a> {
     /// round, a command's target, and the slaves whose slots a lumped frame carries. Slaves in
     /// between only forward (cut-through, in hardware) and cost no event.
     fn send(&mut self, from: usize, t_tx: i64, mut bytes: Vec<u8>) {
+        if self.opts.capture && t_tx < self.end {
+            self.captured.push(Captured {
+                t: t_tx,
+                node: from,
+                bytes: bytes.clone(),
+            });
+        }
         let Ok(f) = Frame::new_checked(&bytes[..]) else {
             return;
         };
@@ -794,6 +819,7 @@ impl<'a> Sim<'a> {
             group_stop: self.group_stop,
             trace: self.trace,
             passages: self.passages,
+            captured: self.captured,
         }
     }
 }
