@@ -30,7 +30,7 @@ fn one_cycle_matches_the_planner_to_the_nanosecond() {
             &s,
             RunOptions {
                 log_cycles: Some((k, k + 1)),
-                trace: false,
+                ..RunOptions::default()
             },
         )
         .expect("run");
