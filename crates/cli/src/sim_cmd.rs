@@ -60,7 +60,28 @@ pub(crate) fn sim(args: &SimArgs) -> Result<(), CliError> {
         capture: args.pcap.is_some(),
         ..RunOptions::default()
     };
-    let r = run(&s, opts).map_err(run_error)?;
+    // A progress line on a terminal once the run has taken more than a second.
+    let tty = {
+        use std::io::IsTerminal as _;
+        std::io::stderr().is_terminal()
+    };
+    let mut shown = false;
+    let cycle_s = s.ring.cycle.secs();
+    let mut progress = |done: i64, total: i64| {
+        if tty && wall.elapsed().as_secs_f64() > 1.0 {
+            shown = true;
+            eprint!(
+                "\r  simulated {:.1} s of {:.1} s ({:.0} %)",
+                done as f64 * cycle_s,
+                total as f64 * cycle_s,
+                100.0 * done as f64 / total.max(1) as f64
+            );
+        }
+    };
+    let r = ringsync_sim::run_with_progress(&s, opts, &mut progress).map_err(run_error)?;
+    if shown {
+        eprintln!();
+    }
     let elapsed = wall.elapsed();
     if let Some(p) = &args.pcap {
         std::fs::write(

@@ -9,5 +9,5 @@ pub mod run;
 pub mod scenario;
 pub mod sweep;
 
-pub use run::{RunOptions, RunResult, run};
+pub use run::{RunOptions, RunResult, run, run_with_progress};
 pub use scenario::{Scenario, ScenarioError, builtin, builtin_names};

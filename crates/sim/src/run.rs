@@ -288,8 +288,17 @@ struct Sim<'a> {
     captured: Vec<Captured>,
 }
 
-/// Runs a scenario. Only the proposed plan (`p2p-lumped`) runs for now.
+/// Runs a scenario.
 pub fn run(s: &Scenario, opts: RunOptions) -> Result<RunResult, RunError> {
+    run_with_progress(s, opts, &mut |_, _| {})
+}
+
+/// Runs a scenario, calling `progress(cycles done, cycles in all)` every 100 cycles.
+pub fn run_with_progress(
+    s: &Scenario,
+    opts: RunOptions,
+    progress: &mut dyn FnMut(i64, i64),
+) -> Result<RunResult, RunError> {
     s.validate()?;
     let cap = ringsync_wire::lumped::slot_capacity(ringsync_wire::LumpedOnlySlot::LEN);
     if s.ring.plan == PlanKind::LumpedOnly && s.axes_count() > cap {
@@ -299,7 +308,7 @@ pub fn run(s: &Scenario, opts: RunOptions) -> Result<RunResult, RunError> {
         )));
     }
     let mut sim = Sim::new(s, opts)?;
-    sim.run();
+    sim.run(progress);
     Ok(sim.finish())
 }
 
@@ -612,7 +621,8 @@ impl<'a> Sim<'a> {
         });
     }
 
-    fn run(&mut self) {
+    fn run(&mut self, progress: &mut dyn FnMut(i64, i64)) {
+        let cycles = self.end / self.s.ring.cycle.0.as_ns();
         while let Some(Reverse(Queued { t, ev, .. })) = self.q.pop() {
             if t >= self.end {
                 // Let the last cycle's probe pass; nothing after the end counts.
@@ -648,7 +658,12 @@ impl<'a> Sim<'a> {
                     }
                 }
                 Ev::SlaveSend { slave, bytes } => self.send(slave + 1, t, bytes),
-                Ev::Probe { k } => self.on_probe(k, t),
+                Ev::Probe { k } => {
+                    if k % 100 == 0 {
+                        progress(k, cycles);
+                    }
+                    self.on_probe(k, t);
+                }
             }
         }
     }

@@ -289,3 +289,33 @@ fn zero_network_delay_matches_an_independent_closed_loop() {
         plain.sync_rmse
     );
 }
+
+/// Snapshot of the reproduction (`ringsync reproduce`, seed 1, 2026-11-21; docs/simulator.md).
+/// Tolerances: 1 % on Track-RMSE, 5 % on Sync-RMSE. A change of the model beyond these must
+/// update docs/simulator.md and this snapshot together.
+#[test]
+fn reproduction_snapshot() {
+    let snapshot = [
+        ("p2p-lumped", "pd", 0.18866, 0.0042454),
+        ("p2p-lumped", "sync", 0.14110, 0.0022569),
+        ("p2p-lumped", "ring-coupled", 0.18867, 0.0017578),
+        ("lumped-only", "pd", 0.18877, 0.0042503),
+        ("lumped-only", "sync", 0.14113, 0.0024334),
+        ("lumped-only", "ring-coupled", 0.18854, 0.0016563),
+    ];
+    for (plan, law, track, sync) in snapshot {
+        let s = scenario(&format!(
+            "[ring]\nplan = \"{plan}\"\n[control]\nlaw = \"{law}\"\n"
+        ));
+        let r = run(&s, RunOptions::default()).expect("run");
+        let (t, y) = (r.summary.track_rmse, r.summary.sync_rmse);
+        assert!(
+            (t / track - 1.0).abs() < 0.01,
+            "{plan} {law}: Track-RMSE {t} vs snapshot {track}"
+        );
+        assert!(
+            (y / sync - 1.0).abs() < 0.05,
+            "{plan} {law}: Sync-RMSE {y} vs snapshot {sync}"
+        );
+    }
+}
