@@ -19,9 +19,6 @@
 //! Same scenario and seed → the same events in the same order → identical outputs.
 //! Assumptions beyond the paper are listed in [`ASSUMPTIONS`].
 
-use std::cmp::Reverse;
-use std::collections::BinaryHeap;
-
 use ringsync_control::{Coupling, Metrics, Summary};
 use ringsync_plant::{AxisModel, Encoder};
 use ringsync_proto::node::{
@@ -247,7 +244,9 @@ impl Axis {
 
 struct Sim<'a> {
     s: &'a Scenario,
-    q: BinaryHeap<Reverse<Queued>>,
+    /// Pending events, sorted by (time, sequence) descending: the next one is last. The
+    /// queue stays short (a few events per node), so an insertion's move is cheap.
+    q: Vec<Queued>,
     seq: u64,
     master: Master,
     slaves: Vec<Slave>,
@@ -273,6 +272,10 @@ struct Sim<'a> {
     probe_x: Vec<f64>,
     probe_xd: Vec<f64>,
     probe_clock: Vec<f64>,
+    /// Scratch of the probes: errors, commands, saturation flags.
+    probe_e: Vec<f64>,
+    probe_u: Vec<f64>,
+    probe_sat: Vec<bool>,
     apply_time: Vec<f64>,
     coupling: Option<Coupling>,
     metrics: Metrics,
@@ -408,7 +411,7 @@ impl<'a> Sim<'a> {
         let cycles = s.duration.0.as_ns() / s.ring.cycle.0.as_ns();
         let mut sim = Sim {
             s,
-            q: BinaryHeap::new(),
+            q: Vec::with_capacity(64),
             seq: 0,
             master,
             slaves,
@@ -432,6 +435,9 @@ impl<'a> Sim<'a> {
             probe_x: vec![0.0; n],
             probe_xd: vec![0.0; n],
             probe_clock: vec![0.0; n],
+            probe_e: vec![0.0; n],
+            probe_u: vec![0.0; n],
+            probe_sat: vec![false; n],
             apply_time: vec![f64::NAN; n],
             coupling: Coupling::new(n, 0.0).ok(),
             metrics: Metrics::new(n),
@@ -456,11 +462,16 @@ impl<'a> Sim<'a> {
 
     fn push(&mut self, t: i64, ev: Ev) {
         self.seq += 1;
-        self.q.push(Reverse(Queued {
-            t,
-            seq: self.seq,
-            ev,
-        }));
+        let key = (t, self.seq);
+        let at = self.q.partition_point(|e| (e.t, e.seq) > key);
+        self.q.insert(
+            at,
+            Queued {
+                t,
+                seq: self.seq,
+                ev,
+            },
+        );
     }
 
     fn schedule_master(&mut self) {
@@ -623,7 +634,7 @@ impl<'a> Sim<'a> {
 
     fn run(&mut self, progress: &mut dyn FnMut(i64, i64)) {
         let cycles = self.end / self.s.ring.cycle.0.as_ns();
-        while let Some(Reverse(Queued { t, ev, .. })) = self.q.pop() {
+        while let Some(Queued { t, ev, .. }) = self.q.pop() {
             if t >= self.end {
                 // Let the last cycle's probe pass; nothing after the end counts.
                 if !matches!(ev, Ev::Probe { .. }) {
@@ -769,18 +780,16 @@ impl<'a> Sim<'a> {
             let sync = self.slaves[i].clock().to_sync(self.osc[i].local(t));
             self.probe_clock[i] = (sync.as_ns() - t) as f64;
         }
-        let e: Vec<f64> = (0..self.n)
-            .map(|i| self.probe_xd[i] - self.probe_x[i])
-            .collect();
-        let u: Vec<f64> = self.axes.iter().map(|a| a.u).collect();
-        let sat: Vec<bool> = (0..self.n)
-            .map(|i| {
-                self.slaves[i]
-                    .status()
-                    .contains(ringsync_wire::Status::SATURATED)
-            })
-            .collect();
-        let _ = self.metrics.push(&e, &u, &sat);
+        for i in 0..self.n {
+            self.probe_e[i] = self.probe_xd[i] - self.probe_x[i];
+            self.probe_u[i] = self.axes[i].u;
+            self.probe_sat[i] = self.slaves[i]
+                .status()
+                .contains(ringsync_wire::Status::SATURATED);
+        }
+        let _ = self
+            .metrics
+            .push(&self.probe_e, &self.probe_u, &self.probe_sat);
         let cycles = self.end / self.s.ring.cycle.0.as_ns();
         if 2 * k >= cycles {
             self.clock_count += 1;
@@ -791,7 +800,7 @@ impl<'a> Sim<'a> {
             }
         }
         if let Some(c) = &self.coupling {
-            let _ = c.sync_errors(&e, &mut self.eps);
+            let _ = c.sync_errors(&self.probe_e, &mut self.eps);
         }
     }
 

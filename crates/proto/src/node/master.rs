@@ -20,8 +20,8 @@ use ringsync_control::{
     Trajectory, VelocitySource,
 };
 use ringsync_wire::{
-    CommandRepr, Common, FeedbackSlot, Flags, LumpedFrameRepr, LumpedOnlyFrameRepr, LumpedOnlySlot,
-    Pdu, Status,
+    CommandRepr, Common, FeedbackSlot, Flags, Frame, FrameKind, LumpedFrameRepr,
+    LumpedOnlyFrameRepr, LumpedOnlySlot, LumpedPayload, Pdu, SlotCodec, Status,
 };
 
 use super::Transmit;
@@ -252,6 +252,8 @@ pub struct Master {
     latest: Vec<Option<FeedbackSlot>>,
     /// Last returned lumped-only slots (the lumped-only plan).
     lo_slots: Vec<LumpedOnlySlot>,
+    /// Empty slots for the next lumped frame, kept to avoid an allocation per cycle.
+    empty_slots: Vec<FeedbackSlot>,
     fresh: Vec<bool>,
     lumped_back: usize,
     /// Slice bookkeeping: target (0-based) of the open slice, its retry count.
@@ -292,6 +294,7 @@ impl Master {
             deadline: None,
             latest: vec![None; n],
             lo_slots: vec![LumpedOnlySlot::default(); n],
+            empty_slots: Vec::new(),
             fresh: vec![false; n],
             lumped_back: 0,
             open: None,
@@ -462,6 +465,10 @@ impl Master {
         let j = self.next_lumped;
         let first: usize = self.cfg.lumped_slots[..j].iter().sum();
         self.seq = self.seq.wrapping_add(1);
+        // Empty slots, reused from cycle to cycle.
+        let mut slots = std::mem::take(&mut self.empty_slots);
+        slots.clear();
+        slots.resize(self.cfg.lumped_slots[j], FeedbackSlot::default());
         let repr = LumpedFrameRepr {
             common: Common {
                 cycle: self.k as u32,
@@ -470,7 +477,7 @@ impl Master {
             },
             master_time_ns: now.as_ns().max(0) as u64,
             first_slot: first as u16,
-            slots: vec![FeedbackSlot::default(); self.cfg.lumped_slots[j]],
+            slots,
         };
         let mut buf = vec![0u8; repr.buffer_len()];
         if repr.emit(&mut buf).is_ok() {
@@ -480,6 +487,7 @@ impl Master {
             });
             self.counters.frames_sent += 1;
         }
+        self.empty_slots = repr.slots;
     }
 
     /// The lumped-only plan's frame: last cycle's returned slots (not written this cycle),
@@ -672,25 +680,19 @@ impl Master {
 
     /// A frame received completely at `now` [master ns].
     pub fn handle_frame(&mut self, now: Instant, bytes: &[u8]) {
-        match Pdu::parse(bytes) {
-            Ok(Pdu::Lumped(l)) => {
-                if i64::from(l.common.cycle) != self.k & 0xFFFF_FFFF {
-                    return; // a late frame of an older cycle
-                }
-                self.lumped_back += 1;
-                for (k, slot) in l.slots.iter().enumerate() {
-                    let i = usize::from(l.first_slot) + k;
-                    if i >= self.latest.len() {
-                        continue;
-                    }
-                    if slot.written {
-                        self.latest[i] = Some(*slot);
-                        self.fresh[i] = true;
-                    } else {
-                        self.counters.samples_missing += 1;
-                    }
-                }
+        // The proposed plan's lumped frame comes back every cycle: read its slots in place
+        // (no allocation); everything else through the owned representations.
+        if let Ok(f) = Frame::new_checked(bytes)
+            && f.kind_byte() == FrameKind::Lumped as u8
+        {
+            match f.check() {
+                Ok(_) => self.take_lumped(&f),
+                Err(_) => self.counters.bad_frames += 1,
             }
+            return;
+        }
+        match Pdu::parse(bytes) {
+            Ok(Pdu::Lumped(_)) => {}
             Ok(Pdu::Response(r)) => {
                 let i = usize::from(r.source).wrapping_sub(1);
                 if i64::from(r.echo_cycle) == self.k & 0xFFFF_FFFF && i < self.acked.len() {
@@ -741,6 +743,33 @@ impl Master {
             }
             Ok(Pdu::Command(_)) => {}
             Err(_) => self.counters.bad_frames += 1,
+        }
+    }
+
+    /// A returned lumped frame (CRC checked): the feedback of every slave that wrote its slot.
+    fn take_lumped(&mut self, f: &Frame<&[u8]>) {
+        if i64::from(f.cycle()) != self.k & 0xFFFF_FFFF {
+            return; // a late frame of an older cycle
+        }
+        let Ok(p) = LumpedPayload::new_checked(f.payload(), FrameKind::Lumped) else {
+            self.counters.bad_frames += 1;
+            return;
+        };
+        self.lumped_back += 1;
+        let first = usize::from(p.first_slot());
+        for k in 0..usize::from(p.slot_count()) {
+            let i = first + k;
+            if i >= self.latest.len() {
+                break;
+            }
+            match p.slot_bytes(k).map(FeedbackSlot::parse) {
+                Some(Ok(slot)) if slot.written => {
+                    self.latest[i] = Some(slot);
+                    self.fresh[i] = true;
+                }
+                Some(Ok(_)) => self.counters.samples_missing += 1,
+                _ => self.counters.bad_frames += 1,
+            }
         }
     }
 
