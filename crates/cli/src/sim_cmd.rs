@@ -94,8 +94,23 @@ pub(crate) fn sim(args: &SimArgs) -> Result<(), CliError> {
     let text = serde_json::to_string_pretty(&summary).context("cannot format JSON")?;
     write(&args.out, "summary.json", &format!("{text}\n"))?;
     write(&args.out, "trace.csv", &trace_csv(&r))?;
+    let timing = match s.ring.plan {
+        ringsync_proto::PlanKind::P2pLumped => ringsync_proto::CyclePlan::new(&s.ring_params())
+            .ok()
+            .and_then(|p| ringsync_report::timing_svg(&p)),
+        ringsync_proto::PlanKind::LumpedOnly => None,
+    };
+    let figures = ringsync_report::sim::run_figures(timing, &r);
+    for (name, svg) in &figures {
+        write(&args.out, name, svg)?;
+    }
+    write(
+        &args.out,
+        "report.html",
+        &ringsync_report::sim::run_html(&s, hash, &r, &figures),
+    )?;
     out(&format!(
-        "{}: {} cycles of {} axes, {} controller, estimator {}\n  Track-RMSE {:.6} rad, Sync-RMSE {:.7} rad\n  frames: {} sent by the master, {} lost, {} retried; clock error ≤ {:.0} ns\n  {}\n  wrote {}/summary.json and trace.csv in {:.1} ms\n",
+        "{}: {} cycles of {} axes, {} controller, estimator {}\n  Track-RMSE {:.6} rad, Sync-RMSE {:.7} rad\n  frames: {} sent by the master, {} lost, {} retried; clock error ≤ {:.0} ns\n  {}\n  wrote {}/summary.json, trace.csv, report.html and the figures (*.svg) in {:.1} ms\n",
         s.name,
         r.cycles,
         s.axes_count(),
