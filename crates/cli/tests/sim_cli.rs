@@ -44,7 +44,14 @@ fn sim_outputs_are_byte_identical_for_one_seed() {
         ]);
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     }
-    for f in ["summary.json", "trace.csv", "report.html", "position-errors.svg", "sync-errors.svg", "clock-errors.svg"] {
+    for f in [
+        "summary.json",
+        "trace.csv",
+        "report.html",
+        "position-errors.svg",
+        "sync-errors.svg",
+        "clock-errors.svg",
+    ] {
         let (x, y, z) = (
             std::fs::read(a.join(f)).expect("a"),
             std::fs::read(b.join(f)).expect("b"),
