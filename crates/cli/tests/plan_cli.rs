@@ -1,14 +1,10 @@
 //! `ringsync plan` end to end: the binary as a user runs it.
 
-use std::process::{Command, Output};
+mod common;
 
-fn ringsync(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_ringsync"))
-        .args(args)
-        .env("RUST_BACKTRACE", "0")
-        .output()
-        .expect("run ringsync")
-}
+use std::process::Output;
+
+use common::ringsync;
 
 fn stdout(o: &Output) -> String {
     String::from_utf8(o.stdout.clone()).expect("utf-8")

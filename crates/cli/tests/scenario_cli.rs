@@ -1,14 +1,8 @@
 //! `ringsync scenario` and `ringsync check` end to end.
 
-use std::process::{Command, Output};
+mod common;
 
-fn ringsync(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_ringsync"))
-        .args(args)
-        .env("RUST_BACKTRACE", "0")
-        .output()
-        .expect("run ringsync")
-}
+use common::ringsync;
 
 fn temp_file(name: &str, text: &str) -> std::path::PathBuf {
     let dir = std::env::temp_dir().join(format!("ringsync-scenario-test-{}", std::process::id()));

@@ -1,15 +1,9 @@
 //! `ringsync sim` and `ringsync reproduce` end to end.
 
 use std::path::PathBuf;
-use std::process::{Command, Output};
+mod common;
 
-fn ringsync(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_ringsync"))
-        .args(args)
-        .env("RUST_BACKTRACE", "0")
-        .output()
-        .expect("run ringsync")
-}
+use common::ringsync;
 
 fn dir(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("ringsync-sim-test-{}-{name}", std::process::id()));

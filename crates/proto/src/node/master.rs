@@ -20,8 +20,8 @@ use ringsync_control::{
     Trajectory, VelocitySource,
 };
 use ringsync_wire::{
-    CommandRepr, Common, FeedbackSlot, Flags, Frame, FrameKind, LumpedFrameRepr,
-    LumpedOnlyFrameRepr, LumpedOnlySlot, LumpedPayload, Pdu, SlotCodec, Status,
+    CommandRepr, Common, FeedbackSlot, Flags, Frame, FrameKind, LumpedOnlySlot, LumpedPayload,
+    LumpedRepr, Pdu, SlotCodec, Status,
 };
 
 use super::Transmit;
@@ -464,12 +464,17 @@ impl Master {
     fn send_lumped(&mut self, now: Instant) {
         let j = self.next_lumped;
         let first: usize = self.cfg.lumped_slots[..j].iter().sum();
-        self.seq = self.seq.wrapping_add(1);
         // Empty slots, reused from cycle to cycle.
         let mut slots = std::mem::take(&mut self.empty_slots);
         slots.clear();
         slots.resize(self.cfg.lumped_slots[j], FeedbackSlot::default());
-        let repr = LumpedFrameRepr {
+        self.empty_slots = self.queue_lumped(now, first, slots);
+    }
+
+    /// Sends a lumped frame of either layout, stamped with `now`, and gives the slots back.
+    fn queue_lumped<S: SlotCodec>(&mut self, now: Instant, first: usize, slots: Vec<S>) -> Vec<S> {
+        self.seq = self.seq.wrapping_add(1);
+        let repr = LumpedRepr {
             common: Common {
                 cycle: self.k as u32,
                 seq: self.seq,
@@ -487,7 +492,7 @@ impl Master {
             });
             self.counters.frames_sent += 1;
         }
-        self.empty_slots = repr.slots;
+        repr.slots
     }
 
     /// The lumped-only plan's frame: last cycle's returned slots (not written this cycle),
@@ -513,25 +518,7 @@ impl Master {
                 s
             })
             .collect();
-        self.seq = self.seq.wrapping_add(1);
-        let repr = LumpedOnlyFrameRepr {
-            common: Common {
-                cycle: self.k as u32,
-                seq: self.seq,
-                ..Common::default()
-            },
-            master_time_ns: now.as_ns().max(0) as u64,
-            first_slot: first as u16,
-            slots,
-        };
-        let mut buf = vec![0u8; repr.buffer_len()];
-        if repr.emit(&mut buf).is_ok() {
-            self.out.push_back(Transmit {
-                at: now,
-                bytes: buf,
-            });
-            self.counters.frames_sent += 1;
-        }
+        self.queue_lumped(now, first, slots);
     }
 
     fn compute(&mut self, now: Instant) {
