@@ -57,6 +57,8 @@ fn fmt_tick(v: f64, step: f64) -> String {
     } else {
         (-step.log10()).ceil() as usize
     };
+    // A tick at zero reached by adding steps may be −1e-17: print it as 0, not -0.
+    let v = if v.abs() < step * 1e-6 { 0.0 } else { v };
     format!("{v:.digits$}")
 }
 
@@ -170,6 +172,12 @@ mod tests {
         assert!(t.len() <= 1002, "{}", t.len());
         assert!(t.iter().any(|p| p.1 == 50.0), "the spike survived");
         assert!(t.windows(2).all(|w| w[0].0 <= w[1].0), "in order");
+    }
+
+    #[test]
+    fn zero_tick_has_no_sign() {
+        assert_eq!(fmt_tick(-1e-17, 0.5), "0.0");
+        assert_eq!(fmt_tick(-0.5, 0.5), "-0.5");
     }
 
     #[test]

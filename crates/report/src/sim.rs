@@ -298,7 +298,7 @@ pub fn repro_html(s: &Scenario, rows: &[ReproRow], figures: &[(&str, String)]) -
         "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>ringsync: {name}</title>\
 <style>body{{font-family:DejaVu Sans,Verdana,sans-serif;max-width:980px;margin:2em auto;line-height:1.45;color:#222}}\
 table{{border-collapse:collapse;margin:1em 0}}td,th{{border:1px solid #ccc;padding:4px 10px;text-align:right}}\
-th:first-child,td:first-child{{text-align:left}}figure{{margin:1.5em 0}}code{{background:#f4f4f4;padding:0 3px}}\
+th:first-child,td:first-child{{text-align:left}}figure{{margin:1.5em 0}}figure svg{{max-width:100%;height:auto}}code{{background:#f4f4f4;padding:0 3px}}\
 .note{{color:#555;font-size:90%}}</style></head><body>\n",
         name = esc(&s.name)
     );
@@ -481,7 +481,7 @@ pub fn run_html(s: &Scenario, hash: u64, r: &RunResult, figures: &[(&str, String
         "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>ringsync: {name}</title>\
 <style>body{{font-family:DejaVu Sans,Verdana,sans-serif;max-width:980px;margin:2em auto;line-height:1.45;color:#222}}\
 table{{border-collapse:collapse;margin:1em 0}}td,th{{border:1px solid #ccc;padding:4px 10px;text-align:right}}\
-th:first-child,td:first-child{{text-align:left}}code{{background:#f4f4f4;padding:0 3px}}.note{{color:#555;font-size:90%}}</style></head><body>\n\
+th:first-child,td:first-child{{text-align:left}}figure svg{{max-width:100%;height:auto}}code{{background:#f4f4f4;padding:0 3px}}.note{{color:#555;font-size:90%}}</style></head><body>\n\
 <h1>ringsync run: {name}</h1>\n<p>{desc}</p>\n<p>Scenario hash <code>{hash:016x}</code>, seed {seed}, plan <code>{plan}</code>, \
 controller <code>{law}</code>, estimator <code>{est}</code>; {cycles} cycles of {cyc} ms, {n} axes.</p>\n\
 <table><tr><th>metric</th><th>value</th></tr>\n<tr><td>Track-RMSE (eq. 26)</td><td>{track:.6} rad</td></tr>\n\
