@@ -311,7 +311,7 @@ a position-synchronisation controller that couples every axis to the mean of all
 estimator that compensates the known network delays. It reports, on four servo axes at 1 ms, that the controller lowers the \
 synchronisation error (Sync-RMSE) by 49.270 % and the tracking error (Track-RMSE) by 21.171 % against standard PD.</p>\n\
 <p>This page is ringsync's reproduction in its deterministic co-simulator: the same frames on modelled 100 Mbit/s links, \
-drifting clocks synchronised from the frames, the sans-IO master and slaves that the real runtime also runs, and simulated \
+drifting clocks synchronised from the frames, the sans-IO master and slaves that the real runtime is built to run as well, and simulated \
 servo axes. Scenario <code>{name}</code>, seed {seed}, {n} axes, {dur} s, T<sub>cyc</sub> = {cyc} ms, estimator \
 <code>{est}</code>. Re-run it with <code>cargo run --release -p ringsync -- reproduce</code>.</p>\n",
         name = esc(&s.name),
