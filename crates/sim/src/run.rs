@@ -210,17 +210,26 @@ struct Oscillator {
 
 impl Oscillator {
     fn local(&self, t: i64) -> Instant {
-        let l = (self.offset + t as f64 * self.rate).floor() as i64;
+        let l = floor_i64(self.offset + t as f64 * self.rate);
+        if self.res == 1 {
+            return Instant::from_ns(l);
+        }
         Instant::from_ns(l - l.rem_euclid(self.res))
     }
     /// The first true time at which the local clock reads at least `l`.
     fn true_at(&self, l: Instant) -> i64 {
-        let mut t = ((l.as_ns() as f64 - self.offset) / self.rate).ceil() as i64;
+        let mut t = -floor_i64((self.offset - l.as_ns() as f64) / self.rate);
         while self.local(t) < l {
             t += 1;
         }
         t
     }
+}
+
+/// ⌊y⌋ as an integer, for |y| < 2⁶³ (simulated times are far below), without a libm call.
+fn floor_i64(y: f64) -> i64 {
+    let l = y as i64;
+    if (l as f64) > y { l - 1 } else { l }
 }
 
 struct Axis {
@@ -462,8 +471,12 @@ impl<'a> Sim<'a> {
 
     fn push(&mut self, t: i64, ev: Ev) {
         self.seq += 1;
-        let key = (t, self.seq);
-        let at = self.q.partition_point(|e| (e.t, e.seq) > key);
+        // The new entry has the largest sequence number, so it goes after every entry later
+        // than `t`. New events are mostly near-future: scan from the near end.
+        let mut at = self.q.len();
+        while at > 0 && self.q[at - 1].t <= t {
+            at -= 1;
+        }
         self.q.insert(
             at,
             Queued {

@@ -319,3 +319,17 @@ fn reproduction_snapshot() {
         );
     }
 }
+
+#[test]
+fn integer_floor_matches_libm_floor() {
+    let mut r = crate::rng::Rng::stream(7, 7);
+    for _ in 0..100_000 {
+        let y = r.symmetric(1e13);
+        assert_eq!(super::floor_i64(y), y.floor() as i64, "{y}");
+        let z = y.round();
+        assert_eq!(super::floor_i64(z), z as i64, "{z}");
+    }
+    for y in [-1.0, -0.5, -0.0, 0.0, 0.5, 1.0, -1e-300, 4e15 + 0.5] {
+        assert_eq!(super::floor_i64(y), y.floor() as i64, "{y}");
+    }
+}
