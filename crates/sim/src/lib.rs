@@ -4,6 +4,8 @@
 //! (SYSTEM.md section 6) is a field; see `scenarios/paper-2015.toml`, the built-in one.
 
 pub mod check;
+pub mod nodes;
+pub mod record;
 mod rng;
 pub mod run;
 pub mod scenario;

@@ -19,16 +19,16 @@
 //! Same scenario and seed → the same events in the same order → identical outputs.
 //! Assumptions beyond the paper are listed in [`ASSUMPTIONS`].
 
-use ringsync_control::{Coupling, Metrics, Summary};
-use ringsync_plant::{AxisModel, Encoder};
+use ringsync_control::Summary;
 use ringsync_proto::node::{
-    FrameOutcome, LumpedOnlyControl, Master, MasterConfig, MasterCounters, MasterEvent, Slave,
-    SlaveConfig, SlaveCounters, SlaveEvent, StopReason,
+    FrameOutcome, Master, MasterCounters, MasterEvent, Slave, SlaveCounters, SlaveEvent, StopReason,
 };
 use ringsync_proto::plan::{FrameRef, Node};
-use ringsync_proto::{CyclePlan, Instant, PlanKind};
+use ringsync_proto::{Instant, PlanKind};
 use ringsync_wire::{Frame, FrameKind, SlotCodec};
 
+use crate::nodes::{Oscillator, RingConfig, ServoAxis};
+use crate::record::{AxisProbe, Recorder};
 use crate::rng::Rng;
 use crate::scenario::{Scenario, ScenarioError};
 
@@ -200,57 +200,6 @@ impl Ord for Queued {
     }
 }
 
-/// A slave's oscillator.
-#[derive(Debug, Clone, Copy)]
-struct Oscillator {
-    offset: f64,
-    rate: f64,
-    res: i64,
-}
-
-impl Oscillator {
-    fn local(&self, t: i64) -> Instant {
-        let l = floor_i64(self.offset + t as f64 * self.rate);
-        if self.res == 1 {
-            return Instant::from_ns(l);
-        }
-        Instant::from_ns(l - l.rem_euclid(self.res))
-    }
-    /// The first true time at which the local clock reads at least `l`.
-    fn true_at(&self, l: Instant) -> i64 {
-        let mut t = -floor_i64((self.offset - l.as_ns() as f64) / self.rate);
-        while self.local(t) < l {
-            t += 1;
-        }
-        t
-    }
-}
-
-/// ⌊y⌋ as an integer, for |y| < 2⁶³ (simulated times are far below), without a libm call.
-fn floor_i64(y: f64) -> i64 {
-    let l = y as i64;
-    if (l as f64) > y { l - 1 } else { l }
-}
-
-struct Axis {
-    model: AxisModel,
-    encoder: Encoder,
-    x: f64,
-    v: f64,
-    t: i64,
-    u: f64,
-}
-
-impl Axis {
-    fn advance(&mut self, t: i64) {
-        if t > self.t {
-            self.model
-                .step(&mut self.x, &mut self.v, self.u, (t - self.t) as f64 * 1e-9);
-            self.t = t;
-        }
-    }
-}
-
 struct Sim<'a> {
     s: &'a Scenario,
     /// Pending events, sorted by (time, sequence) descending: the next one is last. The
@@ -260,7 +209,7 @@ struct Sim<'a> {
     master: Master,
     slaves: Vec<Slave>,
     osc: Vec<Oscillator>,
-    axes: Vec<Axis>,
+    axes: Vec<ServoAxis>,
     gens: Vec<u64>,
     master_gen: u64,
     link_rng: Vec<Rng>,
@@ -278,25 +227,7 @@ struct Sim<'a> {
     counters: LinkCounters,
     opts: RunOptions,
     passages: Vec<PassageLog>,
-    probe_x: Vec<f64>,
-    probe_xd: Vec<f64>,
-    probe_clock: Vec<f64>,
-    /// Scratch of the probes: errors, commands, saturation flags.
-    probe_e: Vec<f64>,
-    probe_u: Vec<f64>,
-    probe_sat: Vec<bool>,
-    apply_time: Vec<f64>,
-    coupling: Option<Coupling>,
-    metrics: Metrics,
-    eps: Vec<f64>,
-    trace: Vec<TraceRow>,
-    clock_max: Vec<f64>,
-    clock_sq: Vec<f64>,
-    clock_count: u64,
-    watchdog: Vec<(usize, f64)>,
-    group_stop: Option<(f64, StopReason)>,
-    /// Trace rows of the last computed cycle, waiting for its commands' apply times.
-    pending: Vec<TraceRow>,
+    rec: Recorder,
     captured: Vec<Captured>,
 }
 
@@ -324,93 +255,14 @@ pub fn run_with_progress(
     Ok(sim.finish())
 }
 
-fn scenario_err(key: &str, e: impl ToString) -> ScenarioError {
-    ScenarioError::OutOfRange {
-        key: key.into(),
-        value: "?".into(),
-        allowed: e.to_string(),
-    }
-}
-
 impl<'a> Sim<'a> {
     fn new(s: &'a Scenario, opts: RunOptions) -> Result<Self, RunError> {
         let n = s.axes_count();
-        let plan = CyclePlan::new(&s.ring_params()).map_err(|e| scenario_err("ring", e))?;
-        let models = s
-            .axis_models()
-            .map_err(|(i, e)| scenario_err(&format!("axis[{i}]"), e))?;
-        let law = s.law().map_err(|e| scenario_err("control", e))?;
-        let trajectories = s
-            .trajectories()
-            .map_err(|e| scenario_err("trajectory", e))?;
-        let encoders: Vec<Encoder> = (0..n)
-            .map(|i| Encoder::new(1u32 << s.axis[i % s.axis.len()].encoder_bits))
-            .collect::<Result<_, _>>()
-            .map_err(|e| scenario_err("axis", e))?;
-        let resolution: Vec<f64> = encoders.iter().map(|e| e.resolution()).collect();
-        let lumped_only = s.ring.plan == PlanKind::LumpedOnly;
-        let mut cfg = if lumped_only {
-            MasterConfig::lumped_only(&plan, resolution.clone(), s.faults.following_error_limit)
-        } else {
-            MasterConfig::from_plan(
-                &plan,
-                s.ring.jitter.0,
-                resolution.clone(),
-                s.faults.following_error_limit,
-            )
-        };
-        cfg.stop_deceleration = 200.0;
-        cfg.watchdog_cycles = s.faults.watchdog_cycles;
-        let master = Master::new(cfg, law, s.velocity_source(), trajectories);
-        let slaves: Vec<Slave> = (0..n)
-            .map(|i| {
-                let cfg = SlaveConfig {
-                    address: (i + 1) as u16,
-                    cycle: s.ring.cycle.0,
-                    path_delay: plan.d_c[i],
-                    response_delay: s.ring.response_delay.0,
-                    velocity_window: s.axis[i % s.axis.len()].velocity_window.0,
-                    watchdog_cycles: s.faults.watchdog_cycles,
-                    clock_sync: s.clock.sync,
-                    u_max: s.axis[i % s.axis.len()].u_max,
-                };
-                if lumped_only {
-                    let control = LumpedOnlyControl {
-                        law: s.law().map_err(|e| scenario_err("control", e))?,
-                        velocity: s.velocity_source(),
-                        trajectories: s
-                            .trajectories()
-                            .map_err(|e| scenario_err("trajectory", e))?,
-                        resolution: resolution.clone(),
-                    };
-                    Ok(Slave::with_law(cfg, control))
-                } else {
-                    Ok(Slave::new(cfg))
-                }
-            })
-            .collect::<Result<_, ScenarioError>>()?;
-        let osc: Vec<Oscillator> = (0..n)
-            .map(|i| {
-                let mut r = Rng::stream(s.seed, 1_000 + i as u64);
-                Oscillator {
-                    offset: r.symmetric(s.clock.initial_offset.0.as_ns() as f64),
-                    rate: 1.0 + r.symmetric(s.clock.drift_ppm) * 1e-6,
-                    res: s.clock.timestamp_resolution.0.as_ns(),
-                }
-            })
-            .collect();
-        let axes = models
-            .into_iter()
-            .zip(encoders)
-            .map(|(model, encoder)| Axis {
-                model,
-                encoder,
-                x: 0.0,
-                v: 0.0,
-                t: 0,
-                u: 0.0,
-            })
-            .collect();
+        let rc = RingConfig::new(s)?;
+        let (master, slaves) = rc.build(s)?;
+        let plan = rc.plan;
+        let osc = Oscillator::for_scenario(s);
+        let axes = ServoAxis::for_scenario(s)?;
         let frame_ns = [
             plan.lumped.frame_time[0].as_ns(),
             plan.t_cmf.as_ns(),
@@ -418,6 +270,7 @@ impl<'a> Sim<'a> {
             plan.lumped_only.lumped.frame_time[0].as_ns(),
         ];
         let cycles = s.duration.0.as_ns() / s.ring.cycle.0.as_ns();
+        let opts_trace = opts.trace;
         let mut sim = Sim {
             s,
             q: Vec::with_capacity(64),
@@ -441,23 +294,7 @@ impl<'a> Sim<'a> {
             counters: LinkCounters::default(),
             opts,
             passages: Vec::new(),
-            probe_x: vec![0.0; n],
-            probe_xd: vec![0.0; n],
-            probe_clock: vec![0.0; n],
-            probe_e: vec![0.0; n],
-            probe_u: vec![0.0; n],
-            probe_sat: vec![false; n],
-            apply_time: vec![f64::NAN; n],
-            coupling: Coupling::new(n, 0.0).ok(),
-            metrics: Metrics::new(n),
-            eps: vec![0.0; n],
-            trace: Vec::new(),
-            clock_max: vec![0.0; n],
-            clock_sq: vec![0.0; n],
-            clock_count: 0,
-            watchdog: Vec::new(),
-            group_stop: None,
-            pending: Vec::new(),
+            rec: Recorder::new(n, cycles, s.ring.cycle.secs(), opts_trace),
             captured: Vec::new(),
         };
         sim.schedule_master();
@@ -704,11 +541,9 @@ impl<'a> Sim<'a> {
         }
         while let Some(ev) = self.master.poll_event() {
             match ev {
-                MasterEvent::Computed { k } => self.on_computed(k),
+                MasterEvent::Computed { k } => self.rec.computed(k, self.master.record()),
                 MasterEvent::GroupStop { at, reason } => {
-                    if self.group_stop.is_none() {
-                        self.group_stop = Some((at.as_ns() as f64 * 1e-9, reason));
-                    }
+                    self.rec.group_stop(at.as_ns() as f64 * 1e-9, reason)
                 }
             }
         }
@@ -722,7 +557,7 @@ impl<'a> Sim<'a> {
 
     fn on_sample(&mut self, i: usize, t: i64) {
         self.axes[i].advance(t);
-        let counts = self.axes[i].encoder.counts(self.axes[i].x);
+        let counts = self.axes[i].counts();
         let local = self.osc[i].local(t);
         self.slaves[i].handle_sample(local, counts);
         self.drain_slave(i, t);
@@ -751,11 +586,11 @@ impl<'a> Sim<'a> {
             match ev {
                 SlaveEvent::Apply { u } => {
                     self.axes[i].u = u;
-                    self.apply_time[i] = t as f64 * 1e-9;
+                    self.rec.applied(i, t as f64 * 1e-9);
                 }
                 SlaveEvent::WatchdogExpired => {
                     self.axes[i].u = 0.0;
-                    self.watchdog.push((i + 1, t as f64 * 1e-9));
+                    self.rec.watchdog(i + 1, t as f64 * 1e-9);
                 }
             }
         }
@@ -771,93 +606,37 @@ impl<'a> Sim<'a> {
         }
     }
 
-    /// Moves the waiting rows to the trace with the apply times seen since.
-    fn flush_trace(&mut self) {
-        for mut row in self.pending.drain(..) {
-            row.apply_time = self.apply_time[row.axis - 1];
-            self.trace.push(row);
-        }
-    }
-
     fn on_probe(&mut self, k: i64, t: i64) {
         let next = t + self.s.ring.cycle.0.as_ns();
         if next < self.end {
             self.push(next, Ev::Probe { k: k + 1 });
         }
-        self.flush_trace();
         let ts = t as f64 * 1e-9;
-        for i in 0..self.n {
-            self.axes[i].advance(t);
-            self.probe_x[i] = self.axes[i].x;
-            self.probe_xd[i] = self.master.desired(i, ts).x;
-            let sync = self.slaves[i].clock().to_sync(self.osc[i].local(t));
-            self.probe_clock[i] = (sync.as_ns() - t) as f64;
-        }
-        for i in 0..self.n {
-            self.probe_e[i] = self.probe_xd[i] - self.probe_x[i];
-            self.probe_u[i] = self.axes[i].u;
-            self.probe_sat[i] = self.slaves[i]
-                .status()
-                .contains(ringsync_wire::Status::SATURATED);
-        }
-        let _ = self
-            .metrics
-            .push(&self.probe_e, &self.probe_u, &self.probe_sat);
-        let cycles = self.end / self.s.ring.cycle.0.as_ns();
-        if 2 * k >= cycles {
-            self.clock_count += 1;
-            for i in 0..self.n {
-                let c = self.probe_clock[i];
-                self.clock_max[i] = self.clock_max[i].max(c.abs());
-                self.clock_sq[i] += c * c;
+        let (axes, master, slaves, osc) = (&mut self.axes, &self.master, &self.slaves, &self.osc);
+        self.rec.probe(k, |i| {
+            axes[i].advance(t);
+            let sync = slaves[i].clock().to_sync(osc[i].local(t));
+            AxisProbe {
+                x: axes[i].x,
+                x_d: master.desired(i, ts).x,
+                clock_error_ns: (sync.as_ns() - t) as f64,
+                u: axes[i].u,
+                saturated: slaves[i]
+                    .status()
+                    .contains(ringsync_wire::Status::SATURATED),
             }
-        }
-        if let Some(c) = &self.coupling {
-            let _ = c.sync_errors(&self.probe_e, &mut self.eps);
-        }
+        });
     }
 
-    fn on_computed(&mut self, k: i64) {
-        if !self.opts.trace {
-            return;
-        }
-        let r = self.master.record();
-        let t = k as f64 * self.s.ring.cycle.secs();
-        self.apply_time.fill(f64::NAN);
-        for i in 0..self.n {
-            self.pending.push(TraceRow {
-                t,
-                axis: i + 1,
-                x_d: self.probe_xd[i],
-                x: self.probe_x[i],
-                e: self.probe_xd[i] - self.probe_x[i],
-                eps: self.eps[i],
-                u: r.u[i],
-                sample_time: r.sample_time[i],
-                apply_time: f64::NAN,
-                clock_error_ns: self.probe_clock[i],
-            });
-        }
-    }
-
-    fn finish(mut self) -> RunResult {
-        self.flush_trace();
-        let n = self.clock_count.max(1) as f64;
-        RunResult {
-            scenario: self.s.name.clone(),
-            cycles: self.end / self.s.ring.cycle.0.as_ns(),
-            summary: self.metrics.summary(),
-            master: self.master.counters(),
-            slaves: self.slaves.iter().map(|s| s.counters()).collect(),
-            links: self.counters,
-            clock_error_max_ns: self.clock_max,
-            clock_error_rms_ns: self.clock_sq.iter().map(|s| (s / n).sqrt()).collect(),
-            watchdog: self.watchdog,
-            group_stop: self.group_stop,
-            trace: self.trace,
-            passages: self.passages,
-            captured: self.captured,
-        }
+    fn finish(self) -> RunResult {
+        self.rec.finish(
+            &self.s.name,
+            self.master.counters(),
+            self.slaves.iter().map(|s| s.counters()).collect(),
+            self.counters,
+            self.passages,
+            self.captured,
+        )
     }
 }
 

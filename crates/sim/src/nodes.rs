@@ -1,0 +1,220 @@
+//! The pieces of a ring that the simulator and the real-time runtime build alike from a
+//! scenario: the master's and the slaves' configurations, the nodes themselves, the slaves'
+//! oscillators and the servo axes with their held commands.
+
+use ringsync_plant::{AxisModel, Encoder};
+use ringsync_proto::node::{LumpedOnlyControl, Master, MasterConfig, Slave, SlaveConfig};
+use ringsync_proto::{CyclePlan, Instant, PlanKind};
+
+use crate::rng::Rng;
+use crate::scenario::{Scenario, ScenarioError};
+
+fn scenario_err(key: &str, e: impl ToString) -> ScenarioError {
+    ScenarioError::OutOfRange {
+        key: key.into(),
+        value: "?".into(),
+        allowed: e.to_string(),
+    }
+}
+
+/// The configurations of a scenario's nodes, before the nodes are built (a runtime adjusts
+/// the timing to its measured links first).
+#[derive(Debug, Clone)]
+pub struct RingConfig {
+    /// The cycle plan of the scenario's ring (eq. 1-2 and the event level).
+    pub plan: CyclePlan,
+    /// The master's schedule and limits.
+    pub master: MasterConfig,
+    /// Slave i's configuration at index i − 1.
+    pub slaves: Vec<SlaveConfig>,
+    /// Encoder resolution of each axis [rad per count].
+    pub resolution: Vec<f64>,
+}
+
+impl RingConfig {
+    /// The configurations that the scenario describes, with the path delays of its plan.
+    pub fn new(s: &Scenario) -> Result<Self, ScenarioError> {
+        let n = s.axes_count();
+        let plan = CyclePlan::new(&s.ring_params()).map_err(|e| scenario_err("ring", e))?;
+        let resolution = encoders(s)?
+            .iter()
+            .map(|e| e.resolution())
+            .collect::<Vec<_>>();
+        let mut master = if s.ring.plan == PlanKind::LumpedOnly {
+            MasterConfig::lumped_only(&plan, resolution.clone(), s.faults.following_error_limit)
+        } else {
+            MasterConfig::from_plan(
+                &plan,
+                s.ring.jitter.0,
+                resolution.clone(),
+                s.faults.following_error_limit,
+            )
+        };
+        master.stop_deceleration = 200.0;
+        master.watchdog_cycles = s.faults.watchdog_cycles;
+        let slaves = (0..n)
+            .map(|i| {
+                let a = &s.axis[i % s.axis.len()];
+                SlaveConfig {
+                    address: (i + 1) as u16,
+                    cycle: s.ring.cycle.0,
+                    path_delay: plan.d_c[i],
+                    response_delay: s.ring.response_delay.0,
+                    velocity_window: a.velocity_window.0,
+                    watchdog_cycles: s.faults.watchdog_cycles,
+                    clock_sync: s.clock.sync,
+                    u_max: a.u_max,
+                }
+            })
+            .collect();
+        Ok(RingConfig {
+            plan,
+            master,
+            slaves,
+            resolution,
+        })
+    }
+
+    /// The master and the slaves of the scenario's plan (the law in the master, or in every
+    /// slave with the lumped-only plan).
+    pub fn build(&self, s: &Scenario) -> Result<(Master, Vec<Slave>), ScenarioError> {
+        let law = s.law().map_err(|e| scenario_err("control", e))?;
+        let trajectories = s
+            .trajectories()
+            .map_err(|e| scenario_err("trajectory", e))?;
+        let master = Master::new(self.master.clone(), law, s.velocity_source(), trajectories);
+        let slaves = self
+            .slaves
+            .iter()
+            .map(|cfg| {
+                if s.ring.plan == PlanKind::LumpedOnly {
+                    let control = LumpedOnlyControl {
+                        law: s.law().map_err(|e| scenario_err("control", e))?,
+                        velocity: s.velocity_source(),
+                        trajectories: s
+                            .trajectories()
+                            .map_err(|e| scenario_err("trajectory", e))?,
+                        resolution: self.resolution.clone(),
+                    };
+                    Ok(Slave::with_law(cfg.clone(), control))
+                } else {
+                    Ok(Slave::new(cfg.clone()))
+                }
+            })
+            .collect::<Result<_, ScenarioError>>()?;
+        Ok((master, slaves))
+    }
+}
+
+fn encoders(s: &Scenario) -> Result<Vec<Encoder>, ScenarioError> {
+    (0..s.axes_count())
+        .map(|i| Encoder::new(1u32 << s.axis[i % s.axis.len()].encoder_bits))
+        .collect::<Result<_, _>>()
+        .map_err(|e| scenario_err("axis", e))
+}
+
+/// A slave's oscillator: its local clock reads offset + t·rate, truncated to the timestamp
+/// resolution, where t is true (master) time.
+#[derive(Debug, Clone, Copy)]
+pub struct Oscillator {
+    /// Local reading at true time 0 [ns].
+    pub offset: f64,
+    /// Local nanoseconds per true nanosecond (1 + drift).
+    pub rate: f64,
+    /// Timestamp resolution [ns], at least 1.
+    pub res: i64,
+}
+
+impl Oscillator {
+    /// The scenario's oscillators: slave i's offset and drift drawn uniformly within the
+    /// scenario's bounds from its own seeded stream.
+    pub fn for_scenario(s: &Scenario) -> Vec<Oscillator> {
+        (0..s.axes_count())
+            .map(|i| {
+                let mut r = Rng::stream(s.seed, 1_000 + i as u64);
+                Oscillator {
+                    offset: r.symmetric(s.clock.initial_offset.0.as_ns() as f64),
+                    rate: 1.0 + r.symmetric(s.clock.drift_ppm) * 1e-6,
+                    res: s.clock.timestamp_resolution.0.as_ns().max(1),
+                }
+            })
+            .collect()
+    }
+
+    /// The local clock's reading at true time `t` [ns].
+    pub fn local(&self, t: i64) -> Instant {
+        let l = floor_i64(self.offset + t as f64 * self.rate);
+        if self.res == 1 {
+            return Instant::from_ns(l);
+        }
+        Instant::from_ns(l - l.rem_euclid(self.res))
+    }
+
+    /// The first true time [ns] at which the local clock reads at least `l`.
+    pub fn true_at(&self, l: Instant) -> i64 {
+        let mut t = -floor_i64((self.offset - l.as_ns() as f64) / self.rate);
+        while self.local(t) < l {
+            t += 1;
+        }
+        t
+    }
+}
+
+/// ⌊y⌋ as an integer, for |y| < 2⁶³ (simulated times are far below), without a libm call.
+pub(crate) fn floor_i64(y: f64) -> i64 {
+    let l = y as i64;
+    if (l as f64) > y { l - 1 } else { l }
+}
+
+/// One servo axis with its encoder and the command it holds until the next one.
+#[derive(Debug, Clone)]
+pub struct ServoAxis {
+    /// The drive and mechanics.
+    pub model: AxisModel,
+    /// The encoder.
+    pub encoder: Encoder,
+    /// Position [rad].
+    pub x: f64,
+    /// Velocity [rad/s].
+    pub v: f64,
+    /// True time of the state [ns].
+    pub t: i64,
+    /// Command held [V].
+    pub u: f64,
+}
+
+impl ServoAxis {
+    /// The scenario's axes at rest at position 0, true time 0, 0 V.
+    pub fn for_scenario(s: &Scenario) -> Result<Vec<ServoAxis>, ScenarioError> {
+        let models = s
+            .axis_models()
+            .map_err(|(i, e)| scenario_err(&format!("axis[{i}]"), e))?;
+        Ok(models
+            .into_iter()
+            .zip(encoders(s)?)
+            .map(|(model, encoder)| ServoAxis {
+                model,
+                encoder,
+                x: 0.0,
+                v: 0.0,
+                t: 0,
+                u: 0.0,
+            })
+            .collect())
+    }
+
+    /// Advances the state to true time `t` [ns] with the command held (no-op if `t` is not
+    /// later than the state).
+    pub fn advance(&mut self, t: i64) {
+        if t > self.t {
+            self.model
+                .step(&mut self.x, &mut self.v, self.u, (t - self.t) as f64 * 1e-9);
+            self.t = t;
+        }
+    }
+
+    /// The encoder count of the current position.
+    pub fn counts(&self) -> i64 {
+        self.encoder.counts(self.x)
+    }
+}
