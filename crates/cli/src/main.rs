@@ -2,6 +2,7 @@
 //! (Huang et al. 2015). Thin: parse, call the library crates, print.
 
 mod plan_cmd;
+mod rt_cmd;
 mod scenario_cmd;
 mod sim_cmd;
 
@@ -55,6 +56,8 @@ enum Command {
     Sim(sim_cmd::SimArgs),
     /// Reproduce the paper's Table 1 on the reference scenario (PD, sync, ring-coupled).
     Reproduce(sim_cmd::ReproduceArgs),
+    /// Run a scenario in real time over UDP on loopback or a veth ring of network namespaces.
+    Rt(rt_cmd::RtArgs),
     /// Sweep scenario keys (their product, several seeds each) in parallel: CSV and a figure.
     Sweep(sim_cmd::SweepArgs),
 }
@@ -104,6 +107,7 @@ fn main() -> ExitCode {
         Command::Sim(args) => sim_cmd::sim(&args),
         Command::Reproduce(args) => sim_cmd::reproduce(&args),
         Command::Sweep(args) => sim_cmd::sweep(&args),
+        Command::Rt(args) => rt_cmd::rt(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

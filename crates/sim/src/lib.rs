@@ -6,7 +6,7 @@
 pub mod check;
 pub mod nodes;
 pub mod record;
-mod rng;
+pub mod rng;
 pub mod run;
 pub mod scenario;
 pub mod sweep;

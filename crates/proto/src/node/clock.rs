@@ -18,15 +18,46 @@ use crate::time::{Duration, Instant};
 /// Gain of the rate filter (per sync); 1/8 settles within a few tens of cycles.
 const RATE_GAIN: f64 = 0.125;
 
+/// How the servo treats each new sync pair. The default (gain 1, rate gain 1/8, no outlier
+/// limit) suits exact timestamps (hardware, the simulator). With software timestamps, which
+/// jitter by microseconds and now and then by milliseconds, a smaller offset gain averages
+/// the jitter and an outlier limit skips the pairs of frames that were read late.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ClockFilter {
+    /// Share of each sync's offset error applied (0 < g ≤ 1; 1 steps to the pair).
+    pub offset_gain: f64,
+    /// Gain of the rate filter per sync (0 < g ≤ 1).
+    pub rate_gain: f64,
+    /// Once locked, a pair whose offset error exceeds this is skipped (at most 3 in a row,
+    /// then the servo steps). `None`: no limit.
+    pub outlier_limit: Option<Duration>,
+}
+
+impl Default for ClockFilter {
+    fn default() -> Self {
+        ClockFilter {
+            offset_gain: 1.0,
+            rate_gain: RATE_GAIN,
+            outlier_limit: None,
+        }
+    }
+}
+
 /// The synchronised clock of one slave.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SyncClock {
     enabled: bool,
     /// Last sync: (local L_k, master M_k) [ns].
     last: Option<(i64, i64)>,
+    /// Last raw pair, for the rate estimate.
+    raw: Option<(i64, i64)>,
     /// ρ̂: local ns per master ns.
     rate: f64,
     syncs: u64,
+    filter: ClockFilter,
+    /// Pairs skipped in a row, and in all.
+    skipped_run: u32,
+    skipped: u64,
 }
 
 impl SyncClock {
@@ -35,9 +66,27 @@ impl SyncClock {
         SyncClock {
             enabled,
             last: None,
+            raw: None,
             rate: 1.0,
             syncs: 0,
+            filter: ClockFilter::default(),
+            skipped_run: 0,
+            skipped: 0,
         }
+    }
+
+    /// Sets the servo's filter (gains outside (0, 1] are clamped into it).
+    pub fn set_filter(&mut self, f: ClockFilter) {
+        self.filter = ClockFilter {
+            offset_gain: f.offset_gain.clamp(1e-3, 1.0),
+            rate_gain: f.rate_gain.clamp(1e-6, 1.0),
+            outlier_limit: f.outlier_limit,
+        };
+    }
+
+    /// Sync pairs skipped as outliers.
+    pub fn skipped(&self) -> u64 {
+        self.skipped
     }
 
     /// Takes one sync: the frame was received at local time `local` and left the master at
@@ -47,14 +96,31 @@ impl SyncClock {
             return;
         }
         let (l, m) = (local.as_ns(), (master_sent + path).as_ns());
-        if let Some((l0, m0)) = self.last
+        let mut anchor = m;
+        if self.syncs >= 2 && self.last.is_some() {
+            let err = m - self.to_sync(local).as_ns();
+            if let Some(limit) = self.filter.outlier_limit
+                && err.abs() > limit.as_ns()
+                && self.skipped_run < 3
+            {
+                self.skipped_run += 1;
+                self.skipped += 1;
+                return;
+            }
+            if self.filter.offset_gain < 1.0 {
+                anchor = m - err + (self.filter.offset_gain * err as f64).round() as i64;
+            }
+        }
+        self.skipped_run = 0;
+        if let Some((l0, m0)) = self.raw
             && m > m0
             && l > l0
         {
             let measured = (l - l0) as f64 / (m - m0) as f64;
-            self.rate += RATE_GAIN * (measured - self.rate);
+            self.rate += self.filter.rate_gain * (measured - self.rate);
         }
-        self.last = Some((l, m));
+        self.raw = Some((l, m));
+        self.last = Some((l, anchor));
         self.syncs += 1;
     }
 
@@ -119,6 +185,51 @@ mod tests {
         // to_local inverts to_sync within rounding.
         let s = Instant::from_ns(399_250_000);
         assert!((c.to_sync(c.to_local(s)).as_ns() - s.as_ns()).abs() <= 1);
+    }
+
+    #[test]
+    fn the_filter_averages_jitter_and_skips_outliers() {
+        let path = 5_000;
+        let run = |filter: ClockFilter| {
+            let mut c = SyncClock::new(true);
+            c.set_filter(filter);
+            let mut r = 12_345u64;
+            let mut worst = 0;
+            for k in 0..600i64 {
+                r = r
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                // ±4 µs jitter, and a frame read 900 µs late every 50 cycles.
+                let mut jitter = ((r >> 33) % 8_001) as i64 - 4_000;
+                if k % 50 == 49 {
+                    jitter = 900_000;
+                }
+                let sent = k * 1_000_000;
+                c.sync(
+                    local(sent + path + jitter, 300, 20.0, 1),
+                    Instant::from_ns(sent),
+                    Duration::from_ns(path),
+                );
+                let t = sent + 999_000;
+                if k >= 100 {
+                    worst = worst.max((c.to_sync(local(t, 300, 20.0, 1)).as_ns() - t).abs());
+                }
+            }
+            (worst, c.skipped())
+        };
+        let (raw, skipped_raw) = run(ClockFilter::default());
+        let (filtered, skipped) = run(ClockFilter {
+            offset_gain: 0.25,
+            rate_gain: 0.01,
+            outlier_limit: Some(Duration::from_us(50)),
+        });
+        assert!(
+            raw > 800_000,
+            "the unfiltered clock follows the late frame: {raw}"
+        );
+        assert_eq!(skipped_raw, 0);
+        assert!(filtered < 6_000, "filtered residual {filtered} ns");
+        assert_eq!(skipped, 10);
     }
 
     #[test]

@@ -338,6 +338,12 @@ impl Master {
         self.stop.is_some()
     }
 
+    /// Whether the master is waiting for frames: a lumped frame of this cycle not back yet,
+    /// or a time slice open. A driver may sleep less precisely when it is not.
+    pub fn awaiting_frames(&self) -> bool {
+        self.lumped_back < self.next_lumped || self.deadline.is_some()
+    }
+
     /// The desired state of axis `i` at `t` [s] (the stop ramp once stopping).
     pub fn desired(&self, i: usize, t: f64) -> State {
         match &self.stop {

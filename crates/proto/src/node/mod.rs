@@ -9,7 +9,7 @@ pub mod clock;
 pub mod master;
 pub mod slave;
 
-pub use clock::SyncClock;
+pub use clock::{ClockFilter, SyncClock};
 pub use master::{CycleRecord, Master, MasterConfig, MasterCounters, MasterEvent, StopReason};
 pub use slave::{FrameOutcome, LumpedOnlyControl, Slave, SlaveConfig, SlaveCounters, SlaveEvent};
 

@@ -201,6 +201,10 @@ impl Slave {
     pub fn config(&self) -> &SlaveConfig {
         &self.cfg
     }
+    /// The synchronised clock, to set its servo's filter.
+    pub fn clock_mut(&mut self) -> &mut SyncClock {
+        &mut self.clock
+    }
     /// The synchronised clock.
     pub fn clock(&self) -> &SyncClock {
         &self.clock

@@ -1,0 +1,302 @@
+//! `ringsync rt`: the scenario's motion in real time over UDP or a veth ring.
+
+use std::path::PathBuf;
+
+use anyhow::Context as _;
+use clap::{Args, ValueEnum};
+use ringsync_proto::Duration;
+use ringsync_report::sim::{summary_json, trace_csv};
+use ringsync_rt::run::{ASSUMPTIONS, NodeFailure};
+use ringsync_rt::stats::Percentiles;
+use ringsync_rt::{Kill, RtError, RtOptions, RtResult, SimPrediction, TransportKind};
+use ringsync_sim::scenario::Scenario;
+use serde_json::{Value, json};
+
+use crate::scenario_cmd::usage;
+use crate::{CliError, out};
+
+/// Which transport carries the frames.
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum Transport {
+    /// UDP datagrams on 127.0.0.1, one socket per node (no privileges needed).
+    Udp,
+    /// Raw Ethernet frames on a ring of veth pairs, one network namespace per node (root).
+    Veth,
+}
+
+fn duration(s: &str) -> Result<Duration, String> {
+    let d: Duration = s.parse().map_err(|e| format!("{e}"))?;
+    if d.as_ns() < 0 {
+        return Err(format!("{s} is negative"));
+    }
+    Ok(d)
+}
+
+/// Options of `ringsync rt`.
+#[derive(Args, Debug)]
+pub struct RtArgs {
+    /// Scenario file or built-in name (see `ringsync scenario list`).
+    scenario: String,
+    /// How the frames travel.
+    #[arg(long, value_enum)]
+    transport: Transport,
+    /// Directory for summary.json and trace.csv (created if missing).
+    #[arg(long, value_name = "DIR")]
+    out: PathBuf,
+    /// Run this long instead of the scenario's duration (e.g. 60s).
+    #[arg(long, value_parser = duration)]
+    duration: Option<Duration>,
+    /// Cycle time instead of the scenario's (e.g. 500us), to find the fastest one this
+    /// machine holds.
+    #[arg(long, value_parser = duration)]
+    cycle: Option<Duration>,
+    /// Also write every frame the nodes send, with its send time, as pcapng.
+    #[arg(long, value_name = "FILE")]
+    pcap: Option<PathBuf>,
+    /// Busy-wait this long before each deadline.
+    #[arg(long, value_parser = duration, default_value = "150us")]
+    spin: Duration,
+    /// SCHED_FIFO priority of the loop (1-99); 0 keeps the normal scheduler.
+    #[arg(long, default_value_t = 80, value_parser = clap::value_parser!(i32).range(0..=99))]
+    priority: i32,
+    /// CPU to pin the loop to (default: the last one).
+    #[arg(long)]
+    cpu: Option<usize>,
+    /// Do not pin the loop to a CPU.
+    #[arg(long, conflicts_with = "cpu")]
+    no_pin: bool,
+    /// Do not lock memory (mlockall).
+    #[arg(long)]
+    no_mlock: bool,
+    /// How long the master waits for a response beyond the measured time slice.
+    #[arg(long, value_parser = duration, default_value = "200us")]
+    response_timeout: Duration,
+    /// Take this slave (1-based) out of the ring mid-run: its sockets close and, on veth,
+    /// its links go down.
+    #[arg(long, requires = "kill_at")]
+    kill_slave: Option<usize>,
+    /// When to take the slave out, from the start (e.g. 1s).
+    #[arg(long, value_parser = duration, requires = "kill_slave")]
+    kill_at: Option<Duration>,
+    /// Inject garbage and bad-CRC frames onto the ring at this rate [frames/s].
+    #[arg(long, default_value_t = 0.0)]
+    inject_garbage: f64,
+    /// Skip the simulator's prediction for the same scenario.
+    #[arg(long)]
+    no_sim_prediction: bool,
+}
+
+fn rt_error(e: RtError) -> CliError {
+    match e {
+        RtError::Scenario(e) => usage(e),
+        RtError::Config(m) => CliError::Usage(m),
+        other => CliError::Failure(anyhow::Error::new(other)),
+    }
+}
+
+fn pct(p: &Percentiles) -> Value {
+    json!({
+        "p50": p.p50 as f64 * 1e-3, "p99": p.p99 as f64 * 1e-3,
+        "p999": p.p999 as f64 * 1e-3, "max": p.max as f64 * 1e-3, "count": p.count,
+    })
+}
+
+fn failure_json(f: &Option<NodeFailure>) -> Value {
+    match f {
+        None => Value::Null,
+        Some(f) => json!({
+            "node": if f.node == 0 { "none identified".to_string() } else { format!("slave {}", f.node) },
+            "slave": f.node,
+            "last_frame_s": f.last_frame_s,
+            "detected_s": f.detected_s,
+            "reason": format!("{:?}", f.reason),
+        }),
+    }
+}
+
+/// summary.json of a real-time run: the simulator's fields plus the timing.
+fn rt_summary(
+    r: &RtResult,
+    hash: u64,
+    transport: &str,
+    prediction: Option<SimPrediction>,
+) -> Value {
+    let mut v = summary_json(&r.scenario, hash, &r.run);
+    let t = &r.timing;
+    let c = &r.calibration;
+    let mc = &r.run.master;
+    let extra = json!({
+        "transport": transport,
+        "overruns": t.overruns,
+        "lateness_us": pct(&t.lateness),
+        "p2p_phase_us": pct(&t.p2p),
+        "late_or_lost_responses": mc.slices_failed,
+        "retries": mc.retries,
+        "retries_ok": mc.retries_ok,
+        "commands_lost": t.commands_lost,
+        "lumped_lost": t.lumped_lost,
+        "late_timers": t.late_timers,
+        "probes_late": t.probes_late,
+        "send_errors": t.send_errors,
+        "receive_errors": t.receive_errors,
+        "residual_clock_error_ns": {
+            "max": r.run.clock_error_max_ns.iter().copied().fold(0.0, f64::max),
+            "rms": r.run.clock_error_rms_ns.clone(),
+        },
+        "sim_prediction": prediction.map(|p| json!({
+            "track_rmse": p.track_rmse, "sync_rmse": p.sync_rmse,
+            "sync_rmse_min": p.sync_rmse_range.0, "sync_rmse_max": p.sync_rmse_range.1,
+            "seeds": p.seeds,
+            "note": "means over the seeds: one run's Sync-RMSE moves by about ±10 % with the seed",
+        })),
+        "calibration": {
+            "rounds": c.rounds,
+            "path_delay_us": c.path.iter().map(|d| *d as f64 * 1e-3).collect::<Vec<_>>(),
+            "round_trip_us": pct(&c.round_trip),
+            "slice_us": c.slice.iter().map(pct).collect::<Vec<_>>(),
+            "p2p_start_us": r.schedule.0 as f64 * 1e-3,
+            "slice_used_us": r.schedule.1 as f64 * 1e-3,
+            "response_timeout_us": r.schedule.2 as f64 * 1e-3,
+        },
+        "realtime": r.realtime,
+        "killed": r.killed.map(|(s, t)| json!({"slave": s, "at_s": t, "detected_after_cycles": r.detection_cycles})),
+        "failure": failure_json(&r.failure),
+        "garbage": {"injected": r.garbage.0, "counted_bad": r.garbage.1},
+        "interrupted": r.interrupted,
+        "runtime_assumptions": ASSUMPTIONS,
+    });
+    if let (Value::Object(m), Value::Object(e)) = (&mut v, extra) {
+        m.extend(e);
+    }
+    v
+}
+
+pub(crate) fn rt(args: &RtArgs) -> Result<(), CliError> {
+    let (s, hash): (Scenario, u64) = Scenario::load_with_hash(&args.scenario).map_err(usage)?;
+    if !(args.inject_garbage >= 0.0 && args.inject_garbage <= 100_000.0) {
+        return Err(CliError::Usage(format!(
+            "--inject-garbage {} is out of range (0 to 100000 frames/s)",
+            args.inject_garbage
+        )));
+    }
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("cannot create {}", args.out.display()))?;
+    let transport = match args.transport {
+        Transport::Udp => TransportKind::Udp,
+        Transport::Veth => TransportKind::Veth,
+    };
+    let mut opts = RtOptions {
+        transport,
+        duration: args.duration,
+        cycle: args.cycle,
+        spin: args.spin,
+        priority: args.priority,
+        lock_memory: !args.no_mlock,
+        response_timeout: args.response_timeout,
+        capture: args.pcap.is_some(),
+        kill: args
+            .kill_slave
+            .zip(args.kill_at)
+            .map(|(slave, at)| Kill { slave, at }),
+        garbage_rate: args.inject_garbage,
+        verbose: true,
+        ..RtOptions::default()
+    };
+    if args.no_pin {
+        opts.cpu = None;
+    } else if let Some(c) = args.cpu {
+        opts.cpu = Some(c);
+    }
+    let stop = ringsync_rt::stop_flag();
+    let r = ringsync_rt::run(&s, &opts, stop).map_err(rt_error)?;
+    // The simulator's prediction for the scenario as run (after the overrides).
+    let prediction = if args.no_sim_prediction {
+        None
+    } else {
+        Some(ringsync_rt::sim_prediction(&r.scenario, 8).map_err(rt_error)?)
+    };
+    let summary = rt_summary(&r, hash, transport.name(), prediction);
+    let text = serde_json::to_string_pretty(&summary).context("cannot format JSON")?;
+    let write = |name: &str, text: &str| -> Result<(), CliError> {
+        let p = args.out.join(name);
+        std::fs::write(&p, text).with_context(|| format!("cannot write {}", p.display()))?;
+        Ok(())
+    };
+    write("summary.json", &format!("{text}\n"))?;
+    write("trace.csv", &trace_csv(&r.run))?;
+    if let Some(p) = &args.pcap {
+        std::fs::write(
+            p,
+            ringsync_report::pcap::pcapng(&r.run.captured, r.scenario.axes_count()),
+        )
+        .with_context(|| format!("cannot write {}", p.display()))?;
+    }
+    let t = &r.timing;
+    let m = &r.run.summary;
+    let mut text = format!(
+        "{} over {}: {} cycles{}, {} overruns ({:.3} %)\n  cycle-start lateness p50 {:.1} µs, p99 {:.1} µs, p99.9 {:.1} µs, max {:.1} µs\n  P2P phase p50 {:.1} µs, p99 {:.1} µs; late or lost responses {}, retries {}\n  Track-RMSE {:.6} rad, Sync-RMSE {:.7} rad",
+        r.scenario.name,
+        transport.name(),
+        t.cycles,
+        if r.interrupted { " (interrupted)" } else { "" },
+        t.overruns,
+        100.0 * t.overruns as f64 / t.cycles.max(1) as f64,
+        t.lateness.p50 as f64 * 1e-3,
+        t.lateness.p99 as f64 * 1e-3,
+        t.lateness.p999 as f64 * 1e-3,
+        t.lateness.max as f64 * 1e-3,
+        t.p2p.p50 as f64 * 1e-3,
+        t.p2p.p99 as f64 * 1e-3,
+        r.run.master.slices_failed,
+        r.run.master.retries,
+        m.track_rmse,
+        m.sync_rmse,
+    );
+    if let Some(p) = prediction {
+        text += &format!(
+            "\n  simulator, mean of {} seeds: Track-RMSE {:.6} rad, Sync-RMSE {:.7} rad ({:.7} to {:.7})",
+            p.seeds, p.track_rmse, p.sync_rmse, p.sync_rmse_range.0, p.sync_rmse_range.1
+        );
+    }
+    text += &format!(
+        "\n  residual clock error ≤ {:.0} ns",
+        r.run.clock_error_max_ns.iter().copied().fold(0.0, f64::max)
+    );
+    if r.garbage.0 > 0 {
+        text += &format!(
+            "\n  injected {} garbage frames; the nodes counted {} bad frames and dropped them",
+            r.garbage.0, r.garbage.1
+        );
+    }
+    if let Some(f) = &r.failure {
+        text += &format!(
+            "\n  GROUP STOP at {:.3} s{} ({:?}); failed node: {}",
+            f.detected_s,
+            r.detection_cycles.map_or(String::new(), |c| format!(
+                ", {c} cycles after the slave was taken out"
+            )),
+            f.reason,
+            if f.node == 0 {
+                "none identified".to_string()
+            } else {
+                format!(
+                    "slave {} (last frame at {})",
+                    f.node,
+                    f.last_frame_s
+                        .map_or("never".to_string(), |t| format!("{t:.3} s"))
+                )
+            }
+        );
+    }
+    text += &format!(
+        "\n  wrote {}/summary.json and trace.csv\n",
+        args.out.display()
+    );
+    out(&text)?;
+    if r.interrupted {
+        return Err(CliError::Failure(anyhow::anyhow!(
+            "interrupted; partial results written, namespaces and links removed"
+        )));
+    }
+    Ok(())
+}

@@ -1,0 +1,20 @@
+//! The real-time runtime of ringsync: the same sans-IO master and slaves as the simulator,
+//! driven by the monotonic clock and real sockets. Transports: UDP on loopback, and raw
+//! Ethernet (EtherType 0x88B5) on a ring of veth pairs between network namespaces. The
+//! slaves' axes are simulated in real time. See `docs/runtime.md`.
+
+pub mod calibrate;
+pub mod netns;
+pub mod run;
+pub mod stats;
+mod sys;
+pub mod transport;
+
+pub use run::{Kill, RtError, RtOptions, RtResult, SimPrediction, Timing, run, sim_prediction};
+pub use transport::TransportKind;
+
+/// Installs the Ctrl-C (SIGINT, SIGTERM) handler: the returned flag rises on the signal and
+/// a run then ends cleanly, removing its namespaces and links.
+pub fn stop_flag() -> &'static std::sync::atomic::AtomicBool {
+    sys::stop_flag()
+}

@@ -1,0 +1,999 @@
+//! The real-time ring: the unchanged sans-IO master and slaves of `ringsync-proto` driven
+//! by the monotonic clock and real sockets, the slaves' axes simulated in real time.
+//!
+//! Process layout: one process, one event loop thread serving every node's sockets. Each
+//! hop is a real send and a real receive through the kernel (a UDP datagram on loopback, or
+//! an Ethernet frame over a veth pair between two namespaces), but no hop needs a thread to
+//! be woken on another CPU: on a 2-CPU virtual machine a cross-CPU wake-up costs about
+//! 40-50 µs, and a cycle has 5 + 4·5 hops with 4 slaves (DEPENDENCIES.md).
+//!
+//! Per iteration the loop reads every frame waiting on any node's socket (a slave forwards
+//! at once, in software, where the paper's FPGA forwards after a fixed residence), then runs
+//! the earliest due timer: a cycle-start probe of the true axis states, the master's
+//! timeout, a slave's encoder latch, a slave's pending response. Between timers it sleeps
+//! (clock_nanosleep to an absolute deadline, or ppoll on the sockets while the master awaits
+//! frames) until `spin` before the next deadline, then spins.
+
+use std::io;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::thread::JoinHandle;
+
+use ringsync_proto::node::{
+    ClockFilter, FrameOutcome, MasterCounters, MasterEvent, SlaveEvent, StopReason,
+};
+use ringsync_proto::{Duration, Instant, PlanKind};
+use ringsync_sim::nodes::{Oscillator, RingConfig, ServoAxis};
+use ringsync_sim::record::{AxisProbe, Recorder};
+use ringsync_sim::rng::Rng;
+use ringsync_sim::run::{Captured, LinkCounters, RunResult};
+use ringsync_sim::{RunOptions, Scenario};
+use ringsync_wire::{CommandRepr, Common, FrameKind, Status};
+
+use crate::calibrate::{Calibration, calibrate};
+use crate::netns::{NetnsError, VethRing};
+use crate::stats::Percentiles;
+use crate::sys;
+use crate::transport::{MAX_PDU, Port, TransportKind, VethPort, udp_ring};
+
+/// Assumptions of a real-time run that the paper does not state (beyond the simulator's).
+pub const ASSUMPTIONS: &[&str] = &[
+    "one process and one event-loop thread serve every node's sockets; every hop is a real send and receive through the kernel",
+    "frames are timestamped in software when the loop reads them (no hardware timestamps); slaves forward at once, in software",
+    "path delays and time slices are measured at start-up (median of the calibration rounds) in place of the wire figures of the plan",
+    "slave encoders latch at their synchronised sampling instants exactly (as hardware latches); commands take effect when the loop reads them",
+    "the axes are simulated in the runtime's process, advanced exactly between events with the command held",
+    "a cycle overruns when the master loses a lumped frame or a command of it (not back, not acknowledged in its cycle)",
+];
+
+/// A slave taken out of the ring mid-run.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Kill {
+    /// Slave (1-based).
+    pub slave: usize,
+    /// When, from the run's start.
+    pub at: Duration,
+}
+
+/// How to run.
+#[derive(Debug, Clone)]
+pub struct RtOptions {
+    /// UDP or veth.
+    pub transport: TransportKind,
+    /// Override of the scenario's duration.
+    pub duration: Option<Duration>,
+    /// Override of the scenario's cycle time.
+    pub cycle: Option<Duration>,
+    /// Busy-wait this long before each deadline.
+    pub spin: Duration,
+    /// SCHED_FIFO priority (1-99); 0 keeps the normal scheduler.
+    pub priority: i32,
+    /// CPU to pin the loop to (None: do not pin).
+    pub cpu: Option<usize>,
+    /// Lock memory (mlockall).
+    pub lock_memory: bool,
+    /// How long the master waits for a response beyond the measured slice.
+    pub response_timeout: Duration,
+    /// Calibration rounds per figure.
+    pub calibration_rounds: usize,
+    /// Keep the trace rows.
+    pub trace: bool,
+    /// Keep every frame sent (for `--pcap`).
+    pub capture: bool,
+    /// Take a slave out mid-run.
+    pub kill: Option<Kill>,
+    /// Garbage and bad-CRC frames injected onto the ring [frames/s] (0: none).
+    pub garbage_rate: f64,
+    /// Print start-up messages and a progress line a second to standard error.
+    pub verbose: bool,
+}
+
+impl Default for RtOptions {
+    fn default() -> Self {
+        RtOptions {
+            transport: TransportKind::Udp,
+            duration: None,
+            cycle: None,
+            spin: Duration::from_us(150),
+            priority: 80,
+            cpu: Some(sys::cpus().saturating_sub(1)),
+            lock_memory: true,
+            response_timeout: Duration::from_us(200),
+            calibration_rounds: 200,
+            trace: true,
+            capture: false,
+            kill: None,
+            garbage_rate: 0.0,
+            verbose: false,
+        }
+    }
+}
+
+/// The ring's timing over the run.
+#[derive(Debug, Clone, Default)]
+pub struct Timing {
+    /// Cycles run.
+    pub cycles: i64,
+    /// Cycles that did not finish in time (lumped frame or a command lost).
+    pub overruns: u64,
+    /// Cycles whose lumped frame was lost or late.
+    pub lumped_lost: u64,
+    /// Commands not acknowledged within their cycle.
+    pub commands_lost: u64,
+    /// Lateness of the cycle start (the lumped frame's send) behind k·T_cyc.
+    pub lateness: Percentiles,
+    /// P2P phase: from the law's run to the last response of the cycle.
+    pub p2p: Percentiles,
+    /// Timer deadlines run later than 1 ms.
+    pub late_timers: u64,
+    /// Sends that failed (a node gone, a link down).
+    pub send_errors: u64,
+    /// Ports whose receive failed (a link down); they are not read again.
+    pub receive_errors: u64,
+    /// Cycle starts whose true axis states were read after the axis had moved on.
+    pub probes_late: u64,
+}
+
+/// Which node failed and when, from what each node still received.
+#[derive(Debug, Clone, PartialEq)]
+pub struct NodeFailure {
+    /// The first node along the ring (1..n) that received nothing in the W cycles before
+    /// the group stop; 0 if every slave still received frames.
+    pub node: usize,
+    /// Its last received frame [s from the start]; None if it never received one.
+    pub last_frame_s: Option<f64>,
+    /// The group stop [s].
+    pub detected_s: f64,
+    /// The master's reason.
+    pub reason: StopReason,
+}
+
+/// What a real-time run produced.
+#[derive(Debug, Clone)]
+pub struct RtResult {
+    /// The scenario as run (with the overrides).
+    pub scenario: Scenario,
+    /// The same result a simulation gives: metrics, counters, trace, faults.
+    pub run: RunResult,
+    /// Timing statistics.
+    pub timing: Timing,
+    /// The start-up measurements and the schedule derived from them.
+    pub calibration: Calibration,
+    /// P2P start, slice and response deadline used by the master [ns].
+    pub schedule: (i64, i64, i64),
+    /// Real-time settings applied, and warnings for those that were not.
+    pub realtime: Vec<String>,
+    /// The failure diagnosis after a group stop.
+    pub failure: Option<NodeFailure>,
+    /// Frames injected onto the ring, and frames the nodes counted as bad.
+    pub garbage: (u64, u64),
+    /// The run was interrupted (Ctrl-C) before its end.
+    pub interrupted: bool,
+    /// The slave taken out, and when [s].
+    pub killed: Option<(usize, f64)>,
+    /// Cycles the master started from the slave's removal to the group stop.
+    pub detection_cycles: Option<i64>,
+}
+
+/// What can stop a real-time run from starting.
+#[derive(Debug, thiserror::Error)]
+pub enum RtError {
+    /// The scenario is invalid.
+    #[error(transparent)]
+    Scenario(#[from] ringsync_sim::ScenarioError),
+    /// The namespaces or links could not be created.
+    #[error(transparent)]
+    Netns(#[from] NetnsError),
+    /// A socket failed.
+    #[error("{context}: {source}")]
+    Io {
+        /// What was being done.
+        context: String,
+        /// The error.
+        source: io::Error,
+    },
+    /// The measured ring does not fit the cycle, or an option is out of range.
+    #[error("{0}")]
+    Config(String),
+}
+
+fn io_err(context: &str) -> impl FnOnce(io::Error) -> RtError + '_ {
+    move |source| RtError::Io {
+        context: context.to_string(),
+        source,
+    }
+}
+
+/// Runs `scenario` in real time. `stop` ends the run early when raised (Ctrl-C).
+pub fn run(scenario: &Scenario, opts: &RtOptions, stop: &AtomicBool) -> Result<RtResult, RtError> {
+    let mut s = scenario.clone();
+    if let Some(c) = opts.cycle {
+        s.ring.cycle.0 = c;
+    }
+    if let Some(d) = opts.duration {
+        s.duration.0 = d;
+    }
+    s.validate()?;
+    let n = s.axes_count();
+    if let Some(k) = opts.kill
+        && (k.slave == 0 || k.slave > n)
+    {
+        return Err(RtError::Config(format!(
+            "--kill-slave {} is not a slave of this ring (1..={n})",
+            k.slave
+        )));
+    }
+    if s.ring.plan == PlanKind::LumpedOnly
+        && n > ringsync_wire::lumped::slot_capacity(
+            <ringsync_wire::LumpedOnlySlot as ringsync_wire::SlotCodec>::LEN,
+        )
+    {
+        return Err(RtError::Config(
+            "the lumped-only plan runs with one frame here".into(),
+        ));
+    }
+    let say = |m: &str| {
+        if opts.verbose {
+            eprintln!("ringsync rt: {m}");
+        }
+    };
+    // Transport.
+    let veth = match opts.transport {
+        TransportKind::Veth => {
+            say(&format!(
+                "creating {} network namespaces and veth links",
+                n + 1
+            ));
+            Some(Arc::new(VethRing::create(n + 1)?))
+        }
+        TransportKind::Udp => None,
+    };
+    let mut ports: Vec<Box<dyn Port>> = match &veth {
+        Some(ring) => (0..=n)
+            .map(|i| VethPort::open(ring, i).map(|p| Box::new(p) as Box<dyn Port>))
+            .collect::<io::Result<_>>()
+            .map_err(io_err("opening raw sockets in the namespaces"))?,
+        None => udp_ring(n + 1)
+            .map_err(io_err("opening UDP sockets on 127.0.0.1"))?
+            .into_iter()
+            .map(|p| Box::new(p) as Box<dyn Port>)
+            .collect(),
+    };
+    // Real time, before calibrating so that the measurements see the same scheduling.
+    let realtime = realtime_setup(opts);
+    for r in &realtime {
+        say(r);
+    }
+    let cal = calibrate(&mut ports, opts.calibration_rounds.max(1))
+        .map_err(io_err("calibrating the ring"))?;
+    say(&format!(
+        "ring calibrated over {} rounds: lumped round trip p50 {:.1} µs, p99 {:.1} µs; slice to slave {n} p99 {:.1} µs",
+        cal.rounds,
+        cal.round_trip.p50 as f64 * 1e-3,
+        cal.round_trip.p99 as f64 * 1e-3,
+        cal.slice[n - 1].p99 as f64 * 1e-3
+    ));
+    // The schedule from the measurements.
+    let mut rc = RingConfig::new(&s)?;
+    let t_cyc = s.ring.cycle.0.as_ns();
+    let t_ti = s.ring.response_delay.0.as_ns();
+    let slice = cal.slice.iter().map(|p| p.p99).max().unwrap_or(0) + t_ti;
+    let p2p_start = (2 * cal.round_trip.p99 + 20_000).max(rc.master.p2p_start.as_ns());
+    let timeout = opts.response_timeout.as_ns();
+    let turnaround = rc.master.turnaround.as_ns();
+    if rc.master.plan == PlanKind::P2pLumped {
+        // Each slice ends when its response is back; only a slice whose response is lost
+        // runs to its deadline (slice + timeout), and the master opens no slice that would
+        // end after the cycle.
+        let need = p2p_start + n as i64 * slice + timeout;
+        if need > t_cyc {
+            return Err(RtError::Config(format!(
+                "the measured ring needs {:.1} µs per cycle (P2P start {:.1} µs + {n} slices of {:.1} µs + a response timeout of {:.1} µs); the cycle is {:.1} µs: use a longer --cycle or a shorter --response-timeout",
+                need as f64 * 1e-3,
+                p2p_start as f64 * 1e-3,
+                slice as f64 * 1e-3,
+                timeout as f64 * 1e-3,
+                t_cyc as f64 * 1e-3
+            )));
+        }
+        rc.master.p2p_start = Duration::from_ns(p2p_start);
+        rc.master.slice = Duration::from_ns(slice);
+        rc.master.guard = Duration::from_ns(timeout);
+        let mut at = p2p_start;
+        for i in 0..n {
+            rc.master.command_arrival[i] = Duration::from_ns(at + cal.command[i]);
+            at += cal.slice[i].p50 + t_ti + turnaround;
+        }
+    } else {
+        for i in 0..n {
+            rc.master.command_arrival[i] =
+                Duration::from_ns(cal.path[i] + rc.plan.lumped_only.lumped.frame_time[0].as_ns());
+        }
+    }
+    for i in 0..n {
+        rc.slaves[i].path_delay = Duration::from_ns(cal.path[i]);
+    }
+    // Warm-up: the real nodes on the real loop for a few hundred cycles, to measure each
+    // slave's path delay as the running loop sees it (the calibration's frames skip the
+    // nodes' processing and the loop's timers).
+    let warm = (300_000_000 / t_cyc).max(100);
+    let ports = ports.into_iter().map(Some).collect();
+    let mut ring = Ring::new(&s, &rc, ports, warm, false, false, true)?;
+    ring.run_loop(&s, opts, stop, None, &None, &mut None)?;
+    if let Some(d) = &ring.delays {
+        for (i, v) in d.iter().enumerate() {
+            if !v.is_empty() {
+                rc.slaves[i].path_delay = Duration::from_ns(Percentiles::of(v).p50);
+            }
+        }
+    }
+    let mut ports = std::mem::take(&mut ring.ports);
+    drop(ring);
+    drain(&mut ports);
+    say(&format!(
+        "warm-up of {warm} cycles: path delays {} µs",
+        rc.slaves
+            .iter()
+            .map(|c| format!("{:.1}", c.path_delay.as_ns() as f64 * 1e-3))
+            .collect::<Vec<_>>()
+            .join(", ")
+    ));
+    let cycles = s.duration.0.as_ns() / t_cyc;
+    let mut ring = Ring::new(&s, &rc, ports, cycles, opts.trace, opts.capture, false)?;
+    // Garbage injector (its own thread and sockets, like a faulty device on the ring).
+    let injected = Arc::new(AtomicU64::new(0));
+    let stop_inject = Arc::new(AtomicBool::new(false));
+    let injector = if opts.garbage_rate > 0.0 {
+        Some(spawn_injector(
+            &veth,
+            &ring,
+            opts.garbage_rate,
+            s.seed,
+            injected.clone(),
+            stop_inject.clone(),
+        )?)
+    } else {
+        None
+    };
+    say(&format!(
+        "running {} for {:.1} s: {cycles} cycles of {:.1} µs, {n} slaves over {}",
+        s.name,
+        s.duration.0.as_ns() as f64 * 1e-9,
+        t_cyc as f64 * 1e-3,
+        opts.transport.name()
+    ));
+    let mut killer: Option<JoinHandle<()>> = None;
+    let (interrupted, killed) = ring.run_loop(&s, opts, stop, opts.kill, &veth, &mut killer)?;
+    stop_inject.store(true, Ordering::SeqCst);
+    if let Some(h) = injector {
+        let _ = h.join();
+    }
+    if let Some(h) = killer {
+        let _ = h.join();
+    }
+    // Close every socket before the namespaces go (a socket keeps its namespace alive).
+    let Ring {
+        master,
+        slaves,
+        rec,
+        ports,
+        timing,
+        lateness,
+        p2p,
+        last_rx,
+        captured,
+        kill_cycle,
+        stop_cycle,
+        ..
+    } = ring;
+    drop(ports);
+    drop(veth);
+    let mut timing = timing;
+    timing.lateness = Percentiles::of(&lateness);
+    timing.p2p = Percentiles::of(&p2p);
+    let mc: MasterCounters = master.counters();
+    timing.lumped_lost = mc.lumped_lost;
+    timing.commands_lost = mc.commands_lost;
+    let sc: Vec<_> = slaves.iter().map(|s| s.counters()).collect();
+    let counted = mc.bad_frames + sc.iter().map(|c| c.bad_frames).sum::<u64>();
+    let failure = rec.group_stop_seen().map(|(t, reason)| {
+        let quiet_since = t - f64::from(s.faults.watchdog_cycles) * s.ring.cycle.secs();
+        let node = (1..=n)
+            .find(|&i| last_rx[i].is_none_or(|r| r < quiet_since))
+            .unwrap_or(0);
+        NodeFailure {
+            node,
+            last_frame_s: if node == 0 { None } else { last_rx[node] },
+            detected_s: t,
+            reason,
+        }
+    });
+    let run = rec.finish(
+        &s.name,
+        mc,
+        sc,
+        LinkCounters::default(),
+        Vec::new(),
+        captured,
+    );
+    Ok(RtResult {
+        scenario: s,
+        run,
+        timing,
+        calibration: cal,
+        schedule: (p2p_start, slice, timeout),
+        realtime,
+        failure,
+        garbage: (injected.load(Ordering::SeqCst), counted),
+        interrupted,
+        killed,
+        detection_cycles: kill_cycle.zip(stop_cycle).map(|(k, s)| s - k),
+    })
+}
+
+/// The simulator's prediction for a scenario: means over several seeds, because one run's
+/// Sync-RMSE moves by about ±10 % with the seed (encoder quantisation) and a real-time run
+/// is one more draw of that noise.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SimPrediction {
+    /// Seeds run: the scenario's seed and the next ones.
+    pub seeds: u64,
+    /// Mean Track-RMSE [rad].
+    pub track_rmse: f64,
+    /// Mean Sync-RMSE [rad].
+    pub sync_rmse: f64,
+    /// Smallest and largest Sync-RMSE over the seeds [rad].
+    pub sync_rmse_range: (f64, f64),
+}
+
+/// Simulates `s` (as run, after the overrides) with `seeds` seeds from its own.
+pub fn sim_prediction(s: &Scenario, seeds: u64) -> Result<SimPrediction, RtError> {
+    let seeds = seeds.max(1);
+    let (mut track, mut sync, mut lo, mut hi) = (0.0, 0.0, f64::INFINITY, 0.0f64);
+    for k in 0..seeds {
+        let mut sk = s.clone();
+        sk.seed = s.seed.wrapping_add(k);
+        let r = ringsync_sim::run(&sk, RunOptions::default())
+            .map_err(|e| RtError::Config(e.to_string()))?;
+        track += r.summary.track_rmse;
+        sync += r.summary.sync_rmse;
+        lo = lo.min(r.summary.sync_rmse);
+        hi = hi.max(r.summary.sync_rmse);
+    }
+    Ok(SimPrediction {
+        seeds,
+        track_rmse: track / seeds as f64,
+        sync_rmse: sync / seeds as f64,
+        sync_rmse_range: (lo, hi),
+    })
+}
+
+fn realtime_setup(opts: &RtOptions) -> Vec<String> {
+    let mut out = Vec::new();
+    if let Some(cpu) = opts.cpu {
+        match sys::pin_to_cpu(cpu) {
+            Ok(()) => out.push(format!("pinned to CPU {cpu}")),
+            Err(e) => out.push(format!(
+                "warning: cannot pin to CPU {cpu} ({e}); running unpinned"
+            )),
+        }
+    }
+    if opts.priority > 0 {
+        match sys::set_fifo(opts.priority) {
+            Ok(()) => out.push(format!("SCHED_FIFO priority {}", opts.priority)),
+            Err(e) => out.push(format!(
+                "warning: cannot use SCHED_FIFO ({e}); running with the normal scheduler"
+            )),
+        }
+    }
+    if opts.lock_memory {
+        match sys::lock_memory() {
+            Ok(()) => out.push("memory locked".into()),
+            Err(e) => out.push(format!("warning: cannot lock memory ({e})")),
+        }
+    }
+    out.push(format!(
+        "busy-wait the last {:.0} µs before each deadline",
+        opts.spin.as_ns() as f64 * 1e-3
+    ));
+    out
+}
+
+fn spawn_injector(
+    veth: &Option<Arc<VethRing>>,
+    ring: &Ring,
+    rate: f64,
+    seed: u64,
+    injected: Arc<AtomicU64>,
+    stop: Arc<AtomicBool>,
+) -> Result<JoinHandle<()>, RtError> {
+    let nodes = ring.ports.len();
+    // One sending port onto every link.
+    let mut senders: Vec<Box<dyn Port>> = match veth {
+        Some(v) => (0..nodes)
+            .map(|i| {
+                VethPort::injector(v, i)
+                    .map(|fd| Box::new(crate::transport::RawSender::new(fd, i)) as Box<dyn Port>)
+            })
+            .collect::<io::Result<_>>()
+            .map_err(io_err("opening the injector's sockets"))?,
+        None => {
+            let targets: Vec<std::net::SocketAddr> = ring
+                .ports
+                .iter()
+                .flatten()
+                .map(|p| p.udp_addr())
+                .collect::<Option<_>>()
+                .ok_or_else(|| RtError::Config("UDP ports without addresses".into()))?;
+            targets
+                .into_iter()
+                .map(|a| crate::transport::UdpSender::new(a).map(|p| Box::new(p) as Box<dyn Port>))
+                .collect::<io::Result<_>>()
+                .map_err(io_err("opening the injector's socket"))?
+        }
+    };
+    Ok(std::thread::spawn(move || {
+        sys::set_normal();
+        let mut rng = Rng::stream(seed, 0x6A7B);
+        let mut next = sys::now_ns();
+        while !stop.load(Ordering::SeqCst) {
+            next += (2.0 * rng.unit() / rate * 1e9) as i64;
+            sys::sleep_until(next);
+            let link = (rng.next_u64() % senders.len() as u64) as usize;
+            let frame = garbage(&mut rng);
+            if senders[link].send(&frame).is_ok() {
+                injected.fetch_add(1, Ordering::SeqCst);
+            }
+        }
+    }))
+}
+
+/// A random frame: half plain random bytes, half a well-formed command with a wrong CRC.
+fn garbage(rng: &mut Rng) -> Vec<u8> {
+    if rng.next_u64().is_multiple_of(2) {
+        let len = 1 + (rng.next_u64() % 100) as usize;
+        (0..len).map(|_| rng.next_u64() as u8).collect()
+    } else {
+        let cmd = CommandRepr {
+            common: Common {
+                cycle: rng.next_u64() as u32,
+                ..Common::default()
+            },
+            target: 1 + (rng.next_u64() % 4) as u16,
+            command_v: 10.0,
+            sample_time_ns: 0,
+        };
+        let mut b = vec![0u8; cmd.buffer_len()];
+        let _ = cmd.emit(&mut b);
+        let last = b.len() - 1;
+        b[last] ^= 0x5A;
+        b
+    }
+}
+
+/// The running ring.
+struct Ring {
+    master: ringsync_proto::node::Master,
+    slaves: Vec<ringsync_proto::node::Slave>,
+    osc: Vec<Oscillator>,
+    axes: Vec<ServoAxis>,
+    alive: Vec<bool>,
+    rx_failed: Vec<bool>,
+    ports: Vec<Option<Box<dyn Port>>>,
+    rec: Recorder,
+    /// Slave transmissions waiting for their time: (true ns, slave 0-based, bytes).
+    pending: Vec<(i64, usize, Vec<u8>)>,
+    sample_due: Vec<i64>,
+    /// Last frame read per node [s].
+    last_rx: Vec<Option<f64>>,
+    captured: Vec<Captured>,
+    capture: bool,
+    /// CLOCK_MONOTONIC at true time 0 [ns].
+    t0: i64,
+    /// End of the run [ns, true time].
+    end: i64,
+    timing: Timing,
+    lateness: Vec<i64>,
+    p2p: Vec<i64>,
+    computed_at: Option<i64>,
+    last_master_rx: i64,
+    /// With `Some`, the delay from the master's send to each slave's read of every lumped
+    /// frame [ns] (the warm-up's measurement).
+    delays: Option<Vec<Vec<i64>>>,
+    /// Cycles started so far; at the removal of a slave; at the group stop.
+    cycles_started: i64,
+    kill_cycle: Option<i64>,
+    stop_cycle: Option<i64>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+enum Due {
+    Probe,
+    Sample(usize),
+    Pending(usize),
+}
+
+/// Reads and discards whatever is waiting on the ports.
+fn drain(ports: &mut [Option<Box<dyn Port>>]) {
+    let mut buf = vec![0u8; MAX_PDU];
+    for p in ports.iter_mut().flatten() {
+        while let Ok(Some(_)) = p.recv(&mut buf) {}
+    }
+}
+
+/// The slave clock servo for software timestamps: see [`ASSUMPTIONS`].
+const RT_CLOCK_FILTER: ClockFilter = ClockFilter {
+    offset_gain: 0.25,
+    rate_gain: 0.01,
+    outlier_limit: Some(Duration::from_us(50)),
+};
+
+impl Ring {
+    fn new(
+        s: &Scenario,
+        rc: &RingConfig,
+        ports: Vec<Option<Box<dyn Port>>>,
+        cycles: i64,
+        trace: bool,
+        capture: bool,
+        measure: bool,
+    ) -> Result<Ring, RtError> {
+        let n = s.axes_count();
+        let (master, mut slaves) = rc.build(s)?;
+        for sl in &mut slaves {
+            sl.clock_mut().set_filter(RT_CLOCK_FILTER);
+        }
+        Ok(Ring {
+            master,
+            slaves,
+            osc: Oscillator::for_scenario(s),
+            axes: ServoAxis::for_scenario(s)?,
+            alive: vec![true; n + 1],
+            rx_failed: vec![false; n + 1],
+            ports,
+            rec: Recorder::new(n, cycles, s.ring.cycle.secs(), trace),
+            pending: Vec::new(),
+            sample_due: vec![0; n],
+            last_rx: vec![None; n + 1],
+            captured: Vec::new(),
+            capture,
+            t0: 0,
+            end: cycles * s.ring.cycle.0.as_ns(),
+            timing: Timing {
+                cycles,
+                ..Timing::default()
+            },
+            lateness: Vec::with_capacity(cycles.max(0) as usize),
+            p2p: Vec::with_capacity(cycles.max(0) as usize),
+            computed_at: None,
+            last_master_rx: 0,
+            delays: measure.then(|| vec![Vec::new(); n]),
+            cycles_started: 0,
+            kill_cycle: None,
+            stop_cycle: None,
+        })
+    }
+
+    fn now(&self) -> i64 {
+        sys::now_ns() - self.t0
+    }
+
+    fn send(&mut self, node: usize, t: i64, bytes: &[u8]) {
+        if self.capture {
+            self.captured.push(Captured {
+                t,
+                node,
+                bytes: bytes.to_vec(),
+            });
+        }
+        if let Some(p) = self.ports[node].as_mut()
+            && self.alive[node]
+            && p.send(bytes).is_err()
+        {
+            self.timing.send_errors += 1;
+        }
+    }
+
+    fn drain_master(&mut self, now: i64) {
+        while let Some(tx) = self.master.poll_transmit() {
+            self.send(0, now, &tx.bytes);
+        }
+        while let Some(ev) = self.master.poll_event() {
+            match ev {
+                MasterEvent::Computed { k } => {
+                    self.computed_at = Some(now);
+                    self.rec.computed(k, self.master.record());
+                }
+                MasterEvent::GroupStop { at, reason } => {
+                    self.stop_cycle.get_or_insert(self.cycles_started);
+                    self.rec.group_stop(at.as_ns() as f64 * 1e-9, reason)
+                }
+            }
+        }
+    }
+
+    fn drain_slave(&mut self, i: usize, now: i64) {
+        while let Some(ev) = self.slaves[i].poll_event() {
+            self.axes[i].advance(now);
+            match ev {
+                SlaveEvent::Apply { u } => {
+                    self.axes[i].u = u;
+                    self.rec.applied(i, now as f64 * 1e-9);
+                }
+                SlaveEvent::WatchdogExpired => {
+                    self.axes[i].u = 0.0;
+                    self.rec.watchdog(i + 1, now as f64 * 1e-9);
+                }
+            }
+        }
+        while let Some(tx) = self.slaves[i].poll_transmit() {
+            let at = self.osc[i].true_at(tx.at);
+            self.pending.push((at, i, tx.bytes));
+        }
+        self.sample_due[i] = self.osc[i].true_at(self.slaves[i].poll_timeout());
+    }
+
+    fn on_frame(&mut self, node: usize, now: i64, bytes: &mut [u8]) {
+        self.last_rx[node] = Some(now as f64 * 1e-9);
+        if node == 0 {
+            self.last_master_rx = now;
+            self.master.handle_frame(Instant::from_ns(now), bytes);
+            self.drain_master(now);
+            return;
+        }
+        let i = node - 1;
+        if let Some(d) = self.delays.as_mut()
+            && bytes.len() >= 20
+            && (bytes[1] == FrameKind::Lumped as u8 || bytes[1] == FrameKind::LumpedOnly as u8)
+        {
+            // The master's send time is the payload's first field.
+            let sent = u64::from_le_bytes(bytes[12..20].try_into().unwrap_or([0; 8])) as i64;
+            d[i].push(now - sent);
+        }
+        let local = self.osc[i].local(now);
+        if self.slaves[i].handle_frame(local, local, bytes) == FrameOutcome::Forward {
+            self.send(node, now, bytes);
+        }
+        self.drain_slave(i, now);
+    }
+
+    /// The earliest timer other than the master's and its true time [ns].
+    fn next_local(&self, probe_at: i64) -> (i64, Due) {
+        let mut best = (probe_at, Due::Probe);
+        for (i, &t) in self.sample_due.iter().enumerate() {
+            if self.alive[i + 1] && t < best.0 {
+                best = (t, Due::Sample(i));
+            }
+        }
+        for (j, p) in self.pending.iter().enumerate() {
+            if p.0 < best.0 {
+                best = (p.0, Due::Pending(j));
+            }
+        }
+        best
+    }
+
+    /// Runs a timer other than the master's.
+    fn run_local(&mut self, due: Due, due_at: i64, now: i64, probe_k: &mut i64) {
+        match due {
+            Due::Probe => {
+                self.probe(*probe_k, due_at);
+                *probe_k += 1;
+            }
+            Due::Sample(i) => {
+                // The encoder latches at its instant, however late the loop runs.
+                self.axes[i].advance(due_at);
+                let counts = self.axes[i].counts();
+                let local = self.osc[i].local(due_at);
+                self.slaves[i].handle_sample(local, counts);
+                self.drain_slave(i, now);
+            }
+            Due::Pending(j) => {
+                let (_, i, bytes) = self.pending.swap_remove(j);
+                if self.alive[i + 1] {
+                    self.send(i + 1, now, &bytes);
+                }
+            }
+        }
+    }
+
+    /// Reads every frame waiting on any node's port; a frame forwarded in this pass is read
+    /// at the next node in the same pass. Whether any was read.
+    fn receive_all(&mut self, buf: &mut [u8]) -> bool {
+        let mut got = false;
+        for node in 0..self.ports.len() {
+            while let Some(p) = self.ports[node].as_mut() {
+                if self.rx_failed[node] {
+                    break;
+                }
+                let len = match p.recv(buf) {
+                    Ok(Some(len)) => len,
+                    Ok(None) => break,
+                    Err(_) => {
+                        // A link gone down: the socket reports an error (and would keep the
+                        // poll awake); stop reading it.
+                        self.timing.receive_errors += 1;
+                        self.rx_failed[node] = true;
+                        break;
+                    }
+                };
+                got = true;
+                let now = self.now();
+                self.on_frame(node, now, &mut buf[..len]);
+            }
+        }
+        got
+    }
+
+    fn take_out(&mut self, k: Kill, veth: &Option<Arc<VethRing>>) -> JoinHandle<()> {
+        self.alive[k.slave] = false;
+        self.ports[k.slave] = None;
+        let v = veth.clone();
+        std::thread::spawn(move || {
+            sys::set_normal();
+            if let Some(v) = v {
+                let _ = v.take_down(k.slave);
+            }
+        })
+    }
+
+    /// Runs the ring until its end or `stop`: (interrupted, the slave taken out and when).
+    fn run_loop(
+        &mut self,
+        s: &Scenario,
+        opts: &RtOptions,
+        stop: &AtomicBool,
+        kill: Option<Kill>,
+        veth: &Option<Arc<VethRing>>,
+        killer: &mut Option<JoinHandle<()>>,
+    ) -> Result<(bool, Option<(usize, f64)>), RtError> {
+        let n = self.slaves.len();
+        let t_cyc = s.ring.cycle.0.as_ns();
+        let spin = opts.spin.as_ns();
+        let end = self.end;
+        let mut buf = vec![0u8; MAX_PDU];
+        let fds_of = |ports: &[Option<Box<dyn Port>>], failed: &[bool]| -> Vec<libc::pollfd> {
+            ports
+                .iter()
+                .zip(failed)
+                .filter(|(_, f)| !**f)
+                .filter_map(|(p, _)| p.as_ref().map(|p| sys::pollfd(p.rx_fd())))
+                .collect()
+        };
+        let mut fds = fds_of(&self.ports, &self.rx_failed);
+        let mut failed_rx = 0;
+        for i in 0..n {
+            self.sample_due[i] = self.osc[i].true_at(self.slaves[i].poll_timeout());
+        }
+        let (mut probe_k, mut cycle_k, mut last_losses) = (0i64, 0i64, 0u64);
+        let mut kill = kill;
+        let mut killed = None;
+        let mut next_progress = 1_000_000_000;
+        // Start 2 ms from now, so that the first cycle starts on time.
+        self.t0 = sys::now_ns() + 2_000_000;
+        loop {
+            if stop.load(Ordering::Relaxed) {
+                return Ok((true, killed));
+            }
+            let mut now = self.now();
+            if now >= end {
+                return Ok((false, killed));
+            }
+            if let Some(k) = kill
+                && now >= k.at.as_ns()
+            {
+                kill = None;
+                *killer = Some(self.take_out(k, veth));
+                fds = fds_of(&self.ports, &self.rx_failed);
+                killed = Some((k.slave, now as f64 * 1e-9));
+                self.kill_cycle = Some(cycle_k);
+                if opts.verbose {
+                    eprintln!(
+                        "ringsync rt: slave {} taken out at {:.3} s",
+                        k.slave,
+                        now as f64 * 1e-9
+                    );
+                }
+            }
+            // 1. Latches, probes and responses that are due: they happen at their instants
+            //    in the devices, before any frame the loop has yet to read.
+            loop {
+                let (at, due) = self.next_local(probe_k * t_cyc);
+                if at > now || at >= end {
+                    break;
+                }
+                if now - at > 1_000_000 {
+                    self.timing.late_timers += 1;
+                }
+                self.run_local(due, at, now, &mut probe_k);
+                now = self.now();
+            }
+            // 2. Every frame waiting anywhere.
+            let got = self.receive_all(&mut buf);
+            if self.timing.receive_errors != failed_rx {
+                failed_rx = self.timing.receive_errors;
+                fds = fds_of(&self.ports, &self.rx_failed);
+            }
+            // 3. The master, once per pass, so that a late master never runs its next step
+            //    before the frames of its last one have gone round.
+            let m = self.master.poll_timeout().as_ns();
+            now = self.now();
+            if m <= now && m < end {
+                if now - m > 1_000_000 {
+                    self.timing.late_timers += 1;
+                }
+                if m == cycle_k * t_cyc {
+                    // A cycle starts: its lateness; the last cycle's losses and P2P phase.
+                    self.lateness.push(now - m);
+                    let c = self.master.counters();
+                    let losses = c.lumped_lost + c.commands_lost;
+                    if losses > last_losses {
+                        self.timing.overruns += 1;
+                    }
+                    last_losses = losses;
+                    if let Some(t) = self.computed_at.take()
+                        && self.last_master_rx > t
+                    {
+                        self.p2p.push(self.last_master_rx - t);
+                    }
+                    cycle_k += 1;
+                    self.cycles_started = cycle_k;
+                }
+                self.master.handle_timeout(Instant::from_ns(now));
+                self.drain_master(now);
+                continue;
+            }
+            if got {
+                continue;
+            }
+            if opts.verbose && now >= next_progress {
+                next_progress += 1_000_000_000;
+                let p = Percentiles::of(&self.lateness);
+                eprintln!(
+                    "ringsync rt: {:5.1} s  {cycle_k} cycles  overruns {}  cycle-start lateness p50 {:.1} µs, p99 {:.1} µs",
+                    now as f64 * 1e-9,
+                    self.timing.overruns,
+                    p.p50 as f64 * 1e-3,
+                    p.p99 as f64 * 1e-3
+                );
+            }
+            // Wait for the next deadline, or for a frame while the master awaits one.
+            let mut wake = self.next_local(probe_k * t_cyc).0.min(m).min(end);
+            if let Some(k) = kill {
+                wake = wake.min(k.at.as_ns());
+            }
+            let rest = wake - now;
+            if rest > spin {
+                if self.master.awaiting_frames() || !self.pending.is_empty() {
+                    sys::wait_readable(&mut fds, rest - spin)
+                        .map_err(io_err("waiting for frames"))?;
+                } else {
+                    sys::sleep_until(self.t0 + wake - spin);
+                }
+            }
+        }
+    }
+
+    fn probe(&mut self, k: i64, t: i64) {
+        let ts = t as f64 * 1e-9;
+        let (axes, master, slaves, osc) = (&mut self.axes, &self.master, &self.slaves, &self.osc);
+        let mut late = 0;
+        self.rec.probe(k, |i| {
+            if axes[i].t > t {
+                late += 1;
+            }
+            axes[i].advance(t);
+            let sync = slaves[i].clock().to_sync(osc[i].local(t));
+            AxisProbe {
+                x: axes[i].x,
+                x_d: master.desired(i, ts).x,
+                clock_error_ns: (sync.as_ns() - t) as f64,
+                u: axes[i].u,
+                saturated: slaves[i].status().contains(Status::SATURATED),
+            }
+        });
+        if late > 0 {
+            self.timing.probes_late += 1;
+        }
+    }
+}

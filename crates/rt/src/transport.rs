@@ -1,0 +1,275 @@
+//! Transports: how a node's frames reach the next node on the ring. One small trait, two
+//! implementations: UDP datagrams on loopback, and raw Ethernet frames (AF_PACKET,
+//! EtherType 0x88B5) on veth links between network namespaces.
+
+use std::io;
+use std::net::{SocketAddr, UdpSocket};
+use std::os::fd::{AsRawFd, OwnedFd, RawFd};
+
+use ringsync_wire::ethernet::{ETH_HEADER_LEN, ETHERTYPE, EthernetFrame, emit_header};
+use ringsync_wire::{CRC_LEN, HEADER_LEN};
+
+use crate::netns::VethRing;
+use crate::sys;
+
+/// Largest PDU the runtime handles [bytes] (an Ethernet payload).
+pub const MAX_PDU: usize = 1500;
+
+/// One node's attachment to the ring: it sends to the next node and receives from the
+/// previous one.
+pub trait Port: Send {
+    /// Sends one PDU to the next node.
+    fn send(&mut self, pdu: &[u8]) -> io::Result<()>;
+    /// Takes one received PDU into `buf` if one is waiting: its length. Frames that are not
+    /// ringsync's at the link layer come back as length 0 (counted by the caller as garbage).
+    fn recv(&mut self, buf: &mut [u8]) -> io::Result<Option<usize>>;
+    /// The descriptor that becomes readable when a frame is waiting.
+    fn rx_fd(&self) -> RawFd;
+    /// The UDP address frames for this node go to (UDP transport only).
+    fn udp_addr(&self) -> Option<SocketAddr> {
+        None
+    }
+}
+
+/// Which transport.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TransportKind {
+    /// UDP on 127.0.0.1, one socket per node.
+    Udp,
+    /// Raw Ethernet on a ring of veth pairs, each node in its own network namespace.
+    Veth,
+}
+
+impl TransportKind {
+    /// The name used on the command line and in outputs.
+    pub fn name(self) -> &'static str {
+        match self {
+            TransportKind::Udp => "udp",
+            TransportKind::Veth => "veth",
+        }
+    }
+}
+
+/// A node's UDP socket and the next node's address.
+#[derive(Debug)]
+pub struct UdpPort {
+    sock: UdpSocket,
+    next: SocketAddr,
+}
+
+/// `nodes` UDP sockets on 127.0.0.1 (ephemeral ports), each sending to the next, the last
+/// to the first.
+pub fn udp_ring(nodes: usize) -> io::Result<Vec<UdpPort>> {
+    let socks = (0..nodes)
+        .map(|_| {
+            let s = UdpSocket::bind("127.0.0.1:0")?;
+            s.set_nonblocking(true)?;
+            Ok(s)
+        })
+        .collect::<io::Result<Vec<_>>>()?;
+    let addrs = socks
+        .iter()
+        .map(|s| s.local_addr())
+        .collect::<io::Result<Vec<_>>>()?;
+    Ok(socks
+        .into_iter()
+        .enumerate()
+        .map(|(i, sock)| UdpPort {
+            sock,
+            next: addrs[(i + 1) % nodes],
+        })
+        .collect())
+}
+
+impl UdpPort {
+    /// This port's address.
+    pub fn addr(&self) -> io::Result<SocketAddr> {
+        self.sock.local_addr()
+    }
+}
+
+impl Port for UdpPort {
+    fn send(&mut self, pdu: &[u8]) -> io::Result<()> {
+        self.sock.send_to(pdu, self.next).map(|_| ())
+    }
+    fn recv(&mut self, buf: &mut [u8]) -> io::Result<Option<usize>> {
+        loop {
+            match self.sock.recv_from(buf) {
+                Ok((len, _)) => return Ok(Some(len)),
+                Err(e) if e.kind() == io::ErrorKind::WouldBlock => return Ok(None),
+                // A send to a closed port (a killed node) reports ECONNREFUSED on a later
+                // call of the sender's socket: not a received frame.
+                Err(e) if e.kind() == io::ErrorKind::ConnectionRefused => continue,
+                Err(e) => return Err(e),
+            }
+        }
+    }
+    fn rx_fd(&self) -> RawFd {
+        self.sock.as_raw_fd()
+    }
+    fn udp_addr(&self) -> Option<SocketAddr> {
+        self.sock.local_addr().ok()
+    }
+}
+
+/// A send-only UDP socket aimed at one node (for injecting frames).
+#[derive(Debug)]
+pub struct UdpSender {
+    sock: UdpSocket,
+    to: SocketAddr,
+}
+
+impl UdpSender {
+    /// A socket on 127.0.0.1 that sends to `to`.
+    pub fn new(to: SocketAddr) -> io::Result<UdpSender> {
+        Ok(UdpSender {
+            sock: UdpSocket::bind("127.0.0.1:0")?,
+            to,
+        })
+    }
+}
+
+impl Port for UdpSender {
+    fn send(&mut self, pdu: &[u8]) -> io::Result<()> {
+        self.sock.send_to(pdu, self.to).map(|_| ())
+    }
+    fn recv(&mut self, _: &mut [u8]) -> io::Result<Option<usize>> {
+        Ok(None)
+    }
+    fn rx_fd(&self) -> RawFd {
+        self.sock.as_raw_fd()
+    }
+}
+
+/// A send-only raw socket on one veth link (for injecting frames).
+#[derive(Debug)]
+pub struct RawSender {
+    fd: OwnedFd,
+    src: [u8; 6],
+    frame: Vec<u8>,
+}
+
+impl RawSender {
+    /// Sends on `fd` with a source address of its own (node 0xF0 + `i`).
+    pub fn new(fd: OwnedFd, i: usize) -> RawSender {
+        RawSender {
+            fd,
+            src: mac(0xF0 + i),
+            frame: vec![0; ETH_HEADER_LEN + MAX_PDU],
+        }
+    }
+}
+
+impl Port for RawSender {
+    fn send(&mut self, pdu: &[u8]) -> io::Result<()> {
+        let len = ethernet_frame(&mut self.frame, self.src, pdu)?;
+        sys::send(self.fd.as_raw_fd(), &self.frame[..len]).map(|_| ())
+    }
+    fn recv(&mut self, _: &mut [u8]) -> io::Result<Option<usize>> {
+        Ok(None)
+    }
+    fn rx_fd(&self) -> RawFd {
+        self.fd.as_raw_fd()
+    }
+}
+
+/// The locally administered MAC address of node `i` (0 = master): 02:72:73:00:00:i.
+pub fn mac(i: usize) -> [u8; 6] {
+    [0x02, 0x72, 0x73, 0x00, (i >> 8) as u8, i as u8]
+}
+
+/// A node's two raw sockets: one on the link from the previous node, one on the link to
+/// the next.
+#[derive(Debug)]
+pub struct VethPort {
+    rx: OwnedFd,
+    tx: OwnedFd,
+    src: [u8; 6],
+    frame: Vec<u8>,
+}
+
+impl VethPort {
+    /// Sockets on node `i`'s interfaces of `ring`.
+    pub fn open(ring: &VethRing, i: usize) -> io::Result<VethPort> {
+        let (ns, rx_if, tx_if) = (ring.netns(i), ring.in_if(i), ring.out_if(i));
+        // A thread enters the namespace, opens the sockets there and ends; the sockets stay
+        // bound to that namespace's interfaces.
+        let (rx, tx) = std::thread::scope(|s| {
+            s.spawn(|| -> io::Result<(OwnedFd, OwnedFd)> {
+                sys::enter_netns(&ns)?;
+                Ok((
+                    sys::packet_socket(&rx_if, ETHERTYPE)?,
+                    sys::packet_socket(&tx_if, ETHERTYPE)?,
+                ))
+            })
+            .join()
+            .map_err(|_| io::Error::other("socket thread panicked"))?
+        })?;
+        Ok(VethPort {
+            rx,
+            tx,
+            src: mac(i),
+            frame: vec![0; ETH_HEADER_LEN + MAX_PDU],
+        })
+    }
+
+    /// A socket that sends onto node `i`'s outgoing link (for injecting frames).
+    pub fn injector(ring: &VethRing, i: usize) -> io::Result<OwnedFd> {
+        let (ns, tx_if) = (ring.netns(i), ring.out_if(i));
+        std::thread::scope(|s| {
+            s.spawn(|| -> io::Result<OwnedFd> {
+                sys::enter_netns(&ns)?;
+                sys::packet_socket(&tx_if, ETHERTYPE)
+            })
+            .join()
+            .map_err(|_| io::Error::other("socket thread panicked"))?
+        })
+    }
+}
+
+/// Writes `pdu` into `frame` as an Ethernet frame (broadcast destination, padded to the
+/// 60-byte minimum): its length.
+pub fn ethernet_frame(frame: &mut [u8], src: [u8; 6], pdu: &[u8]) -> io::Result<usize> {
+    if pdu.len() > MAX_PDU || frame.len() < ETH_HEADER_LEN + MAX_PDU {
+        return Err(io::Error::new(
+            io::ErrorKind::InvalidInput,
+            format!("PDU of {} bytes exceeds {MAX_PDU}", pdu.len()),
+        ));
+    }
+    emit_header(frame, [0xFF; 6], src).map_err(|e| io::Error::other(e.to_string()))?;
+    frame[ETH_HEADER_LEN..ETH_HEADER_LEN + pdu.len()].copy_from_slice(pdu);
+    let len = (ETH_HEADER_LEN + pdu.len()).max(60);
+    frame[ETH_HEADER_LEN + pdu.len()..len].fill(0);
+    Ok(len)
+}
+
+impl Port for VethPort {
+    fn send(&mut self, pdu: &[u8]) -> io::Result<()> {
+        let len = ethernet_frame(&mut self.frame, self.src, pdu)?;
+        sys::send(self.tx.as_raw_fd(), &self.frame[..len]).map(|_| ())
+    }
+    fn recv(&mut self, buf: &mut [u8]) -> io::Result<Option<usize>> {
+        let Some(len) = sys::recv(self.rx.as_raw_fd(), &mut self.frame)? else {
+            return Ok(None);
+        };
+        let Ok(eth) = EthernetFrame::new_checked(&self.frame[..len]) else {
+            return Ok(Some(0));
+        };
+        let Ok(payload) = eth.ringsync_payload() else {
+            return Ok(Some(0));
+        };
+        // Drop the Ethernet padding: the PDU's own header gives its length.
+        let pdu_len = if payload.len() >= HEADER_LEN {
+            let len = usize::from(u16::from_le_bytes([payload[10], payload[11]]));
+            (HEADER_LEN + len + CRC_LEN).min(payload.len())
+        } else {
+            payload.len()
+        };
+        let n = pdu_len.min(buf.len());
+        buf[..n].copy_from_slice(&payload[..n]);
+        Ok(Some(n))
+    }
+    fn rx_fd(&self) -> RawFd {
+        self.rx.as_raw_fd()
+    }
+}
