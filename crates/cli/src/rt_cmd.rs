@@ -81,6 +81,11 @@ pub struct RtArgs {
     /// Inject garbage and bad-CRC frames onto the ring at this rate [frames/s].
     #[arg(long, default_value_t = 0.0)]
     inject_garbage: f64,
+    /// Slaves latch their encoders this long before each cycle start (default: the
+    /// scenario's clock.sample_lead, or 100us when that is 0). Software clocks are off by
+    /// tens of µs; a latch after the lumped frame has passed sends last cycle's sample.
+    #[arg(long, value_parser = duration)]
+    sample_lead: Option<Duration>,
     /// Skip the simulator's prediction for the same scenario.
     #[arg(long)]
     no_sim_prediction: bool,
@@ -199,6 +204,7 @@ pub(crate) fn rt(args: &RtArgs) -> Result<(), CliError> {
             .zip(args.kill_at)
             .map(|(slave, at)| Kill { slave, at }),
         garbage_rate: args.inject_garbage,
+        sample_lead: args.sample_lead,
         verbose: true,
         ..RtOptions::default()
     };
@@ -234,7 +240,7 @@ pub(crate) fn rt(args: &RtArgs) -> Result<(), CliError> {
     let t = &r.timing;
     let m = &r.run.summary;
     let mut text = format!(
-        "{} over {}: {} cycles{}, {} overruns ({:.3} %)\n  cycle-start lateness p50 {:.1} µs, p99 {:.1} µs, p99.9 {:.1} µs, max {:.1} µs\n  P2P phase p50 {:.1} µs, p99 {:.1} µs; late or lost responses {}, retries {}\n  Track-RMSE {:.6} rad, Sync-RMSE {:.7} rad",
+        "{} over {}: {} cycles{}, {} overruns ({:.3} %)\n  cycle-start lateness p50 {:.1} µs, p99 {:.1} µs, p99.9 {:.1} µs, max {:.1} µs\n  P2P phase p50 {:.1} µs, p99 {:.1} µs; late or lost responses {}, retries {}, stale samples {}\n  Track-RMSE {:.6} rad, Sync-RMSE {:.7} rad",
         r.scenario.name,
         transport.name(),
         t.cycles,
@@ -249,6 +255,7 @@ pub(crate) fn rt(args: &RtArgs) -> Result<(), CliError> {
         t.p2p.p99 as f64 * 1e-3,
         r.run.master.slices_failed,
         r.run.master.retries,
+        r.run.master.samples_stale,
         m.track_rmse,
         m.sync_rmse,
     );

@@ -65,6 +65,7 @@ pub fn summary_json(s: &Scenario, hash: u64, r: &RunResult) -> Value {
             "corrupted_on_links": r.links.corrupted,
             "lumped_lost": mc.lumped_lost,
             "samples_missing": mc.samples_missing,
+            "samples_stale": mc.samples_stale,
             "slices_failed": mc.slices_failed,
             "retries": mc.retries,
             "retries_ok": mc.retries_ok,
@@ -385,7 +386,7 @@ on what the frame carries: this cycle's data of the slaves before them, last cyc
             s.control.alpha
         ),
         format!(
-            "Network: {} Mbit/s, PHY latencies {} / {} ns, {} m cables, residence {} µs, response delay {} µs, T<sub>rest</sub> {} µs; slave oscillators within ±{} ppm, timestamps at {} ns.",
+            "Network: {} Mbit/s, PHY latencies {} / {} ns, {} m cables, residence {} µs, response delay {} µs, T<sub>rest</sub> {} µs; slave oscillators within ±{} ppm, timestamps at {} ns; encoders latched {}.",
             s.ring.bit_rate.0 / 1_000_000,
             s.ring.phy_rx.0.as_ns(),
             s.ring.phy_tx.0.as_ns(),
@@ -394,7 +395,11 @@ on what the frame carries: this cycle's data of the slaves before them, last cyc
             s.ring.response_delay.0.as_ns() as f64 / 1e3,
             s.ring.t_rest.0.as_ns() as f64 / 1e3,
             s.clock.drift_ppm,
-            s.clock.timestamp_resolution.0.as_ns()
+            s.clock.timestamp_resolution.0.as_ns(),
+            match s.clock.sample_lead.0.as_ns() {
+                0 => "at each cycle start".to_string(),
+                lead => format!("{} µs before each cycle start", lead as f64 / 1e3),
+            }
         ),
     ] {
         let _ = writeln!(o, "<li>{item}</li>");

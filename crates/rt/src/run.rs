@@ -42,9 +42,15 @@ pub const ASSUMPTIONS: &[&str] = &[
     "frames are timestamped in software when the loop reads them (no hardware timestamps); slaves forward at once, in software",
     "path delays and time slices are measured at start-up (median of the calibration rounds) in place of the wire figures of the plan",
     "slave encoders latch at their synchronised sampling instants exactly (as hardware latches); commands take effect when the loop reads them",
+    "slaves latch their encoders a lead before each cycle start (--sample-lead, 100 µs unless the scenario or the option sets one) where the paper latches at the cycle start: software-synchronised clocks are off by tens of µs, and a latch that falls after the lumped frame has passed sends last cycle's sample again; the simulator's prediction uses the same lead",
     "the axes are simulated in the runtime's process, advanced exactly between events with the command held",
     "a cycle overruns when the master loses a lumped frame or a command of it (not back, not acknowledged in its cycle)",
 ];
+
+/// The runtime's default sampling lead: the slaves' software-synchronised clocks are off
+/// by up to a few tens of µs (measured: docs/runtime.md), and the latch must come before
+/// the lumped frame reaches the slave, 5-30 µs after the cycle start.
+pub const SAMPLE_LEAD: Duration = Duration::from_us(100);
 
 /// A slave taken out of the ring mid-run.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -84,6 +90,9 @@ pub struct RtOptions {
     pub kill: Option<Kill>,
     /// Garbage and bad-CRC frames injected onto the ring [frames/s] (0: none).
     pub garbage_rate: f64,
+    /// Sampling lead (slaves latch this long before each cycle start). `None`: the
+    /// scenario's `clock.sample_lead`, or [`SAMPLE_LEAD`] when that is 0.
+    pub sample_lead: Option<Duration>,
     /// Print start-up messages and a progress line a second to standard error.
     pub verbose: bool,
 }
@@ -104,6 +113,7 @@ impl Default for RtOptions {
             capture: false,
             kill: None,
             garbage_rate: 0.0,
+            sample_lead: None,
             verbose: false,
         }
     }
@@ -213,6 +223,11 @@ pub fn run(scenario: &Scenario, opts: &RtOptions, stop: &AtomicBool) -> Result<R
     if let Some(d) = opts.duration {
         s.duration.0 = d;
     }
+    s.clock.sample_lead.0 = match opts.sample_lead {
+        Some(l) => l,
+        None if s.clock.sample_lead.0 == Duration::ZERO => SAMPLE_LEAD,
+        None => s.clock.sample_lead.0,
+    };
     s.validate()?;
     let n = s.axes_count();
     if let Some(k) = opts.kill
@@ -260,7 +275,11 @@ pub fn run(scenario: &Scenario, opts: &RtOptions, stop: &AtomicBool) -> Result<R
             .collect(),
     };
     // Real time, before calibrating so that the measurements see the same scheduling.
-    let realtime = realtime_setup(opts);
+    let mut realtime = realtime_setup(opts);
+    realtime.push(format!(
+        "encoders latch {:.0} µs before each cycle start",
+        s.clock.sample_lead.0.as_ns() as f64 * 1e-3
+    ));
     for r in &realtime {
         say(r);
     }

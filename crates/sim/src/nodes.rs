@@ -61,6 +61,7 @@ impl RingConfig {
                     path_delay: plan.d_c[i],
                     response_delay: s.ring.response_delay.0,
                     velocity_window: a.velocity_window.0,
+                    sample_lead: s.clock.sample_lead.0,
                     watchdog_cycles: s.faults.watchdog_cycles,
                     clock_sync: s.clock.sync,
                     u_max: a.u_max,

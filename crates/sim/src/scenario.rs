@@ -219,6 +219,9 @@ pub struct ClockSpec {
     pub initial_offset: Dur,
     /// Hardware timestamp resolution.
     pub timestamp_resolution: Dur,
+    /// Sampling lead: slaves latch their encoders this long before each cycle start
+    /// (EtherCAT's "input shift"); 0 samples at the cycle start, as in the paper.
+    pub sample_lead: Dur,
 }
 
 impl Default for ClockSpec {
@@ -228,6 +231,7 @@ impl Default for ClockSpec {
             drift_ppm: 50.0,
             initial_offset: Dur(Duration::from_us(10)),
             timestamp_resolution: Dur(Duration::from_ns(8)),
+            sample_lead: Dur(Duration::ZERO),
         }
     }
 }
@@ -649,6 +653,13 @@ impl Scenario {
                 "clock.timestamp_resolution",
                 c.timestamp_resolution,
                 "1 ns ..= 1 ms",
+            ));
+        }
+        if ns(c.sample_lead) < 0 || c.sample_lead.0 * 2 > self.ring.cycle.0 {
+            return Err(out_of_range(
+                "clock.sample_lead",
+                c.sample_lead,
+                "0 ..= ring.cycle / 2",
             ));
         }
         let f = &self.faults;

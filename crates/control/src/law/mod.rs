@@ -261,7 +261,10 @@ impl<L: ControlLaw> Controller<L> {
     /// cycles (its sampling instant g + 1 cycles after the last one), g samples linearly
     /// interpolated between the two are pushed first, so the spacing stays T_cyc; after
     /// more than [`DEPTH`](crate::estimator::DEPTH) − 1 missed cycles the history starts
-    /// afresh.
+    /// afresh. A sample that is not at least half a cycle newer than the last one taken
+    /// (the same sample delivered again, e.g. when a slave latched after the lumped frame
+    /// passed) is ignored, as if not fresh: taking it would put two samples one "cycle"
+    /// apart in the history that are really zero apart, and the estimators' slopes with it.
     pub fn update(
         &mut self,
         fb: &Feedback,
@@ -287,6 +290,9 @@ impl<L: ControlLaw> Controller<L> {
             let h = &mut self.history;
             if h.count[i] > 0 {
                 let steps = ((t - h.t[i]) / input.t_cyc).round();
+                if steps < 1.0 {
+                    continue;
+                }
                 if steps > crate::estimator::DEPTH as f64 {
                     h.count[i] = 0;
                 } else if steps >= 2.0 {

@@ -316,6 +316,17 @@ fn controller_builds_errors_from_feedback() {
     c.update(&fb, &input, &mut out).expect("update");
     assert_eq!(c.history.count[0], 4);
     assert!((c.history.e[0][1] - (0.01 + 0.5 * 3e-3)).abs() < 1e-15);
+    // The same sample delivered again as fresh (same sampling instant) is not taken
+    // either: the history and the commands stay as they were.
+    fb.fresh[0] = true;
+    let (before, u) = (c.history.clone(), out.u.clone());
+    c.update(&fb, &input, &mut out).expect("update");
+    assert_eq!(c.history, before);
+    assert_eq!(out.u, u);
+    // Nor is an older one.
+    fb.sample_time[0] -= 1e-3;
+    c.update(&fb, &input, &mut out).expect("update");
+    assert_eq!(c.history, before);
 }
 
 /// A missed sample leaves no gap in the history: the missing cycle is interpolated, so the

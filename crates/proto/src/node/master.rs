@@ -172,6 +172,10 @@ pub struct MasterCounters {
     pub lumped_lost: u64,
     /// Feedback samples missing from returned lumped frames (slot not written).
     pub samples_missing: u64,
+    /// Feedback samples that were not newer than the last one taken from the same slave
+    /// (the slave latched after the lumped frame passed it, so the frame carried the
+    /// previous sample again); they are not taken again.
+    pub samples_stale: u64,
     /// Slices that ended without their response.
     pub slices_failed: u64,
     /// Retries sent in reserve slices.
@@ -757,8 +761,12 @@ impl Master {
             }
             match p.slot_bytes(k).map(FeedbackSlot::parse) {
                 Some(Ok(slot)) if slot.written => {
-                    self.latest[i] = Some(slot);
-                    self.fresh[i] = true;
+                    if self.latest[i].is_some_and(|l| slot.sample_time_ns <= l.sample_time_ns) {
+                        self.counters.samples_stale += 1;
+                    } else {
+                        self.latest[i] = Some(slot);
+                        self.fresh[i] = true;
+                    }
                 }
                 Some(Ok(_)) => self.counters.samples_missing += 1,
                 _ => self.counters.bad_frames += 1,

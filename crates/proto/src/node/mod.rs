@@ -23,3 +23,6 @@ pub struct Transmit {
     /// The PDU.
     pub bytes: Vec<u8>,
 }
+
+#[cfg(test)]
+mod tests;

@@ -3,9 +3,13 @@
 //! arrives and answers after T_ti, and goes to its safe state (0 V, FAULT | WATCHDOG) when no
 //! valid command arrives for W cycles.
 //!
-//! Sampling: at synchronised time k·T_cyc the slave latches its encoder count; the velocity
-//! is the count difference over the window that ends there, so the driver is asked for the
-//! count twice per cycle ([`Slave::poll_timeout`], [`Slave::handle_sample`]).
+//! Sampling: at synchronised time k·T_cyc − lead the slave latches its encoder count; the
+//! velocity is the count difference over the window that ends there, so the driver is asked
+//! for the count twice per cycle ([`Slave::poll_timeout`], [`Slave::handle_sample`]). The
+//! paper samples at the cycle start (lead 0), which suits hardware clocks synchronised to
+//! well under the lumped frame's first hop; a lead (EtherCAT's "input shift") keeps the
+//! latch ahead of the frame when the clocks are only good to tens of µs (software
+//! timestamps).
 
 use std::collections::VecDeque;
 
@@ -67,6 +71,9 @@ pub struct SlaveConfig {
     pub response_delay: Duration,
     /// Encoder-difference window for the velocity.
     pub velocity_window: Duration,
+    /// Sampling lead: the encoder latches at synchronised time k·T_cyc − lead (0: at the
+    /// cycle start, as in the paper).
+    pub sample_lead: Duration,
     /// W: cycles without a valid command before the safe state.
     pub watchdog_cycles: u32,
     /// Whether to synchronise the clock to the master.
@@ -223,7 +230,7 @@ impl Slave {
     }
 
     fn sample_instant(&self) -> Instant {
-        Instant::from_ns(self.k * self.cfg.cycle.as_ns())
+        Instant::from_ns(self.k * self.cfg.cycle.as_ns()) - self.cfg.sample_lead
     }
 
     /// Local time of the next encoder latch; call [`Slave::handle_sample`] then.

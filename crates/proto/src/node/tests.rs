@@ -1,0 +1,127 @@
+//! The nodes driven by hand: a test owns time and carries every frame itself, with no
+//! delay on the links (the simulator tests the timing; these test what the nodes decide).
+
+use ringsync_control::{AxisTrajectory, Cosine, Gains, Pd, VelocitySource};
+
+use super::*;
+use crate::plan::{CyclePlan, RingParams};
+use crate::time::Duration;
+
+const T_CYC: i64 = 1_000_000;
+/// Encoder resolution [rad per count]: a power of two, so positions compare exactly.
+const RES: f64 = 1.0 / 1_048_576.0;
+
+fn ring(n: u32, lead: Duration) -> (Master, Vec<Slave>) {
+    let plan = CyclePlan::new(&RingParams {
+        slaves: n,
+        ..RingParams::default()
+    })
+    .expect("plan");
+    let n = n as usize;
+    let cfg = MasterConfig::from_plan(&plan, Duration::ZERO, vec![RES; n], 1e9);
+    let law = Pd::new(Gains::uniform(n, 3.182, 1.591, 0.0), false).expect("pd");
+    let traj = Cosine::with_peak_speed(15.12, 2.0).expect("cosine");
+    let master = Master::new(
+        cfg,
+        Box::new(law),
+        VelocitySource::Reported,
+        vec![AxisTrajectory::Cosine(traj); n],
+    );
+    let slaves = (0..n)
+        .map(|i| {
+            Slave::new(SlaveConfig {
+                address: (i + 1) as u16,
+                cycle: Duration::from_ns(T_CYC),
+                path_delay: plan.d_c[i],
+                response_delay: Duration::from_us(2),
+                velocity_window: Duration::from_us(125),
+                sample_lead: lead,
+                watchdog_cycles: 5,
+                // Free-running clocks read true time: local time is the test's time.
+                clock_sync: false,
+                u_max: 10.0,
+            })
+        })
+        .collect();
+    (master, slaves)
+}
+
+/// Runs slave `s`'s encoder latches due up to `t`, with the axis at `counts`.
+fn latch(s: &mut Slave, t: i64, counts: i64) {
+    while s.poll_timeout().as_ns() <= t {
+        let at = s.poll_timeout();
+        s.handle_sample(at, counts);
+    }
+}
+
+/// Runs the master's timers due up to `t`; every lumped frame it sends goes round the ring
+/// at once (slaves in order, then back to the master). Other frames are dropped.
+fn master_until(m: &mut Master, slaves: &mut [Slave], t: i64) {
+    while m.poll_timeout().as_ns() <= t {
+        let now = m.poll_timeout();
+        m.handle_timeout(now);
+        while let Some(mut tx) = m.poll_transmit() {
+            if tx.bytes.get(1) != Some(&(ringsync_wire::FrameKind::Lumped as u8)) {
+                continue;
+            }
+            for s in slaves.iter_mut() {
+                assert_eq!(
+                    s.handle_frame(now, now, &mut tx.bytes),
+                    FrameOutcome::Forward
+                );
+            }
+            m.handle_frame(now, &tx.bytes);
+        }
+    }
+}
+
+#[test]
+fn a_sample_carried_twice_is_counted_stale_and_not_taken_again() {
+    let (mut m, mut s) = ring(2, Duration::ZERO);
+    let p2p = m.config().p2p_start.as_ns();
+    // Cycle 0: both slaves latch at the cycle start, before the lumped frame passes.
+    latch(&mut s[0], 0, 100);
+    latch(&mut s[1], 0, 200);
+    master_until(&mut m, &mut s, p2p);
+    assert_eq!(m.record().k, 0);
+    assert_eq!(m.record().fresh, vec![true, true]);
+    assert_eq!(m.record().position, vec![100.0 * RES, 200.0 * RES]);
+    // Cycle 1: slave 2 latches only after the frame has passed it (its clock lags), so the
+    // frame carries its cycle-0 sample again.
+    master_until(&mut m, &mut s, T_CYC - 1);
+    latch(&mut s[0], T_CYC, 110);
+    master_until(&mut m, &mut s, T_CYC + p2p);
+    latch(&mut s[1], T_CYC + 5_000, 210);
+    assert_eq!(m.record().k, 1);
+    assert_eq!(m.record().fresh, vec![true, false]);
+    assert_eq!(m.record().sample_time, vec![1e-3, 0.0]);
+    assert_eq!(m.record().position, vec![110.0 * RES, 200.0 * RES]);
+    let c = m.counters();
+    assert_eq!((c.samples_stale, c.samples_missing), (1, 0));
+    // Cycle 2: slave 2's cycle-1 sample (latched late) is newer: taken, fresh.
+    master_until(&mut m, &mut s, 2 * T_CYC - 1);
+    latch(&mut s[0], 2 * T_CYC, 120);
+    master_until(&mut m, &mut s, 2 * T_CYC + p2p);
+    assert_eq!(m.record().fresh, vec![true, true]);
+    assert_eq!(m.record().sample_time, vec![2e-3, 1e-3]);
+    assert_eq!(m.counters().samples_stale, 1);
+}
+
+#[test]
+fn the_sampling_lead_moves_both_latches_and_the_sample_time() {
+    let lead = Duration::from_us(100);
+    let (_, mut s) = ring(2, lead);
+    let s = &mut s[0];
+    // Cycle k: the velocity window opens at k·T − lead − 125 µs and the sample is taken at
+    // k·T − lead.
+    for k in 1..4i64 {
+        latch(s, (k - 1) * T_CYC, 0);
+        assert_eq!(s.poll_timeout().as_ns(), k * T_CYC - 100_000 - 125_000);
+        latch(s, k * T_CYC - 100_001, 0);
+        assert_eq!(s.poll_timeout().as_ns(), k * T_CYC - 100_000);
+    }
+    // Lead 0 (the paper): the sample at the cycle start.
+    let (_, mut s0) = ring(2, Duration::ZERO);
+    latch(&mut s0[0], 0, 0);
+    assert_eq!(s0[0].poll_timeout().as_ns(), T_CYC - 125_000);
+}
