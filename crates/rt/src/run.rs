@@ -142,7 +142,23 @@ pub struct Timing {
     pub receive_errors: u64,
     /// Cycle starts whose true axis states were read after the axis had moved on.
     pub probes_late: u64,
+    /// The longest stall of each cycle [ns]: the longest gap between two of the loop's
+    /// clock readings beyond what it asked of a sleep, or the cycle's late start. The loop
+    /// reads the clock at every frame and timer, so a gap of [`STALL`] or more is the host
+    /// holding it off its CPU.
+    pub stalls: Percentiles,
+    /// Cycles with a stall of [`STALL`] or more.
+    pub cycles_stalled: u64,
+    /// Overruns in cycles with a stall of [`STALL`] or more.
+    pub overruns_stalled: u64,
+    /// The longest run of consecutive overruns [cycles]: the longest the axes went without
+    /// fresh feedback or a command (the master stops the group at W).
+    pub longest_outage: u64,
 }
+
+/// A stall this long or longer is the host holding the loop off its CPU (a pass of the
+/// loop takes a few µs; measured in docs/runtime.md).
+pub const STALL: i64 = 50_000;
 
 /// Which node failed and when, from what each node still received.
 #[derive(Debug, Clone, PartialEq)]
@@ -399,6 +415,7 @@ pub fn run(scenario: &Scenario, opts: &RtOptions, stop: &AtomicBool) -> Result<R
         timing,
         lateness,
         p2p,
+        stalls,
         last_rx,
         captured,
         kill_cycle,
@@ -410,6 +427,7 @@ pub fn run(scenario: &Scenario, opts: &RtOptions, stop: &AtomicBool) -> Result<R
     let mut timing = timing;
     timing.lateness = Percentiles::of(&lateness);
     timing.p2p = Percentiles::of(&p2p);
+    timing.stalls = Percentiles::of(&stalls);
     let mc: MasterCounters = master.counters();
     timing.lumped_lost = mc.lumped_lost;
     timing.commands_lost = mc.commands_lost;
@@ -614,6 +632,10 @@ struct Ring {
     timing: Timing,
     lateness: Vec<i64>,
     p2p: Vec<i64>,
+    stalls: Vec<i64>,
+    /// The loop's last clock reading and the longest stall since the cycle began [ns].
+    last_read: i64,
+    stall: i64,
     computed_at: Option<i64>,
     last_master_rx: i64,
     /// With `Some`, the delay from the master's send to each slave's read of every lumped
@@ -643,8 +665,10 @@ fn drain(ports: &mut [Option<Box<dyn Port>>]) {
 /// The slave clock servo for software timestamps: see [`ASSUMPTIONS`].
 const RT_CLOCK_FILTER: ClockFilter = ClockFilter {
     offset_gain: 0.25,
-    rate_gain: 0.01,
+    rate_gain: 0.25,
     outlier_limit: Some(Duration::from_us(50)),
+    max_skips: 20,
+    rate_interval: Duration::from_ms(100),
 };
 
 impl Ring {
@@ -674,7 +698,13 @@ impl Ring {
             pending: Vec::new(),
             sample_due: vec![0; n],
             last_rx: vec![None; n + 1],
-            captured: Vec::new(),
+            // Every send: the lumped frame's n + 1 hops and each slice's n + 1 (command and
+            // response), so that capturing never reallocates mid-run.
+            captured: Vec::with_capacity(if capture {
+                usize::try_from(cycles.max(0)).unwrap_or(0) * (n + 1) * (n + 2)
+            } else {
+                0
+            }),
             capture,
             t0: 0,
             end: cycles * s.ring.cycle.0.as_ns(),
@@ -684,6 +714,9 @@ impl Ring {
             },
             lateness: Vec::with_capacity(cycles.max(0) as usize),
             p2p: Vec::with_capacity(cycles.max(0) as usize),
+            stalls: Vec::with_capacity(cycles.max(0) as usize),
+            last_read: 0,
+            stall: 0,
             computed_at: None,
             last_master_rx: 0,
             delays: measure.then(|| vec![Vec::new(); n]),
@@ -693,8 +726,24 @@ impl Ring {
         })
     }
 
-    fn now(&self) -> i64 {
-        sys::now_ns() - self.t0
+    /// The loop's clock [ns from the run's start]. Each reading also measures the stall
+    /// since the last one: the loop reads the clock at least once per frame and timer, so a
+    /// gap between two readings longer than a send, a receive and their processing (a few
+    /// µs) is time the loop was held off its CPU.
+    fn now(&mut self) -> i64 {
+        let t = sys::now_ns() - self.t0;
+        self.stall = self.stall.max(t - self.last_read);
+        self.last_read = t;
+        t
+    }
+
+    /// Back from a sleep or a wait planned to end at `planned` [ns]: only a late return
+    /// counts as a stall.
+    fn woke(&mut self, planned: i64) -> i64 {
+        let t = sys::now_ns() - self.t0;
+        self.stall = self.stall.max(t - planned);
+        self.last_read = t;
+        t
     }
 
     fn send(&mut self, node: usize, t: i64, bytes: &[u8]) {
@@ -885,11 +934,13 @@ impl Ring {
             self.sample_due[i] = self.osc[i].true_at(self.slaves[i].poll_timeout());
         }
         let (mut probe_k, mut cycle_k, mut last_losses) = (0i64, 0i64, 0u64);
+        let mut outage = 0u64;
         let mut kill = kill;
         let mut killed = None;
         let mut next_progress = 1_000_000_000;
         // Start 2 ms from now, so that the first cycle starts on time.
         self.t0 = sys::now_ns() + 2_000_000;
+        self.last_read = -2_000_000;
         loop {
             if stop.load(Ordering::Relaxed) {
                 return Ok((true, killed));
@@ -946,9 +997,27 @@ impl Ring {
                     self.lateness.push(now - m);
                     let c = self.master.counters();
                     let losses = c.lumped_lost + c.commands_lost;
+                    // A stall up to this cycle's start counts for the cycle that ends.
+                    let stall = std::mem::take(&mut self.stall);
+                    if cycle_k > 0 {
+                        self.stalls.push(stall);
+                        if stall >= STALL {
+                            self.timing.cycles_stalled += 1;
+                        }
+                    }
                     if losses > last_losses {
                         self.timing.overruns += 1;
+                        if stall >= STALL {
+                            self.timing.overruns_stalled += 1;
+                        }
+                        outage += 1;
+                        self.timing.longest_outage = self.timing.longest_outage.max(outage);
+                    } else {
+                        outage = 0;
                     }
+                    // A late start is a stall of the cycle it delays: its lumped frame
+                    // leaves late against a P2P start that does not move.
+                    self.stall = now - m;
                     last_losses = losses;
                     if let Some(t) = self.computed_at.take()
                         && self.last_master_rx > t
@@ -989,6 +1058,7 @@ impl Ring {
                 } else {
                     sys::sleep_until(self.t0 + wake - spin);
                 }
+                self.woke(wake - spin);
             }
         }
     }

@@ -34,6 +34,41 @@ fn run_ref(opts: RtOptions) -> RtResult {
     r
 }
 
+/// A run the host left alone: its longest outage (consecutive cycles that lost their
+/// lumped frame or a command) shorter than W. A virtual machine's host now and then holds
+/// the loop off its CPU for milliseconds on end (docs/runtime.md: the host's stalls,
+/// measured without the ring); when that cuts the ring for W cycles, the slaves' watchdogs
+/// put the drives at 0 V and the master stops the group, as they must, and the run is an
+/// experiment in coasting axes, not a measurement of the runtime. The criterion is the
+/// ring's own outage counter, not the figures the test then checks; such a run is repeated
+/// (at most [`ATTEMPTS`] in all), and when every attempt was cut the test fails. Shorter
+/// outages stay in the measured runs. Measured over 30 UDP runs of this build here: 29
+/// with outages under W, Sync-RMSE within −13.4 % and +10.1 % of the simulator's; one cut
+/// for 8 cycles.
+fn run_undisturbed(opts: RtOptions) -> RtResult {
+    let w = u64::from(Scenario::default().faults.watchdog_cycles);
+    let mut outages = Vec::new();
+    for _ in 0..ATTEMPTS {
+        let r = run_ref(opts.clone());
+        if r.timing.longest_outage < w {
+            if !outages.is_empty() {
+                eprintln!(
+                    "earlier runs were cut by the host: outages of {outages:?} cycles (W = {w})"
+                );
+            }
+            return r;
+        }
+        outages.push(r.timing.longest_outage);
+    }
+    panic!(
+        "the host cut every {} run: outages of {outages:?} cycles (W = {w})",
+        opts.transport.name()
+    );
+}
+
+/// See [`run_undisturbed`].
+const ATTEMPTS: usize = 3;
+
 /// The reference motion (4 s) against the simulator's mean over 8 seeds: Sync-RMSE within
 /// 20 % (the tolerance; one simulated run alone moves by about ±10 % with the seed),
 /// Track-RMSE within 2 %, no group stop, and the ring kept its schedule in most cycles.
@@ -88,7 +123,7 @@ fn matches_simulator(r: &RtResult) {
 
 #[test]
 fn udp_ring_runs_the_reference_motion_like_the_simulator() {
-    let r = run_ref(RtOptions {
+    let r = run_undisturbed(RtOptions {
         transport: TransportKind::Udp,
         ..RtOptions::default()
     });
@@ -97,7 +132,7 @@ fn udp_ring_runs_the_reference_motion_like_the_simulator() {
 
 #[test]
 fn veth_ring_runs_the_reference_motion_like_the_simulator() {
-    let r = run_ref(RtOptions {
+    let r = run_undisturbed(RtOptions {
         transport: TransportKind::Veth,
         ..RtOptions::default()
     });
@@ -129,7 +164,7 @@ fn a_slave_taken_out_stops_the_group_within_w_cycles() {
 
 #[test]
 fn garbage_and_bad_crc_frames_are_counted_and_ignored() {
-    let r = run_ref(RtOptions {
+    let r = run_undisturbed(RtOptions {
         transport: TransportKind::Udp,
         garbage_rate: 500.0,
         ..RtOptions::default()

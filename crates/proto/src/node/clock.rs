@@ -4,11 +4,15 @@
 //! gives one pair (local receive timestamp L_k, master time M_k + D_i).
 //!
 //! The servo steps its offset to each new pair and estimates the rate of the local
-//! oscillator against the master's from successive pairs, low-pass filtered:
+//! oscillator against the master's from pairs at least a baseline apart (successive pairs
+//! by default), low-pass filtered:
 //!
 //! ```text
-//! S(L) = M_k + (L − L_k) / ρ̂          ρ̂ ← ρ̂ + g·((L_k − L_{k−1}) / (M_k − M_{k−1}) − ρ̂)
+//! S(L) = M_k + (L − L_k) / ρ̂          ρ̂ ← ρ̂ + g·((L_k − L_b) / (M_k − M_b) − ρ̂)
 //! ```
+//!
+//! where b is the baseline pair. With software timestamps a long baseline matters: a pair
+//! read 10 µs late measures the rate of a 1 ms interval 1 % wrong, of a 100 ms one 0.01 %.
 //!
 //! With exact timestamps and a constant drift the residual error is a few timestamp ticks
 //! between syncs (tested). Without sync the clock free-runs: S(L) = L.
@@ -28,9 +32,16 @@ pub struct ClockFilter {
     pub offset_gain: f64,
     /// Gain of the rate filter per sync (0 < g ≤ 1).
     pub rate_gain: f64,
-    /// Once locked, a pair whose offset error exceeds this is skipped (at most 3 in a row,
-    /// then the servo steps). `None`: no limit.
+    /// Once locked, a pair whose offset error exceeds this is skipped (at most
+    /// `max_skips` in a row, then the servo takes it for its offset, never for the rate).
+    /// `None`: no limit.
     pub outlier_limit: Option<Duration>,
+    /// Outliers skipped in a row before the servo takes one (a clock that is really off
+    /// must come back; a burst of late frames should not move it).
+    pub max_skips: u32,
+    /// The rate is measured between accepted pairs at least this far apart in master time
+    /// (zero: successive pairs).
+    pub rate_interval: Duration,
 }
 
 impl Default for ClockFilter {
@@ -39,6 +50,8 @@ impl Default for ClockFilter {
             offset_gain: 1.0,
             rate_gain: RATE_GAIN,
             outlier_limit: None,
+            max_skips: 3,
+            rate_interval: Duration::ZERO,
         }
     }
 }
@@ -81,12 +94,19 @@ impl SyncClock {
             offset_gain: f.offset_gain.clamp(1e-3, 1.0),
             rate_gain: f.rate_gain.clamp(1e-6, 1.0),
             outlier_limit: f.outlier_limit,
+            max_skips: f.max_skips,
+            rate_interval: f.rate_interval.max(Duration::ZERO),
         };
     }
 
     /// Sync pairs skipped as outliers.
     pub fn skipped(&self) -> u64 {
         self.skipped
+    }
+
+    /// The estimated rate ρ̂ of the local oscillator [local ns per master ns].
+    pub fn rate(&self) -> f64 {
+        self.rate
     }
 
     /// Takes one sync: the frame was received at local time `local` and left the master at
@@ -97,29 +117,38 @@ impl SyncClock {
         }
         let (l, m) = (local.as_ns(), (master_sent + path).as_ns());
         let mut anchor = m;
+        let mut outlier = false;
         if self.syncs >= 2 && self.last.is_some() {
             let err = m - self.to_sync(local).as_ns();
             if let Some(limit) = self.filter.outlier_limit
                 && err.abs() > limit.as_ns()
-                && self.skipped_run < 3
             {
-                self.skipped_run += 1;
-                self.skipped += 1;
-                return;
+                if self.skipped_run < self.filter.max_skips {
+                    self.skipped_run += 1;
+                    self.skipped += 1;
+                    return;
+                }
+                outlier = true;
             }
             if self.filter.offset_gain < 1.0 {
                 anchor = m - err + (self.filter.offset_gain * err as f64).round() as i64;
             }
         }
         self.skipped_run = 0;
-        if let Some((l0, m0)) = self.raw
-            && m > m0
-            && l > l0
-        {
-            let measured = (l - l0) as f64 / (m - m0) as f64;
-            self.rate += self.filter.rate_gain * (measured - self.rate);
+        // An outlier is taken for its offset only: it measures no rate, nor is it a baseline.
+        if !outlier {
+            match self.raw {
+                Some((l0, m0)) if m - m0 >= self.filter.rate_interval.as_ns() => {
+                    if m > m0 && l > l0 {
+                        let measured = (l - l0) as f64 / (m - m0) as f64;
+                        self.rate += self.filter.rate_gain * (measured - self.rate);
+                    }
+                    self.raw = Some((l, m));
+                }
+                Some(_) => {}
+                None => self.raw = Some((l, m)),
+            }
         }
-        self.raw = Some((l, m));
         self.last = Some((l, anchor));
         self.syncs += 1;
     }
@@ -217,14 +246,32 @@ mod tests {
                     worst = worst.max((c.to_sync(local(t, 300, 20.0, 1)).as_ns() - t).abs());
                 }
             }
-            (worst, c.skipped())
+            (worst, c.skipped(), c.rate())
         };
-        let (raw, skipped_raw) = run(ClockFilter::default());
-        let (filtered, skipped) = run(ClockFilter {
+        let (raw, skipped_raw, _) = run(ClockFilter::default());
+        let (filtered, skipped, rate) = run(ClockFilter {
             offset_gain: 0.25,
             rate_gain: 0.01,
             outlier_limit: Some(Duration::from_us(50)),
+            max_skips: 3,
+            rate_interval: Duration::ZERO,
         });
+        // The same with the rate measured over 100 ms between accepted pairs.
+        let (long, skipped_long, rate_long) = run(ClockFilter {
+            offset_gain: 0.25,
+            rate_gain: 0.25,
+            outlier_limit: Some(Duration::from_us(50)),
+            max_skips: 3,
+            rate_interval: Duration::from_ms(100),
+        });
+        assert!(long < 6_000, "long-baseline residual {long} ns");
+        assert_eq!(skipped_long, skipped);
+        // The oscillator runs 20 ppm fast. Successive pairs 1 ms apart with ±4 µs of jitter
+        // measure the rate up to 8000 ppm wrong each, pairs 100 ms apart up to 80 ppm: the
+        // long baseline's estimate is the closer one.
+        let (err, err_long) = ((rate - 1.0 - 20e-6).abs(), (rate_long - 1.0 - 20e-6).abs());
+        assert!(err_long < err, "{err_long} vs {err}");
+        assert!(err_long < 20e-6, "rate {rate_long} with a 100 ms baseline");
         assert!(
             raw > 800_000,
             "the unfiltered clock follows the late frame: {raw}"
@@ -234,6 +281,102 @@ mod tests {
         // Each late frame is skipped on its own (the run of skips resets on the next good pair).
         assert_eq!(skipped, (0..cycles).filter(|&k| late(k)).count() as u64);
         assert_eq!(skipped, 12);
+    }
+
+    /// Bursts of late frames, as when the host stalls a software ring for several cycles:
+    /// six frames in a row read 150-400 µs late every 200 cycles. The outlier limit skips
+    /// three and must then take the fourth for its offset; taken as a rate measurement too,
+    /// a frame 300 µs late over a 1 ms interval would throw ρ̂ off by 30 % × the rate gain
+    /// (3000 ppm at 1/100) for as long as the filter remembers it.
+    #[test]
+    fn bursts_of_late_frames_leave_the_rate_alone() {
+        let (path, ppm) = (5_000, 20.0);
+        let run = |filter: ClockFilter| {
+            let mut c = SyncClock::new(true);
+            c.set_filter(filter);
+            let mut worst = 0.0f64;
+            for k in 0..3_000i64 {
+                let late = match k % 200 {
+                    150..156 => 150_000 + 50_000 * (k % 200 - 150),
+                    _ => 0,
+                };
+                let sent = k * 1_000_000;
+                c.sync(
+                    local(sent + path + late, 300, ppm, 1),
+                    Instant::from_ns(sent),
+                    Duration::from_ns(path),
+                );
+                // Once the filter has learnt the rate (the bursts go on).
+                if k >= 1_500 {
+                    worst = worst.max((c.rate() - 1.0 - ppm * 1e-6).abs());
+                }
+            }
+            (c.skipped(), worst * 1e6)
+        };
+        let limit = Some(Duration::from_us(50));
+        for filter in [
+            ClockFilter {
+                offset_gain: 0.25,
+                rate_gain: 0.01,
+                outlier_limit: limit,
+                max_skips: 3,
+                rate_interval: Duration::ZERO,
+            },
+            ClockFilter {
+                offset_gain: 0.25,
+                rate_gain: 0.25,
+                outlier_limit: limit,
+                max_skips: 3,
+                rate_interval: Duration::from_ms(100),
+            },
+        ] {
+            let (skipped, worst) = run(filter);
+            assert!(skipped >= 30, "{skipped} pairs skipped");
+            assert!(worst < 1.0, "{filter:?}: rate off by {worst} ppm");
+        }
+    }
+
+    /// With room for a whole burst (six late frames) the servo skips every late frame and
+    /// coasts on its rate: the clock does not move at all.
+    #[test]
+    fn a_long_skip_run_rides_out_a_burst() {
+        let (path, ppm) = (5_000, 20.0);
+        let run = |max_skips: u32| {
+            let mut c = SyncClock::new(true);
+            c.set_filter(ClockFilter {
+                offset_gain: 0.25,
+                rate_gain: 0.25,
+                outlier_limit: Some(Duration::from_us(50)),
+                max_skips,
+                rate_interval: Duration::from_ms(100),
+            });
+            let mut worst = 0;
+            for k in 0..1_000i64 {
+                let late = if (700..706).contains(&k) { 300_000 } else { 0 };
+                let sent = k * 1_000_000;
+                c.sync(
+                    local(sent + path + late, 300, ppm, 1),
+                    Instant::from_ns(sent),
+                    Duration::from_ns(path),
+                );
+                if k >= 600 {
+                    let t = sent + 999_000;
+                    worst = worst.max((c.to_sync(local(t, 300, ppm, 1)).as_ns() - t).abs());
+                }
+            }
+            (worst, c.skipped())
+        };
+        let (short, skipped_short) = run(3);
+        let (long, skipped_long) = run(20);
+        // The long run skips exactly the burst; the short one also skips good frames after
+        // it, while it walks the clock back from the late frame it took.
+        assert_eq!(skipped_long, 6);
+        assert!(skipped_short > skipped_long, "{skipped_short}");
+        assert!(
+            short > 50_000,
+            "the 4th late frame moves the clock: {short} ns"
+        );
+        assert!(long < 100, "the clock stays: {long} ns");
     }
 
     #[test]

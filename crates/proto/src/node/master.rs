@@ -144,6 +144,12 @@ pub enum StopReason {
         /// Axis index.
         axis: usize,
     },
+    /// Axis `axis`'s newest feedback sample is more than W cycles old: the master can no
+    /// longer control it (its command is 0 V from then on).
+    NoFeedback {
+        /// Axis index.
+        axis: usize,
+    },
 }
 
 /// Events for the driver.
@@ -264,6 +270,8 @@ pub struct Master {
     open: Option<(usize, u8)>,
     acked: Vec<bool>,
     missed: Vec<u32>,
+    /// Axes whose feedback is more than W cycles old: commanded 0 V.
+    blind: Vec<bool>,
     retry_queue: VecDeque<usize>,
     fb: Feedback,
     input: ControlInput,
@@ -304,6 +312,7 @@ impl Master {
             open: None,
             acked: vec![false; n],
             missed: vec![0; n],
+            blind: vec![false; n],
             retry_queue: VecDeque::new(),
             fb: Feedback::new(n),
             input: ControlInput::new(n, t_cyc),
@@ -567,6 +576,20 @@ impl Master {
             {
                 stop_reason = Some(StopReason::FollowingError { axis: i, error: e });
             }
+            // Feedback watchdog: a law run on a sample W cycles old drives the axis blind
+            // (with the ring broken behind it, the error it sees never closes and the
+            // command winds up to saturation).
+            let w = i64::from(self.cfg.watchdog_cycles);
+            self.blind[i] = match self.latest[i] {
+                Some(_) => {
+                    t_start - self.fb.sample_time[i]
+                        > w as f64 * self.cfg.cycle.as_ns() as f64 * 1e-9
+                }
+                None => self.k >= w,
+            };
+            if self.blind[i] && stop_reason.is_none() && self.stop.is_none() {
+                stop_reason = Some(StopReason::NoFeedback { axis: i });
+            }
         }
         if let (Some(reason), None) = (stop_reason, &self.stop) {
             let t = now.as_ns() as f64 * 1e-9;
@@ -602,6 +625,12 @@ impl Master {
         {
             // Lengths are fixed at construction; an error here is a bug. Command 0 V.
             self.output.u.fill(0.0);
+        }
+        for (i, blind) in self.blind.iter().enumerate() {
+            if *blind {
+                self.output.u[i] = 0.0;
+                self.output.saturated[i] = false;
+            }
         }
         let r = &mut self.record;
         r.k = self.k;

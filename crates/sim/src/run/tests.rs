@@ -188,6 +188,53 @@ fn a_silent_slave_stops_the_group_within_w_cycles() {
     );
 }
 
+/// With the ring broken at slave 3 no lumped frame comes back: after W cycles on old
+/// feedback the master commands 0 V to every axis (its safe state) instead of running the
+/// law blind. Before this, slaves 1 and 2, whose commands still arrived, were driven on
+/// feedback frozen at the break and ran away at full torque (−1000 rad in 2.7 s).
+#[test]
+fn a_broken_ring_leaves_no_axis_driven_blind() {
+    let s = scenario(
+        "duration = \"2s\"\n[faults]\nsilent_slave = 3\nsilent_from = \"500ms\"\nwatchdog_cycles = 5\n",
+    );
+    let r = run(
+        &s,
+        RunOptions {
+            trace: true,
+            ..RunOptions::default()
+        },
+    )
+    .expect("run");
+    let (t_stop, _) = r.group_stop.expect("the group stopped");
+    let at = |t: f64, axis: usize| {
+        r.trace
+            .iter()
+            .find(|row| row.axis == axis && row.t >= t - 1e-9)
+            .expect("a trace row")
+    };
+    for axis in 1..=4 {
+        // Every command from one cycle after the stop is 0 V.
+        assert!(
+            r.trace
+                .iter()
+                .filter(|row| row.axis == axis && row.t > t_stop + 1e-3)
+                .all(|row| row.u == 0.0),
+            "axis {axis} still commanded after the stop"
+        );
+        // At 0 V the axis coasts to rest on its friction: from 15 rad/s at 12-13 rad/s²
+        // about 9 rad, and it is still by the end.
+        let (x_stop, x_end) = (at(t_stop, axis).x, at(1.999, axis).x);
+        assert!(
+            (x_end - x_stop).abs() < 12.0,
+            "axis {axis}: {x_stop} -> {x_end}"
+        );
+        assert!(
+            (at(1.9, axis).x - x_end).abs() < 1e-3,
+            "axis {axis} still moving"
+        );
+    }
+}
+
 /// The lumped-only plan of ref. [3]: the slaves run the law on what the frame carries.
 #[test]
 fn lumped_only_plan_runs() {
