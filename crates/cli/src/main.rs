@@ -1,6 +1,7 @@
 //! `ringsync`: plan, simulate and run a networked CNC ring with position synchronisation
 //! (Huang et al. 2015). Thin: parse, call the library crates, print.
 
+mod latency_cmd;
 mod plan_cmd;
 mod rt_cmd;
 mod scenario_cmd;
@@ -58,6 +59,9 @@ enum Command {
     Reproduce(sim_cmd::ReproduceArgs),
     /// Run a scenario in real time over UDP on loopback or a veth ring of network namespaces.
     Rt(rt_cmd::RtArgs),
+    /// What this host gives a real-time loop, without the ring (cyclictest-like): cycle-start
+    /// lateness and stalls, with the same loop and settings as `rt`.
+    Latency(latency_cmd::LatencyArgs),
     /// Sweep scenario keys (their product, several seeds each) in parallel: CSV and a figure.
     Sweep(sim_cmd::SweepArgs),
 }
@@ -108,6 +112,7 @@ fn main() -> ExitCode {
         Command::Reproduce(args) => sim_cmd::reproduce(&args),
         Command::Sweep(args) => sim_cmd::sweep(&args),
         Command::Rt(args) => rt_cmd::rt(&args),
+        Command::Latency(args) => latency_cmd::latency(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -8,7 +8,7 @@ use ringsync_proto::Duration;
 use ringsync_report::sim::{summary_json, trace_csv};
 use ringsync_rt::run::{ASSUMPTIONS, NodeFailure};
 use ringsync_rt::stats::Percentiles;
-use ringsync_rt::{Kill, RtError, RtOptions, RtResult, SimPrediction, TransportKind};
+use ringsync_rt::{Kill, Realtime, RtError, RtOptions, RtResult, SimPrediction, TransportKind};
 use ringsync_sim::scenario::Scenario;
 use serde_json::{Value, json};
 
@@ -24,7 +24,7 @@ pub enum Transport {
     Veth,
 }
 
-fn duration(s: &str) -> Result<Duration, String> {
+pub(crate) fn duration(s: &str) -> Result<Duration, String> {
     let d: Duration = s.parse().map_err(|e| format!("{e}"))?;
     if d.as_ns() < 0 {
         return Err(format!("{s} is negative"));
@@ -53,21 +53,8 @@ pub struct RtArgs {
     /// Also write every frame the nodes send, with its send time, as pcapng.
     #[arg(long, value_name = "FILE")]
     pcap: Option<PathBuf>,
-    /// Busy-wait this long before each deadline.
-    #[arg(long, value_parser = duration, default_value = "150us")]
-    spin: Duration,
-    /// SCHED_FIFO priority of the loop (1-99); 0 keeps the normal scheduler.
-    #[arg(long, default_value_t = 80, value_parser = clap::value_parser!(i32).range(0..=99))]
-    priority: i32,
-    /// CPU to pin the loop to (default: the last one).
-    #[arg(long)]
-    cpu: Option<usize>,
-    /// Do not pin the loop to a CPU.
-    #[arg(long, conflicts_with = "cpu")]
-    no_pin: bool,
-    /// Do not lock memory (mlockall).
-    #[arg(long)]
-    no_mlock: bool,
+    #[command(flatten)]
+    realtime: RealtimeArgs,
     /// How long the master waits for a response beyond the measured time slice.
     #[arg(long, value_parser = duration, default_value = "200us")]
     response_timeout: Duration,
@@ -91,6 +78,43 @@ pub struct RtArgs {
     no_sim_prediction: bool,
 }
 
+/// The real-time options shared by `ringsync rt` and `ringsync latency`.
+#[derive(Args, Debug)]
+pub struct RealtimeArgs {
+    /// Busy-wait this long before each deadline.
+    #[arg(long, value_parser = duration, default_value = "150us")]
+    spin: Duration,
+    /// SCHED_FIFO priority of the loop (1-99); 0 keeps the normal scheduler.
+    #[arg(long, default_value_t = 80, value_parser = clap::value_parser!(i32).range(0..=99))]
+    priority: i32,
+    /// CPU to pin the loop to (default: the last one).
+    #[arg(long)]
+    cpu: Option<usize>,
+    /// Do not pin the loop to a CPU.
+    #[arg(long, conflicts_with = "cpu")]
+    no_pin: bool,
+    /// Do not lock memory (mlockall).
+    #[arg(long)]
+    no_mlock: bool,
+}
+
+impl RealtimeArgs {
+    /// The settings these options ask for.
+    pub fn settings(&self) -> Realtime {
+        let d = Realtime::default();
+        Realtime {
+            spin: self.spin,
+            priority: self.priority,
+            cpu: if self.no_pin {
+                None
+            } else {
+                self.cpu.or(d.cpu)
+            },
+            lock_memory: !self.no_mlock,
+        }
+    }
+}
+
 fn rt_error(e: RtError) -> CliError {
     match e {
         RtError::Scenario(e) => usage(e),
@@ -99,7 +123,7 @@ fn rt_error(e: RtError) -> CliError {
     }
 }
 
-fn pct(p: &Percentiles) -> Value {
+pub(crate) fn pct(p: &Percentiles) -> Value {
     json!({
         "p50": p.p50 as f64 * 1e-3, "p99": p.p99 as f64 * 1e-3,
         "p999": p.p999 as f64 * 1e-3, "max": p.max as f64 * 1e-3, "count": p.count,
@@ -195,13 +219,11 @@ pub(crate) fn rt(args: &RtArgs) -> Result<(), CliError> {
         Transport::Udp => TransportKind::Udp,
         Transport::Veth => TransportKind::Veth,
     };
-    let mut opts = RtOptions {
+    let opts = RtOptions {
         transport,
         duration: args.duration,
         cycle: args.cycle,
-        spin: args.spin,
-        priority: args.priority,
-        lock_memory: !args.no_mlock,
+        realtime: args.realtime.settings(),
         response_timeout: args.response_timeout,
         capture: args.pcap.is_some(),
         kill: args
@@ -213,11 +235,6 @@ pub(crate) fn rt(args: &RtArgs) -> Result<(), CliError> {
         verbose: true,
         ..RtOptions::default()
     };
-    if args.no_pin {
-        opts.cpu = None;
-    } else if let Some(c) = args.cpu {
-        opts.cpu = Some(c);
-    }
     let stop = ringsync_rt::stop_flag();
     let r = ringsync_rt::run(&s, &opts, stop).map_err(rt_error)?;
     // The simulator's prediction for the scenario as run (after the overrides).

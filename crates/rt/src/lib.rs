@@ -4,12 +4,15 @@
 //! slaves' axes are simulated in real time. See `docs/runtime.md`.
 
 pub mod calibrate;
+pub mod host;
 pub mod netns;
+pub mod realtime;
 pub mod run;
 pub mod stats;
 mod sys;
 pub mod transport;
 
+pub use realtime::Realtime;
 pub use run::{Kill, RtError, RtOptions, RtResult, SimPrediction, Timing, run, sim_prediction};
 pub use transport::TransportKind;
 

@@ -32,6 +32,7 @@ use ringsync_wire::{CommandRepr, Common, FrameKind, Status};
 
 use crate::calibrate::{Calibration, calibrate};
 use crate::netns::{NetnsError, VethRing};
+use crate::realtime::Realtime;
 use crate::stats::Percentiles;
 use crate::sys;
 use crate::transport::{MAX_PDU, Port, TransportKind, VethPort, udp_ring};
@@ -70,14 +71,8 @@ pub struct RtOptions {
     pub duration: Option<Duration>,
     /// Override of the scenario's cycle time.
     pub cycle: Option<Duration>,
-    /// Busy-wait this long before each deadline.
-    pub spin: Duration,
-    /// SCHED_FIFO priority (1-99); 0 keeps the normal scheduler.
-    pub priority: i32,
-    /// CPU to pin the loop to (None: do not pin).
-    pub cpu: Option<usize>,
-    /// Lock memory (mlockall).
-    pub lock_memory: bool,
+    /// Real-time settings of the loop thread.
+    pub realtime: Realtime,
     /// How long the master waits for a response beyond the measured slice.
     pub response_timeout: Duration,
     /// Calibration rounds per figure.
@@ -103,10 +98,7 @@ impl Default for RtOptions {
             transport: TransportKind::Udp,
             duration: None,
             cycle: None,
-            spin: Duration::from_us(150),
-            priority: 80,
-            cpu: Some(sys::cpus().saturating_sub(1)),
-            lock_memory: true,
+            realtime: Realtime::default(),
             response_timeout: Duration::from_us(200),
             calibration_rounds: 200,
             trace: true,
@@ -291,7 +283,7 @@ pub fn run(scenario: &Scenario, opts: &RtOptions, stop: &AtomicBool) -> Result<R
             .collect(),
     };
     // Real time, before calibrating so that the measurements see the same scheduling.
-    let mut realtime = realtime_setup(opts);
+    let mut realtime = opts.realtime.apply();
     realtime.push(format!(
         "encoders latch {:.0} µs before each cycle start",
         s.clock.sample_lead.0.as_ns() as f64 * 1e-3
@@ -503,37 +495,6 @@ pub fn sim_prediction(s: &Scenario, seeds: u64) -> Result<SimPrediction, RtError
         sync_rmse: sync / seeds as f64,
         sync_rmse_range: (lo, hi),
     })
-}
-
-fn realtime_setup(opts: &RtOptions) -> Vec<String> {
-    let mut out = Vec::new();
-    if let Some(cpu) = opts.cpu {
-        match sys::pin_to_cpu(cpu) {
-            Ok(()) => out.push(format!("pinned to CPU {cpu}")),
-            Err(e) => out.push(format!(
-                "warning: cannot pin to CPU {cpu} ({e}); running unpinned"
-            )),
-        }
-    }
-    if opts.priority > 0 {
-        match sys::set_fifo(opts.priority) {
-            Ok(()) => out.push(format!("SCHED_FIFO priority {}", opts.priority)),
-            Err(e) => out.push(format!(
-                "warning: cannot use SCHED_FIFO ({e}); running with the normal scheduler"
-            )),
-        }
-    }
-    if opts.lock_memory {
-        match sys::lock_memory() {
-            Ok(()) => out.push("memory locked".into()),
-            Err(e) => out.push(format!("warning: cannot lock memory ({e})")),
-        }
-    }
-    out.push(format!(
-        "busy-wait the last {:.0} µs before each deadline",
-        opts.spin.as_ns() as f64 * 1e-3
-    ));
-    out
 }
 
 fn spawn_injector(
@@ -917,7 +878,7 @@ impl Ring {
     ) -> Result<(bool, Option<(usize, f64)>), RtError> {
         let n = self.slaves.len();
         let t_cyc = s.ring.cycle.0.as_ns();
-        let spin = opts.spin.as_ns();
+        let spin = opts.realtime.spin.as_ns();
         let end = self.end;
         let mut buf = vec![0u8; MAX_PDU];
         let fds_of = |ports: &[Option<Box<dyn Port>>], failed: &[bool]| -> Vec<libc::pollfd> {
