@@ -148,6 +148,12 @@ pub struct Timing {
     pub longest_outage: u64,
 }
 
+/// Busy-wait before a deadline that is not the master's [ns] (see [`Realtime::spin`] for
+/// the master's): a spin before every latch and probe kept the loop on its CPU most of
+/// each cycle, and a loop that never sleeps starves the CPU's other tasks until the kernel
+/// takes the CPU away from it for tens of ms (measured: docs/runtime.md).
+const SPIN_OTHER: i64 = 20_000;
+
 /// A stall this long or longer is the host holding the loop off its CPU (a pass of the
 /// loop takes a few µs; measured in docs/runtime.md).
 pub const STALL: i64 = 50_000;
@@ -1006,20 +1012,28 @@ impl Ring {
                     p.p99 as f64 * 1e-3
                 );
             }
-            // Wait for the next deadline, or for a frame while the master awaits one.
+            // Wait for the next deadline, or for a frame while the master awaits one. Only
+            // the master's deadlines (the cycle start, the P2P start) are worth `spin` of
+            // busy-waiting; a latch is taken at its instant whenever the loop gets to it,
+            // and a slave's response goes out when its command has been read.
             let mut wake = self.next_local(probe_k * t_cyc).0.min(m).min(end);
             if let Some(k) = kill {
                 wake = wake.min(k.at.as_ns());
             }
+            let lead = if wake >= m || wake == probe_k * t_cyc {
+                spin
+            } else {
+                spin.min(SPIN_OTHER)
+            };
             let rest = wake - now;
-            if rest > spin {
+            if rest > lead {
                 if self.master.awaiting_frames() || !self.pending.is_empty() {
-                    sys::wait_readable(&mut fds, rest - spin)
+                    sys::wait_readable(&mut fds, rest - lead)
                         .map_err(io_err("waiting for frames"))?;
                 } else {
-                    sys::sleep_until(self.t0 + wake - spin);
+                    sys::sleep_until(self.t0 + wake - lead);
                 }
-                self.woke(wake - spin);
+                self.woke(wake - lead);
             }
         }
     }
