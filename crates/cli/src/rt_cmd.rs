@@ -50,6 +50,12 @@ pub struct RtArgs {
     /// machine holds.
     #[arg(long, value_parser = duration)]
     cycle: Option<Duration>,
+    /// W instead of the scenario's faults.watchdog_cycles: cycles without a command before
+    /// a slave goes to 0 V, without a response or feedback before the master stops the
+    /// group. On a virtual machine the host can freeze the loop for several ms (see
+    /// `ringsync latency`); W must be longer, or such a freeze ends the run in a group stop.
+    #[arg(long, value_name = "W")]
+    watchdog_cycles: Option<u32>,
     /// Also write every frame the nodes send, with its send time, as pcapng.
     #[arg(long, value_name = "FILE")]
     pcap: Option<PathBuf>,
@@ -171,6 +177,7 @@ fn rt_summary(
         "lumped_lost": t.lumped_lost,
         "late_timers": t.late_timers,
         "probes_late": t.probes_late,
+        "latches_late": t.latches_late,
         "send_errors": t.send_errors,
         "receive_errors": t.receive_errors,
         "residual_clock_error_ns": {
@@ -223,6 +230,7 @@ pub(crate) fn rt(args: &RtArgs) -> Result<(), CliError> {
         transport,
         duration: args.duration,
         cycle: args.cycle,
+        watchdog_cycles: args.watchdog_cycles,
         realtime: args.realtime.settings(),
         response_timeout: args.response_timeout,
         capture: args.pcap.is_some(),

@@ -155,6 +155,32 @@ fn bad_rt_options_give_one_line_and_exit_2() {
             ],
             "fast",
         ),
+        (
+            vec![
+                "rt",
+                "paper-2015",
+                "--transport",
+                "udp",
+                "--out",
+                "/tmp/x",
+                "--watchdog-cycles",
+                "0",
+            ],
+            "faults.watchdog_cycles = 0",
+        ),
+        (
+            vec![
+                "rt",
+                "paper-2015",
+                "--transport",
+                "udp",
+                "--out",
+                "/tmp/x",
+                "--sample-lead",
+                "2ms",
+            ],
+            "clock.sample_lead",
+        ),
     ] {
         let out = ringsync(&args);
         let err = String::from_utf8_lossy(&out.stderr);

@@ -71,6 +71,9 @@ pub struct RtOptions {
     pub duration: Option<Duration>,
     /// Override of the scenario's cycle time.
     pub cycle: Option<Duration>,
+    /// Override of the scenario's W (`faults.watchdog_cycles`): cycles without a command
+    /// before a slave's safe state, without a response or feedback before the group stop.
+    pub watchdog_cycles: Option<u32>,
     /// Real-time settings of the loop thread.
     pub realtime: Realtime,
     /// How long the master waits for a response beyond the measured slice.
@@ -98,6 +101,7 @@ impl Default for RtOptions {
             transport: TransportKind::Udp,
             duration: None,
             cycle: None,
+            watchdog_cycles: None,
             realtime: Realtime::default(),
             response_timeout: Duration::from_us(200),
             calibration_rounds: 200,
@@ -134,6 +138,9 @@ pub struct Timing {
     pub receive_errors: u64,
     /// Cycle starts whose true axis states were read after the axis had moved on.
     pub probes_late: u64,
+    /// Encoder latches taken after their axis had moved past their instant (0 by design:
+    /// latches are taken before any frame moves the axis on).
+    pub latches_late: u64,
     /// The longest stall of each cycle [ns]: the longest gap between two of the loop's
     /// clock readings beyond what it asked of a sleep, or the cycle's late start. The loop
     /// reads the clock at every frame and timer, so a gap of [`STALL`] or more is the host
@@ -236,6 +243,9 @@ pub fn run(scenario: &Scenario, opts: &RtOptions, stop: &AtomicBool) -> Result<R
     }
     if let Some(d) = opts.duration {
         s.duration.0 = d;
+    }
+    if let Some(w) = opts.watchdog_cycles {
+        s.faults.watchdog_cycles = w;
     }
     s.clock.sample_lead.0 = match opts.sample_lead {
         Some(l) => l,
@@ -785,11 +795,34 @@ impl Ring {
             let sent = u64::from_le_bytes(bytes[12..20].try_into().unwrap_or([0; 8])) as i64;
             d[i].push(now - sent);
         }
+        self.latch_due(i, now);
         let local = self.osc[i].local(now);
         if self.slaves[i].handle_frame(local, local, bytes) == FrameOutcome::Forward {
             self.send(node, now, bytes);
         }
         self.drain_slave(i, now);
+    }
+
+    /// Takes slave i's encoder latches due by `t`, each at its own instant with the axis
+    /// state of that instant, however late the loop gets to them (as a hardware latch). Runs
+    /// before anything that advances the axis past them: a frame read at `t` whose command
+    /// moved the axis on first would make the latch read a later position (at a 500 µs cycle
+    /// the velocity window's opening latch fell inside axis 4's time slice, and its velocity
+    /// read up to 25 % high).
+    fn latch_due(&mut self, i: usize, t: i64) {
+        while self.alive[i + 1] && self.sample_due[i] <= t {
+            let at = self.sample_due[i];
+            // (The first cycle's latches fall before the run's start, when the axis is at
+            // rest where it starts.)
+            if self.axes[i].t > at.max(0) {
+                self.timing.latches_late += 1;
+            }
+            self.axes[i].advance(at);
+            let counts = self.axes[i].counts();
+            let local = self.osc[i].local(at);
+            self.slaves[i].handle_sample(local, counts);
+            self.sample_due[i] = self.osc[i].true_at(self.slaves[i].poll_timeout());
+        }
     }
 
     /// The earliest timer other than the master's and its true time [ns].
@@ -816,11 +849,7 @@ impl Ring {
                 *probe_k += 1;
             }
             Due::Sample(i) => {
-                // The encoder latches at its instant, however late the loop runs.
-                self.axes[i].advance(due_at);
-                let counts = self.axes[i].counts();
-                let local = self.osc[i].local(due_at);
-                self.slaves[i].handle_sample(local, counts);
+                self.latch_due(i, due_at);
                 self.drain_slave(i, now);
             }
             Due::Pending(j) => {

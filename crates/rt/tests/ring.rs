@@ -111,6 +111,10 @@ fn matches_simulator(r: &RtResult) {
     for c in &r.run.slaves {
         assert!(c.syncs > 3900, "{c:?}");
     }
+    assert_eq!(
+        r.timing.latches_late, 0,
+        "latches after their axis moved on"
+    );
     // With the lead, every latch comes before the lumped frame: no sample goes round twice.
     assert!(
         r.run.master.samples_stale < 10,

@@ -35,7 +35,7 @@ use crate::scenario::{Scenario, ScenarioError};
 /// Assumptions of the simulation that the paper does not state.
 pub const ASSUMPTIONS: &[&str] = &[
     "the master's clock is the reference; slave oscillators are offset and drift uniformly within the scenario's bounds",
-    "slaves sample their encoders at synchronised time k·T_cyc; velocity is the encoder difference over the velocity window",
+    "slaves sample their encoders at synchronised time k·T_cyc − clock.sample_lead (0 unless the scenario sets it); velocity is the encoder difference over the velocity window",
     "the master runs the law at the start of the P2P phase; time slices are fixed from the event-level cycle plan (plus jitter allowance)",
     "a command takes effect at its last bit at the slave; frames on a link never contend (the schedule keeps them apart)",
     "Track-RMSE and Sync-RMSE use the true axis positions at each cycle start (k·T_cyc), one sample per cycle",
