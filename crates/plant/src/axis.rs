@@ -187,8 +187,14 @@ fn coulomb_exact_step(x: &mut f64, v: &mut f64, j: f64, b: f64, tc: f64, drive: 
             return; // stuck: static friction holds the axis for the rest of the interval
         };
         let force = drive - tc * s;
-        // Time until v reaches 0, if the net force decelerates the motion.
-        let t_zero = if *v != 0.0 && force * s < 0.0 {
+        // Time until v reaches 0, if the net force decelerates the motion. The deceleration
+        // is at most (|force| + b·|v|)/J, so v cannot reach 0 before |v|·J/(|force| + b·|v|):
+        // when that is clearly beyond the interval the crossing (and its logarithm) is not
+        // needed. (The margin keeps the decision exactly the one the logarithm would make.)
+        let t_zero = if *v != 0.0
+            && force * s < 0.0
+            && v.abs() * j <= left * (force.abs() + b * v.abs()) * (1.0 + 1e-6)
+        {
             if b > 0.0 {
                 let v_inf = force / b;
                 Some(((*v - v_inf) / -v_inf).ln() * j / b)

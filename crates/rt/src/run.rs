@@ -742,6 +742,7 @@ impl Ring {
     fn drain_master(&mut self, now: i64) {
         while let Some(tx) = self.master.poll_transmit() {
             self.send(0, now, &tx.bytes);
+            self.master.recycle(tx.bytes);
         }
         while let Some(ev) = self.master.poll_event() {
             match ev {
@@ -857,6 +858,7 @@ impl Ring {
                 if self.alive[i + 1] {
                     self.send(i + 1, now, &bytes);
                 }
+                self.slaves[i].recycle(bytes);
             }
         }
     }

@@ -211,6 +211,8 @@ struct Sim<'a> {
     osc: Vec<Oscillator>,
     axes: Vec<ServoAxis>,
     gens: Vec<u64>,
+    /// True time of each slave's valid pending latch event (None once it has run).
+    sample_at: Vec<Option<i64>>,
     master_gen: u64,
     link_rng: Vec<Rng>,
     n: usize,
@@ -223,6 +225,8 @@ struct Sim<'a> {
     /// Per-hop loss and corruption probabilities.
     hop_loss: f64,
     hop_corruption: f64,
+    /// Loss and corruption probabilities over h hops (index h, 0 ..= n + 1).
+    over_hops: Vec<(f64, f64)>,
     end: i64,
     counters: LinkCounters,
     opts: RunOptions,
@@ -280,6 +284,7 @@ impl<'a> Sim<'a> {
             osc,
             axes,
             gens: vec![0; n],
+            sample_at: vec![None; n],
             master_gen: 0,
             link_rng: (0..=n).map(|h| Rng::stream(s.seed, h as u64)).collect(),
             n,
@@ -290,6 +295,7 @@ impl<'a> Sim<'a> {
             slots_per_frame: plan.lumped.slots_per_frame,
             hop_loss: 1.0 - (1.0 - s.faults.loss).powf(1.0 / (n + 1) as f64),
             hop_corruption: 1.0 - (1.0 - s.faults.corruption).powf(1.0 / (n + 1) as f64),
+            over_hops: Vec::new(),
             end: cycles * s.ring.cycle.0.as_ns(),
             counters: LinkCounters::default(),
             opts,
@@ -297,6 +303,10 @@ impl<'a> Sim<'a> {
             rec: Recorder::new(n, cycles, s.ring.cycle.secs(), opts_trace),
             captured: Vec::new(),
         };
+        let over = |p: f64, h: usize| 1.0 - (1.0 - p).powi(h as i32);
+        sim.over_hops = (0..=n + 1)
+            .map(|h| (over(sim.hop_loss, h), over(sim.hop_corruption, h)))
+            .collect();
         sim.schedule_master();
         for i in 0..n {
             sim.schedule_sample(i);
@@ -333,9 +343,16 @@ impl<'a> Sim<'a> {
         }
     }
 
+    /// Schedules slave i's next latch. A clock sync moves the latch's local deadline by
+    /// nanoseconds at most, and often not at all in true time: then the pending event
+    /// stands (a new one would leave the old, invalidated, in the queue until its time).
     fn schedule_sample(&mut self, i: usize) {
-        self.gens[i] += 1;
         let t = self.osc[i].true_at(self.slaves[i].poll_timeout());
+        if self.sample_at[i] == Some(t) {
+            return;
+        }
+        self.sample_at[i] = Some(t);
+        self.gens[i] += 1;
         let generation = self.gens[i];
         self.push(
             t,
@@ -406,6 +423,7 @@ impl<'a> Sim<'a> {
                 rx += (rng.unit() * (self.jitter + 1) as f64) as i64;
                 if rng.chance(self.hop_loss) {
                     self.counters.lost += 1;
+                    self.recycle(from, bytes);
                     return;
                 }
                 if rng.chance(self.hop_corruption) {
@@ -414,12 +432,13 @@ impl<'a> Sim<'a> {
             }
         } else {
             // No jitter: one draw each with the probability over all hops (same distribution).
-            let over = |p: f64| 1.0 - (1.0 - p).powi(hops as i32);
-            if rng.chance(over(self.hop_loss)) {
+            let (loss, corruption) = self.over_hops[hops as usize];
+            if rng.chance(loss) {
                 self.counters.lost += 1;
+                self.recycle(from, bytes);
                 return;
             }
-            corrupted = rng.chance(over(self.hop_corruption));
+            corrupted = rng.chance(corruption);
         }
         if corrupted {
             let bit = (rng.next_u64() % (bytes.len() as u64 * 8)) as usize;
@@ -446,6 +465,14 @@ impl<'a> Sim<'a> {
                 corrupted,
             },
         );
+    }
+
+    /// Hands a frame buffer back to node `node` (0 = master) for its next sends.
+    fn recycle(&mut self, node: usize, bytes: Vec<u8>) {
+        match node {
+            0 => self.master.recycle(bytes),
+            i => self.slaves[i - 1].recycle(bytes),
+        }
     }
 
     fn log(&mut self, node: usize, bytes: &[u8], rx_start: i64, rx_end: i64) {
@@ -496,6 +523,7 @@ impl<'a> Sim<'a> {
                 Ev::Master { generation } if generation == self.master_gen => self.on_master(t),
                 Ev::Master { .. } => {}
                 Ev::Sample { slave, generation } if generation == self.gens[slave] => {
+                    self.sample_at[slave] = None;
                     self.on_sample(slave, t)
                 }
                 Ev::Sample { .. } => {}
@@ -512,6 +540,7 @@ impl<'a> Sim<'a> {
                     }
                     if node == 0 {
                         self.master.handle_frame(Instant::from_ns(t), &bytes);
+                        self.master.recycle(bytes);
                         self.drain_master(t);
                         self.schedule_master();
                     } else {
@@ -572,7 +601,9 @@ impl<'a> Sim<'a> {
                 let b = std::mem::take(bytes);
                 self.send(i + 1, rx_start + self.residence, b);
             }
-            FrameOutcome::Consumed | FrameOutcome::Dropped => {}
+            FrameOutcome::Consumed | FrameOutcome::Dropped => {
+                self.slaves[i].recycle(std::mem::take(bytes));
+            }
         }
         self.drain_slave(i, rx_end);
         if self.slaves[i].poll_timeout() != before {

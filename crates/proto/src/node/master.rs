@@ -281,6 +281,7 @@ pub struct Master {
     out: VecDeque<Transmit>,
     events: VecDeque<MasterEvent>,
     counters: MasterCounters,
+    spares: super::Spares,
 }
 
 impl Master {
@@ -330,6 +331,7 @@ impl Master {
             out: VecDeque::new(),
             events: VecDeque::new(),
             counters: MasterCounters::default(),
+            spares: super::Spares::default(),
             cfg,
         }
     }
@@ -503,7 +505,7 @@ impl Master {
             first_slot: first as u16,
             slots,
         };
-        let mut buf = vec![0u8; repr.buffer_len()];
+        let mut buf = self.spares.take(repr.buffer_len());
         if repr.emit(&mut buf).is_ok() {
             self.out.push_back(Transmit {
                 at: now,
@@ -678,7 +680,7 @@ impl Master {
             command_v: self.output.u[target] as f32,
             sample_time_ns: (self.fb.sample_time[target] * 1e9).round().max(0.0) as u64,
         };
-        let mut buf = vec![0u8; cmd.buffer_len()];
+        let mut buf = self.spares.take(cmd.buffer_len());
         if cmd.emit(&mut buf).is_ok() {
             self.out.push_back(Transmit {
                 at: now,
@@ -801,6 +803,12 @@ impl Master {
                 _ => self.counters.bad_frames += 1,
             }
         }
+    }
+
+    /// Hands back the buffer of a frame the driver is done with (sent, or received and
+    /// handled), for the master's next sends. Optional: without it the master allocates.
+    pub fn recycle(&mut self, buf: Vec<u8>) {
+        self.spares.give(buf);
     }
 
     /// The next frame to send.

@@ -15,6 +15,32 @@ pub use slave::{FrameOutcome, LumpedOnlyControl, Slave, SlaveConfig, SlaveCounte
 
 use crate::time::Instant;
 
+/// Spare frame buffers a node reuses for its next sends, so that a steady ring allocates
+/// nothing per frame: the driver hands back the buffers of the frames it is done with
+/// ([`Master::recycle`], [`Slave::recycle`]).
+#[derive(Debug, Clone, Default)]
+pub(crate) struct Spares(Vec<Vec<u8>>);
+
+impl Spares {
+    /// At most this many buffers are kept.
+    const MAX: usize = 16;
+
+    /// A zeroed buffer of `len` bytes, a spare one when there is one.
+    pub(crate) fn take(&mut self, len: usize) -> Vec<u8> {
+        let mut b = self.0.pop().unwrap_or_default();
+        b.clear();
+        b.resize(len, 0);
+        b
+    }
+
+    /// Keeps `b` for a later send.
+    pub(crate) fn give(&mut self, b: Vec<u8>) {
+        if self.0.len() < Self::MAX && b.capacity() > 0 {
+            self.0.push(b);
+        }
+    }
+}
+
 /// A frame to put on the ring port, first bit at `at` on the sender's local clock.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Transmit {

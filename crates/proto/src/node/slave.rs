@@ -145,6 +145,7 @@ pub struct Slave {
     events: VecDeque<SlaveEvent>,
     counters: SlaveCounters,
     law: Option<SlaveLaw>,
+    spares: super::Spares,
 }
 
 impl std::fmt::Debug for Slave {
@@ -200,6 +201,7 @@ impl Slave {
             out: VecDeque::new(),
             events: VecDeque::new(),
             counters: SlaveCounters::default(),
+            spares: super::Spares::default(),
             law: None,
         }
     }
@@ -231,6 +233,12 @@ impl Slave {
 
     fn sample_instant(&self) -> Instant {
         Instant::from_ns(self.k * self.cfg.cycle.as_ns()) - self.cfg.sample_lead
+    }
+
+    /// Hands back the buffer of a frame the driver is done with (sent, consumed or
+    /// dropped), for the slave's next sends. Optional: without it the slave allocates.
+    pub fn recycle(&mut self, buf: Vec<u8>) {
+        self.spares.give(buf);
     }
 
     /// Local time of the next encoder latch; call [`Slave::handle_sample`] then.
@@ -476,7 +484,7 @@ impl Slave {
             sample_time_ns: self.sample.sample_time_ns,
             applied_v: self.u as f32,
         };
-        let mut buf = vec![0u8; resp.buffer_len()];
+        let mut buf = self.spares.take(resp.buffer_len());
         if resp.emit(&mut buf).is_ok() {
             self.out.push_back(Transmit {
                 at: rx_end + self.cfg.response_delay,
