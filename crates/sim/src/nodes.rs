@@ -148,6 +148,11 @@ impl Oscillator {
         if self.res == 1 {
             return Instant::from_ns(l);
         }
+        if self.res & (self.res - 1) == 0 {
+            // A power of two (8 ns, the reference): clearing the low bits rounds down in
+            // two's complement exactly as rem_euclid does, without a division.
+            return Instant::from_ns(l & !(self.res - 1));
+        }
         Instant::from_ns(l - l.rem_euclid(self.res))
     }
 

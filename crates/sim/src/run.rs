@@ -363,11 +363,12 @@ impl<'a> Sim<'a> {
         );
     }
 
-    fn frame_ns(&self, bytes: &[u8]) -> i64 {
-        match Frame::new_checked(bytes).map(|f| f.kind_byte()) {
-            Ok(1) => self.frame_ns[0],
-            Ok(2) => self.frame_ns[1],
-            Ok(4) => self.frame_ns[3],
+    /// Wire time of a frame of kind `kind` (its kind byte) [ns].
+    fn frame_ns(&self, kind: u8) -> i64 {
+        match kind {
+            1 => self.frame_ns[0],
+            2 => self.frame_ns[1],
+            4 => self.frame_ns[3],
             _ => self.frame_ns[2],
         }
     }
@@ -413,7 +414,7 @@ impl<'a> Sim<'a> {
         let stop = if stop == 0 && from == 0 { ring } else { stop };
         let hops = ((stop + ring - from) % ring).max(1) as i64;
         let stop = stop % ring;
-        let dur = self.frame_ns(&bytes);
+        let dur = self.frame_ns(kind);
         let rng = &mut self.link_rng[from];
         let mut rx = t_tx + hops * self.hop + (hops - 1) * self.residence;
         let mut corrupted = false;

@@ -381,3 +381,22 @@ fn integer_floor_matches_libm_floor() {
         assert_eq!(crate::nodes::floor_i64(y), y.floor() as i64, "{y}");
     }
 }
+
+/// The oscillator's truncation to a power-of-two resolution (a mask) against rem_euclid,
+/// for negative readings too.
+#[test]
+fn power_of_two_resolution_truncates_like_rem_euclid() {
+    use crate::nodes::Oscillator;
+    let mut r = crate::rng::Rng::stream(5, 9);
+    for k in 0..100_000 {
+        let res = [2i64, 8, 64, 1024][k % 4];
+        let o = Oscillator {
+            offset: r.symmetric(1e9),
+            rate: 1.0 + r.symmetric(1e-4),
+            res,
+        };
+        let t = r.symmetric(1e12) as i64;
+        let l = crate::nodes::floor_i64(o.offset + t as f64 * o.rate);
+        assert_eq!(o.local(t).as_ns(), l - l.rem_euclid(res), "{o:?} t = {t}");
+    }
+}
