@@ -183,6 +183,17 @@ struct Queued {
     ev: Ev,
 }
 
+/// A slave's pending encoder latch, kept apart from the other events: there is one per
+/// slave, so on a long ring they would make every insertion into the sorted event vector
+/// walk and shift O(n) entries. Ordered by (time, sequence) like every event.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+struct Latch {
+    t: i64,
+    seq: u64,
+    slave: usize,
+    generation: u64,
+}
+
 impl PartialEq for Queued {
     fn eq(&self, o: &Self) -> bool {
         (self.t, self.seq) == (o.t, o.seq)
@@ -205,6 +216,8 @@ struct Sim<'a> {
     /// Pending events, sorted by (time, sequence) descending: the next one is last. The
     /// queue stays short (a few events per node), so an insertion's move is cheap.
     q: Vec<Queued>,
+    /// Pending encoder latches, soonest first.
+    latches: std::collections::BinaryHeap<std::cmp::Reverse<Latch>>,
     seq: u64,
     master: Master,
     slaves: Vec<Slave>,
@@ -278,6 +291,7 @@ impl<'a> Sim<'a> {
         let mut sim = Sim {
             s,
             q: Vec::with_capacity(64),
+            latches: std::collections::BinaryHeap::with_capacity(2 * n + 2),
             seq: 0,
             master,
             slaves,
@@ -353,14 +367,34 @@ impl<'a> Sim<'a> {
         }
         self.sample_at[i] = Some(t);
         self.gens[i] += 1;
-        let generation = self.gens[i];
-        self.push(
+        self.seq += 1;
+        self.latches.push(std::cmp::Reverse(Latch {
             t,
-            Ev::Sample {
-                slave: i,
-                generation,
-            },
-        );
+            seq: self.seq,
+            slave: i,
+            generation: self.gens[i],
+        }));
+    }
+
+    /// The next event in (time, sequence) order, from the event vector or the latches.
+    fn pop(&mut self) -> Option<(i64, Ev)> {
+        let latch_first = match (self.latches.peek(), self.q.last()) {
+            (Some(std::cmp::Reverse(l)), Some(e)) => (l.t, l.seq) < (e.t, e.seq),
+            (Some(_), None) => true,
+            (None, _) => false,
+        };
+        if latch_first {
+            let std::cmp::Reverse(l) = self.latches.pop()?;
+            Some((
+                l.t,
+                Ev::Sample {
+                    slave: l.slave,
+                    generation: l.generation,
+                },
+            ))
+        } else {
+            self.q.pop().map(|e| (e.t, e.ev))
+        }
     }
 
     /// Wire time of a frame of kind `kind` (its kind byte) [ns].
@@ -512,7 +546,7 @@ impl<'a> Sim<'a> {
 
     fn run(&mut self, progress: &mut dyn FnMut(i64, i64)) {
         let cycles = self.end / self.s.ring.cycle.0.as_ns();
-        while let Some(Queued { t, ev, .. }) = self.q.pop() {
+        while let Some((t, ev)) = self.pop() {
             if t >= self.end {
                 // Let the last cycle's probe pass; nothing after the end counts.
                 if !matches!(ev, Ev::Probe { .. }) {

@@ -89,14 +89,23 @@ impl MasterConfig {
         let n = plan.slaves() as i64;
         let tl = plan.timeline();
         let gap = plan.link.gap();
-        let command_arrival = (1..=plan.slaves())
-            .map(|i| {
-                tl.passages
-                    .iter()
-                    .find(|p| p.frame == FrameRef::Command(i) && p.node == Node::Slave(i))
-                    .and_then(|p| p.rx)
-                    .map_or(Duration::ZERO, |rx| rx.end.since_origin())
-            })
+        // Axis i's command arrival: its first passage at slave i (one pass over the
+        // timeline's O(n²) passages; a search per slave made the set-up O(n³)).
+        let mut command_arrival = vec![None; plan.slaves() as usize];
+        for p in &tl.passages {
+            if let (FrameRef::Command(i), Node::Slave(j)) = (p.frame, p.node)
+                && i == j
+                && let Some(slot) = (i as usize)
+                    .checked_sub(1)
+                    .and_then(|k| command_arrival.get_mut(k))
+                && slot.is_none()
+            {
+                *slot = Some(p.rx.map_or(Duration::ZERO, |rx| rx.end.since_origin()));
+            }
+        }
+        let command_arrival = command_arrival
+            .into_iter()
+            .map(|a| a.unwrap_or(Duration::ZERO))
             .collect();
         MasterConfig {
             cycle: plan.params.t_cyc,

@@ -1,0 +1,52 @@
+//! The simulator's cost per simulated cycle and axis against the ring size n, from the
+//! criterion benchmark's saved estimates: prints the table for docs/benchmarks.md and
+//! writes the figure.
+//!
+//! ```sh
+//! taskset -c 1 cargo bench -p ringsync-sim --bench sim -- cycle_cost
+//! cargo run --release --example sim_cost_plot -- docs/img/sim-cost-vs-n.svg
+//! ```
+
+use ringsync_report::plot::{PALETTE, Series, line_chart};
+
+/// Ring sizes the benchmark runs (crates/sim/benches/sim.rs), each for 20 cycles.
+const SIZES: [u32; 8] = [2, 4, 8, 16, 32, 64, 128, 256];
+const CYCLES: f64 = 20.0;
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let out = std::env::args()
+        .nth(1)
+        .unwrap_or_else(|| "sim-cost-vs-n.svg".into());
+    let target = std::env::var("CARGO_TARGET_DIR").unwrap_or_else(|_| "target".into());
+    println!("| n | time for 20 cycles | per cycle | per cycle and axis |");
+    println!("|---:|---:|---:|---:|");
+    let mut points = Vec::new();
+    for n in SIZES {
+        let path = format!("{target}/criterion/cycle_cost_vs_n/{n}/new/estimates.json");
+        let text = std::fs::read_to_string(&path)
+            .map_err(|e| format!("{path}: {e} (run the benchmark first)"))?;
+        let v: serde_json::Value = serde_json::from_str(&text)?;
+        let ns = v["mean"]["point_estimate"]
+            .as_f64()
+            .ok_or_else(|| format!("{path}: no mean.point_estimate"))?;
+        let (cycle_us, axis_us) = (ns / CYCLES * 1e-3, ns / CYCLES / f64::from(n) * 1e-3);
+        println!(
+            "| {n} | {:.1} µs | {cycle_us:.2} µs | {axis_us:.2} µs |",
+            ns * 1e-3
+        );
+        points.push((f64::from(n), axis_us));
+    }
+    let svg = line_chart(
+        "Simulator cost per simulated cycle and axis (M1, pinned)",
+        "ring size n [axes]",
+        "µs per cycle and axis",
+        &[Series {
+            name: "criterion mean, 20 cycles".into(),
+            colour: PALETTE[0],
+            points,
+        }],
+    );
+    std::fs::write(&out, svg)?;
+    println!("wrote {out}");
+    Ok(())
+}
