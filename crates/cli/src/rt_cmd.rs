@@ -192,6 +192,7 @@ fn rt_summary(
         })),
         "calibration": {
             "rounds": c.rounds,
+            "rounds_repeated_after_host_stalls": c.repeated,
             "path_delay_us": c.path.iter().map(|d| *d as f64 * 1e-3).collect::<Vec<_>>(),
             "round_trip_us": pct(&c.round_trip),
             "slice_us": c.slice.iter().map(pct).collect::<Vec<_>>(),

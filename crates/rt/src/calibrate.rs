@@ -10,6 +10,7 @@ use ringsync_wire::{
     CommandRepr, Common, FeedbackSlot, Frame, FrameKind, LumpedRepr, ResponseRepr, Status,
 };
 
+use crate::run::STALL;
 use crate::stats::Percentiles;
 use crate::sys::now_ns;
 use crate::transport::{MAX_PDU, Port};
@@ -19,6 +20,9 @@ use crate::transport::{MAX_PDU, Port};
 pub struct Calibration {
     /// Rounds measured per figure.
     pub rounds: usize,
+    /// Rounds measured again because the host held the loop off its CPU during them
+    /// (a stall of [`STALL`] or more between two clock readings).
+    pub repeated: usize,
     /// Median delay from the master's send to each slave's read of the lumped frame.
     pub path: Vec<i64>,
     /// Lumped frame round trip.
@@ -29,39 +33,75 @@ pub struct Calibration {
     pub slice: Vec<Percentiles>,
 }
 
+/// One pass of a frame round the ring: the read time at each node [ns from the send], and
+/// whether the host held the loop off its CPU meanwhile (then the times measure the host).
+struct Pass {
+    seen: Vec<Option<i64>>,
+    stalled: bool,
+}
+
 /// Sends `first` from node `from` and lets the ring carry it: `visit(node, bytes)` is called
-/// at every node that reads a frame and returns what that node sends on (the same or a new
-/// frame), or `None` when the frame ends there. Returns the read times [ns] per node.
+/// at every node that reads a frame and returns whether that node sends it on (changed or
+/// not) or the frame ends there.
 fn pass(
     ports: &mut [Box<dyn Port>],
     from: usize,
     first: &[u8],
     visit: &mut dyn FnMut(usize, &mut Vec<u8>) -> bool,
-) -> io::Result<Vec<Option<i64>>> {
+) -> io::Result<Pass> {
     let nodes = ports.len();
-    let mut seen = vec![None; nodes];
+    let mut out = Pass {
+        seen: vec![None; nodes],
+        stalled: false,
+    };
     let mut buf = vec![0u8; MAX_PDU];
     let t0 = now_ns();
     ports[from].send(first)?;
     let deadline = t0 + 20_000_000;
+    let mut last = now_ns();
     loop {
         let mut got = false;
-        for node in 0..nodes {
-            if let Some(len) = ports[node].recv(&mut buf)? {
+        for (node, port) in ports.iter_mut().enumerate() {
+            if let Some(len) = port.recv(&mut buf)? {
                 got = true;
-                seen[node] = Some(now_ns() - t0);
+                out.seen[node] = Some(now_ns() - t0);
                 let mut bytes = buf[..len].to_vec();
                 if !visit(node, &mut bytes) {
-                    return Ok(seen);
+                    return Ok(out);
                 }
-                ports[node].send(&bytes)?;
+                port.send(&bytes)?;
             }
         }
-        if !got && now_ns() > deadline {
-            return Ok(seen);
+        // The loop reads the clock at least once per sweep of the ports, a few µs apart.
+        let now = now_ns();
+        out.stalled |= now - last >= STALL;
+        last = now;
+        if !got && now > deadline {
+            return Ok(out);
         }
     }
 }
+
+/// Repeats `one` until it gives a pass the host did not stall, at most `tries` times; the
+/// last pass otherwise. Counts the passes thrown away.
+fn unstalled(
+    tries: usize,
+    repeated: &mut usize,
+    mut one: impl FnMut() -> io::Result<Pass>,
+) -> io::Result<Pass> {
+    let mut p = one()?;
+    for _ in 1..tries {
+        if !p.stalled {
+            break;
+        }
+        *repeated += 1;
+        p = one()?;
+    }
+    Ok(p)
+}
+
+/// A pass the host stalled is measured again at most this many times.
+const TRIES: usize = 5;
 
 /// Measures the ring of `ports` (node 0 the master) over `rounds` rounds each.
 pub fn calibrate(ports: &mut [Box<dyn Port>], rounds: usize) -> io::Result<Calibration> {
@@ -78,20 +118,24 @@ pub fn calibrate(ports: &mut [Box<dyn Port>], rounds: usize) -> io::Result<Calib
     lumped
         .emit(&mut lbuf)
         .map_err(|e| io::Error::other(e.to_string()))?;
+    let mut repeated = 0;
     for _ in 0..rounds {
         // Each slave checks the CRC and seals the frame again, as it does when it writes
         // its slot.
-        let seen = pass(ports, 0, &lbuf, &mut |node, bytes| {
-            if node == 0 {
-                return false;
-            }
-            if let Ok(mut f) = Frame::new_checked(&mut bytes[..])
-                && f.check().is_ok()
-            {
-                f.fill_crc();
-            }
-            true
-        })?;
+        let seen = unstalled(TRIES, &mut repeated, || {
+            pass(ports, 0, &lbuf, &mut |node, bytes| {
+                if node == 0 {
+                    return false;
+                }
+                if let Ok(mut f) = Frame::new_checked(&mut bytes[..])
+                    && f.check().is_ok()
+                {
+                    f.fill_crc();
+                }
+                true
+            })
+        })?
+        .seen;
         for (i, p) in path.iter_mut().enumerate() {
             if let Some(t) = seen[i + 1] {
                 p.push(t);
@@ -127,18 +171,21 @@ pub fn calibrate(ports: &mut [Box<dyn Port>], rounds: usize) -> io::Result<Calib
         resp.emit(&mut rbuf)
             .map_err(|e| io::Error::other(e.to_string()))?;
         for _ in 0..rounds {
-            let seen = pass(ports, 0, &cbuf, &mut |node, bytes| {
-                if node == 0 {
-                    return false;
-                }
-                let kind = Frame::new_checked(&bytes[..])
-                    .ok()
-                    .and_then(|f| f.check().ok());
-                if node == target && kind == Some(FrameKind::Command) {
-                    bytes.clone_from(&rbuf);
-                }
-                true
-            })?;
+            let seen = unstalled(TRIES, &mut repeated, || {
+                pass(ports, 0, &cbuf, &mut |node, bytes| {
+                    if node == 0 {
+                        return false;
+                    }
+                    let kind = Frame::new_checked(&bytes[..])
+                        .ok()
+                        .and_then(|f| f.check().ok());
+                    if node == target && kind == Some(FrameKind::Command) {
+                        bytes.clone_from(&rbuf);
+                    }
+                    true
+                })
+            })?
+            .seen;
             if let (Some(c), Some(s)) = (seen[target], seen[0]) {
                 command[target - 1].push(c);
                 slice[target - 1].push(s);
@@ -154,9 +201,42 @@ pub fn calibrate(ports: &mut [Box<dyn Port>], rounds: usize) -> io::Result<Calib
     }
     Ok(Calibration {
         rounds,
+        repeated,
         path: path.iter().map(|v| Percentiles::of(v).p50).collect(),
         round_trip: Percentiles::of(&rtt),
         command: command.iter().map(|v| Percentiles::of(v).p50).collect(),
         slice: slice.iter().map(|v| Percentiles::of(v)).collect(),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn passes(stalled: &'static [bool]) -> impl FnMut() -> io::Result<Pass> {
+        let mut k = 0;
+        move || {
+            let p = Pass {
+                seen: vec![Some(k as i64)],
+                stalled: stalled[k.min(stalled.len() - 1)],
+            };
+            k += 1;
+            Ok(p)
+        }
+    }
+
+    #[test]
+    fn a_stalled_pass_is_measured_again() {
+        let mut repeated = 0;
+        let p = unstalled(TRIES, &mut repeated, passes(&[true, true, false])).expect("pass");
+        assert_eq!((p.seen[0], p.stalled, repeated), (Some(2), false, 2));
+        // A clean first pass is kept as it is.
+        let p = unstalled(TRIES, &mut repeated, passes(&[false])).expect("pass");
+        assert_eq!((p.seen[0], repeated), (Some(0), 2));
+        // A host that stalls every pass: the last of TRIES is taken.
+        let mut repeated = 0;
+        let p = unstalled(TRIES, &mut repeated, passes(&[true])).expect("pass");
+        assert_eq!((p.seen[0], p.stalled), (Some(TRIES as i64 - 1), true));
+        assert_eq!(repeated, TRIES - 1);
+    }
 }

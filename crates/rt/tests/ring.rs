@@ -115,11 +115,17 @@ fn matches_simulator(r: &RtResult) {
         r.timing.latches_late, 0,
         "latches after their axis moved on"
     );
-    // With the lead, every latch comes before the lumped frame: no sample goes round twice.
+    // With the sampling lead every latch comes before its lumped frame. A sample goes round
+    // twice only after the host froze the loop for about a cycle: the loop then takes the
+    // overdue latches (the next cycle's too) before it reads the frame waiting in a socket,
+    // so that frame carries the next cycle's sample and the next frame carries it again.
+    // At most one per axis and stalled cycle (measured: 0-18 in 4 s runs, 4-17 a minute).
+    let n = r.run.slaves.len() as u64;
     assert!(
-        r.run.master.samples_stale < 10,
-        "{} stale samples",
-        r.run.master.samples_stale
+        r.run.master.samples_stale <= n * r.timing.cycles_stalled,
+        "{} stale samples, {} stalled cycles",
+        r.run.master.samples_stale,
+        r.timing.cycles_stalled
     );
     let clock = r.run.clock_error_max_ns.iter().copied().fold(0.0, f64::max);
     assert!(clock < 200_000.0, "clock error {clock} ns");
