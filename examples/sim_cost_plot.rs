@@ -1,6 +1,6 @@
-//! The simulator's cost per simulated cycle and axis against the ring size n, from the
-//! criterion benchmark's saved estimates: prints the table for docs/benchmarks.md and
-//! writes the figure.
+//! The simulator's cost per simulated cycle against the ring size n, from the criterion
+//! benchmark's saved estimates, beside a line proportional to n: prints the table for
+//! docs/benchmarks.md and writes the figure.
 //!
 //! ```sh
 //! taskset -c 1 cargo bench -p ringsync-sim --bench sim -- cycle_cost
@@ -34,17 +34,26 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "| {n} | {:.1} µs | {cycle_us:.2} µs | {axis_us:.2} µs |",
             ns * 1e-3
         );
-        points.push((f64::from(n), axis_us));
+        points.push((f64::from(n), cycle_us, axis_us));
     }
+    // Linear growth is a straight line through the origin: the one through the largest ring.
+    let per_axis = points.last().map_or(0.0, |p| p.2);
     let svg = line_chart(
-        "Simulator cost per simulated cycle and axis (M1, pinned)",
+        "Simulator cost per simulated cycle against the ring size (M1, pinned)",
         "ring size n [axes]",
-        "µs per cycle and axis",
-        &[Series {
-            name: "criterion mean, 20 cycles".into(),
-            colour: PALETTE[0],
-            points,
-        }],
+        "µs per simulated cycle",
+        &[
+            Series {
+                name: "criterion mean, 20 cycles".into(),
+                colour: PALETTE[0],
+                points: points.iter().map(|p| (p.0, p.1)).collect(),
+            },
+            Series {
+                name: format!("{per_axis:.2} µs × n"),
+                colour: PALETTE[1],
+                points: vec![(0.0, 0.0), (256.0, 256.0 * per_axis)],
+            },
+        ],
     );
     std::fs::write(&out, svg)?;
     println!("wrote {out}");
