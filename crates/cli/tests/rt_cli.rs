@@ -118,6 +118,7 @@ fn a_run_that_fails_after_building_the_ring_removes_it() {
 
 #[test]
 fn bad_rt_options_give_one_line_and_exit_2() {
+    let base = ["rt", "paper-2015", "--transport", "udp", "--out", "/tmp/x"];
     for (args, says) in [
         (
             vec!["rt", "no-such", "--transport", "udp", "--out", "/tmp/x"],
@@ -128,57 +129,16 @@ fn bad_rt_options_give_one_line_and_exit_2() {
             "tcp",
         ),
         (
-            vec![
-                "rt",
-                "paper-2015",
-                "--transport",
-                "udp",
-                "--out",
-                "/tmp/x",
-                "--kill-slave",
-                "9",
-                "--kill-at",
-                "1s",
-            ],
+            [&base[..], &["--kill-slave", "9", "--kill-at", "1s"]].concat(),
             "--kill-slave 9",
         ),
+        ([&base[..], &["--cycle", "fast"]].concat(), "fast"),
         (
-            vec![
-                "rt",
-                "paper-2015",
-                "--transport",
-                "udp",
-                "--out",
-                "/tmp/x",
-                "--cycle",
-                "fast",
-            ],
-            "fast",
-        ),
-        (
-            vec![
-                "rt",
-                "paper-2015",
-                "--transport",
-                "udp",
-                "--out",
-                "/tmp/x",
-                "--watchdog-cycles",
-                "0",
-            ],
+            [&base[..], &["--watchdog-cycles", "0"]].concat(),
             "faults.watchdog_cycles = 0",
         ),
         (
-            vec![
-                "rt",
-                "paper-2015",
-                "--transport",
-                "udp",
-                "--out",
-                "/tmp/x",
-                "--sample-lead",
-                "2ms",
-            ],
+            [&base[..], &["--sample-lead", "2ms"]].concat(),
             "clock.sample_lead",
         ),
     ] {

@@ -189,6 +189,36 @@ mod tests {
         Instant::from_ns(l - l.rem_euclid(res))
     }
 
+    /// Syncs a clock with `filter` `cycles` times 1 ms apart, on an oscillator 300 ns off and
+    /// `ppm` fast with 1 ns timestamps, over a 5 µs path; frame k is read `late(k)` ns after
+    /// it arrives. After each sync `each(k, sent, clock)` looks at the clock.
+    fn drive(
+        filter: ClockFilter,
+        ppm: f64,
+        cycles: i64,
+        mut late: impl FnMut(i64) -> i64,
+        mut each: impl FnMut(i64, i64, &SyncClock),
+    ) -> SyncClock {
+        let path = 5_000;
+        let mut c = SyncClock::new(true);
+        c.set_filter(filter);
+        for k in 0..cycles {
+            let sent = k * 1_000_000;
+            c.sync(
+                local(sent + path + late(k), 300, ppm, 1),
+                Instant::from_ns(sent),
+                Duration::from_ns(path),
+            );
+            each(k, sent, &c);
+        }
+        c
+    }
+
+    /// |S(L) − t| at true time `t` [ns], on the oscillator of [`drive`].
+    fn error_at(c: &SyncClock, t: i64, ppm: f64) -> i64 {
+        (c.to_sync(local(t, 300, ppm, 1)).as_ns() - t).abs()
+    }
+
     #[test]
     fn converges_to_master_time_with_drift() {
         let (offset, ppm, path) = (7_300, 48.0, 4_240);
@@ -218,34 +248,28 @@ mod tests {
 
     #[test]
     fn the_filter_averages_jitter_and_skips_outliers() {
-        let (path, cycles) = (5_000, 600i64);
+        let cycles = 600i64;
         // Every 50th frame is read 900 µs late; all of them come after the clock locks.
         let late = |k: i64| k % 50 == 49;
         let run = |filter: ClockFilter| {
-            let mut c = SyncClock::new(true);
-            c.set_filter(filter);
             let mut r = 12_345u64;
             let mut worst = 0;
-            for k in 0..cycles {
+            // ±4 µs jitter, and a frame read 900 µs late every 50 cycles.
+            let jitter = move |k: i64| {
                 r = r
                     .wrapping_mul(6364136223846793005)
                     .wrapping_add(1442695040888963407);
-                // ±4 µs jitter, and a frame read 900 µs late every 50 cycles.
-                let mut jitter = ((r >> 33) % 8_001) as i64 - 4_000;
                 if late(k) {
-                    jitter = 900_000;
+                    900_000
+                } else {
+                    ((r >> 33) % 8_001) as i64 - 4_000
                 }
-                let sent = k * 1_000_000;
-                c.sync(
-                    local(sent + path + jitter, 300, 20.0, 1),
-                    Instant::from_ns(sent),
-                    Duration::from_ns(path),
-                );
-                let t = sent + 999_000;
+            };
+            let c = drive(filter, 20.0, cycles, jitter, |k, sent, c| {
                 if k >= 100 {
-                    worst = worst.max((c.to_sync(local(t, 300, 20.0, 1)).as_ns() - t).abs());
+                    worst = worst.max(error_at(c, sent + 999_000, 20.0));
                 }
-            }
+            });
             (worst, c.skipped(), c.rate())
         };
         let (raw, skipped_raw, _) = run(ClockFilter::default());
@@ -290,27 +314,19 @@ mod tests {
     /// (3000 ppm at 1/100) for as long as the filter remembers it.
     #[test]
     fn bursts_of_late_frames_leave_the_rate_alone() {
-        let (path, ppm) = (5_000, 20.0);
+        let ppm = 20.0;
         let run = |filter: ClockFilter| {
-            let mut c = SyncClock::new(true);
-            c.set_filter(filter);
+            let late = |k: i64| match k % 200 {
+                150..156 => 150_000 + 50_000 * (k % 200 - 150),
+                _ => 0,
+            };
             let mut worst = 0.0f64;
-            for k in 0..3_000i64 {
-                let late = match k % 200 {
-                    150..156 => 150_000 + 50_000 * (k % 200 - 150),
-                    _ => 0,
-                };
-                let sent = k * 1_000_000;
-                c.sync(
-                    local(sent + path + late, 300, ppm, 1),
-                    Instant::from_ns(sent),
-                    Duration::from_ns(path),
-                );
+            let c = drive(filter, ppm, 3_000, late, |k, _, c| {
                 // Once the filter has learnt the rate (the bursts go on).
                 if k >= 1_500 {
                     worst = worst.max((c.rate() - 1.0 - ppm * 1e-6).abs());
                 }
-            }
+            });
             (c.skipped(), worst * 1e6)
         };
         let limit = Some(Duration::from_us(50));
@@ -340,30 +356,21 @@ mod tests {
     /// coasts on its rate: the clock does not move at all.
     #[test]
     fn a_long_skip_run_rides_out_a_burst() {
-        let (path, ppm) = (5_000, 20.0);
         let run = |max_skips: u32| {
-            let mut c = SyncClock::new(true);
-            c.set_filter(ClockFilter {
+            let filter = ClockFilter {
                 offset_gain: 0.25,
                 rate_gain: 0.25,
                 outlier_limit: Some(Duration::from_us(50)),
                 max_skips,
                 rate_interval: Duration::from_ms(100),
-            });
+            };
+            let late = |k: i64| if (700..706).contains(&k) { 300_000 } else { 0 };
             let mut worst = 0;
-            for k in 0..1_000i64 {
-                let late = if (700..706).contains(&k) { 300_000 } else { 0 };
-                let sent = k * 1_000_000;
-                c.sync(
-                    local(sent + path + late, 300, ppm, 1),
-                    Instant::from_ns(sent),
-                    Duration::from_ns(path),
-                );
+            let c = drive(filter, 20.0, 1_000, late, |k, sent, c| {
                 if k >= 600 {
-                    let t = sent + 999_000;
-                    worst = worst.max((c.to_sync(local(t, 300, ppm, 1)).as_ns() - t).abs());
+                    worst = worst.max(error_at(c, sent + 999_000, 20.0));
                 }
-            }
+            });
             (worst, c.skipped())
         };
         let (short, skipped_short) = run(3);
