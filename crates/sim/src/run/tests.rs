@@ -12,6 +12,18 @@ const IDEAL: &str =
     "[clock]\ndrift_ppm = 0.0\ninitial_offset = \"0ns\"\ntimestamp_resolution = \"1ns\"\n";
 
 /// The planner's passage of `frame` at `node` that ends there (the node that processes it).
+/// A run of `s` that keeps its trace rows.
+fn run_traced(s: &Scenario) -> RunResult {
+    run(
+        s,
+        RunOptions {
+            trace: true,
+            ..RunOptions::default()
+        },
+    )
+    .expect("run")
+}
+
 fn planned(tl: &Timeline, frame: FrameRef, node: Node) -> Option<(i64, i64)> {
     tl.passages
         .iter()
@@ -54,35 +66,14 @@ fn one_cycle_matches_the_planner_to_the_nanosecond() {
 #[test]
 fn same_seed_same_trace() {
     let s = scenario("duration = \"300ms\"\n[faults]\nloss = 0.01\n[ring]\njitter = \"50ns\"\n");
-    let a = run(
-        &s,
-        RunOptions {
-            trace: true,
-            ..RunOptions::default()
-        },
-    )
-    .expect("run");
-    let b = run(
-        &s,
-        RunOptions {
-            trace: true,
-            ..RunOptions::default()
-        },
-    )
-    .expect("run");
+    let a = run_traced(&s);
+    let b = run_traced(&s);
     assert_eq!(a.trace, b.trace);
     assert_eq!(a.master, b.master);
     assert_eq!(a.summary, b.summary);
     let mut other = s.clone();
     other.seed = 2;
-    let c = run(
-        &other,
-        RunOptions {
-            trace: true,
-            ..RunOptions::default()
-        },
-    )
-    .expect("run");
+    let c = run_traced(&other);
     assert_ne!(
         a.trace, c.trace,
         "another seed draws other clocks and losses"
@@ -197,14 +188,7 @@ fn a_broken_ring_leaves_no_axis_driven_blind() {
     let s = scenario(
         "duration = \"2s\"\n[faults]\nsilent_slave = 3\nsilent_from = \"500ms\"\nwatchdog_cycles = 5\n",
     );
-    let r = run(
-        &s,
-        RunOptions {
-            trace: true,
-            ..RunOptions::default()
-        },
-    )
-    .expect("run");
+    let r = run_traced(&s);
     let (t_stop, _) = r.group_stop.expect("the group stopped");
     let at = |t: f64, axis: usize| {
         r.trace
