@@ -116,6 +116,24 @@ impl Instant {
     pub const fn since_origin(self) -> Duration {
         Duration(self.0)
     }
+    /// From a timestamp carried on the wire (unsigned ns); `None` beyond `i64::MAX` ns.
+    pub fn from_wire(ns: u64) -> Option<Self> {
+        i64::try_from(ns).ok().map(Instant)
+    }
+    /// `self + d`, or `None` on overflow (for values that came from the wire).
+    pub const fn checked_add(self, d: Duration) -> Option<Instant> {
+        match self.0.checked_add(d.0) {
+            Some(v) => Some(Instant(v)),
+            None => None,
+        }
+    }
+    /// `self − other`, or `None` on overflow.
+    pub const fn checked_since(self, other: Instant) -> Option<Duration> {
+        match self.0.checked_sub(other.0) {
+            Some(v) => Some(Duration(v)),
+            None => None,
+        }
+    }
 }
 
 impl fmt::Display for Instant {
@@ -275,5 +293,22 @@ mod tests {
         assert_eq!(Duration::from_ns(7) * 3, Duration::from_ns(21));
         let s: Duration = [1, 2, 3].into_iter().map(Duration::from_ns).sum();
         assert_eq!(s, Duration::from_ns(6));
+    }
+
+    #[test]
+    fn checked_arithmetic_for_wire_values() {
+        assert_eq!(Instant::from_wire(5), Some(Instant::from_ns(5)));
+        assert_eq!(Instant::from_wire(u64::MAX), None);
+        assert_eq!(Instant::from_wire(1 << 63), None);
+        let far = Instant::from_ns(i64::MAX - 1);
+        assert_eq!(far.checked_add(Duration::from_ns(2)), None);
+        assert_eq!(
+            far.checked_add(Duration::from_ns(1)),
+            Some(Instant::from_ns(i64::MAX))
+        );
+        assert_eq!(
+            Instant::from_ns(i64::MIN).checked_since(Instant::from_ns(1)),
+            None
+        );
     }
 }

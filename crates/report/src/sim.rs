@@ -2,7 +2,7 @@
 
 use std::fmt::Write as _;
 
-use ringsync_proto::node::StopReason;
+use ringsync_proto::node::{Rejections, StopReason};
 use ringsync_sim::RunResult;
 use ringsync_sim::run::ASSUMPTIONS;
 use ringsync_sim::scenario::{CoulombSign, Scenario};
@@ -25,6 +25,43 @@ fn stop_json(stop: &Option<(f64, StopReason)>) -> Value {
     }
 }
 
+/// A node's refused frames, per reason (every reason listed, zeros included).
+pub fn rejections_json(r: &Rejections) -> Value {
+    let mut m = serde_json::Map::new();
+    for (why, n) in r.iter() {
+        m.insert(why.name().to_string(), json!(n));
+    }
+    Value::Object(m)
+}
+
+/// The refused frames of every node: per node and reason, and the total.
+fn rejected_json(r: &RunResult) -> Value {
+    let total = r
+        .slaves
+        .iter()
+        .fold(r.master.rejected, |acc, c| acc.plus(&c.rejected));
+    json!({
+        "total": total.total(),
+        "by_reason": rejections_json(&total),
+        "master": rejections_json(&r.master.rejected),
+        "slaves": r.slaves.iter().enumerate().map(|(i, c)| {
+            let mut v = rejections_json(&c.rejected);
+            if let Value::Object(m) = &mut v {
+                m.insert("slave".into(), json!(i + 1));
+            }
+            v
+        }).collect::<Vec<_>>(),
+    })
+}
+
+/// Every step of the fault reactions: time, axis (1-based), what, why.
+fn fault_steps_json(r: &RunResult) -> Vec<Value> {
+    r.faults
+        .iter()
+        .map(|f| json!({"time_s": f.t, "axis": f.axis, "step": f.step.name(), "detail": f.step.detail()}))
+        .collect()
+}
+
 /// `summary.json` of one run. Deterministic: no wall time, no paths.
 pub fn summary_json(s: &Scenario, hash: u64, r: &RunResult) -> Value {
     let m = &r.summary;
@@ -45,7 +82,7 @@ pub fn summary_json(s: &Scenario, hash: u64, r: &RunResult) -> Value {
         .slaves
         .iter()
         .enumerate()
-        .map(|(i, c)| json!({"slave": i + 1, "syncs": c.syncs, "commands": c.commands, "bad_frames": c.bad_frames, "duplicates": c.duplicates}))
+        .map(|(i, c)| json!({"slave": i + 1, "syncs": c.syncs, "commands": c.commands, "rejected": c.rejected.total(), "retries_answered": c.duplicates, "clock_relocks": c.relocks}))
         .collect();
     let mc = &r.master;
     json!({
@@ -71,13 +108,15 @@ pub fn summary_json(s: &Scenario, hash: u64, r: &RunResult) -> Value {
             "retries": mc.retries,
             "retries_ok": mc.retries_ok,
             "commands_lost": mc.commands_lost,
-            "bad_frames_at_master": mc.bad_frames,
         },
+        "rejected": rejected_json(r),
         "slaves": slaves,
         "clock_error_max_ns": r.clock_error_max_ns.iter().copied().fold(0.0, f64::max),
         "faults": {
             "watchdog": r.watchdog.iter().map(|(s, t)| json!({"slave": s, "time_s": t})).collect::<Vec<_>>(),
             "group_stop": stop_json(&r.group_stop),
+            "safe_state": s.faults.safe_state.name(),
+            "steps": fault_steps_json(r),
         },
         "assumptions": ASSUMPTIONS,
     })

@@ -20,7 +20,7 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::thread::JoinHandle;
 
 use ringsync_proto::node::{
-    ClockFilter, FrameOutcome, MasterCounters, MasterEvent, SlaveEvent, StopReason,
+    ClockFilter, FrameOutcome, MasterCounters, MasterEvent, Reject, StopReason,
 };
 use ringsync_proto::{Duration, Instant, PlanKind};
 use ringsync_sim::nodes::{Oscillator, RingConfig, ServoAxis};
@@ -441,7 +441,10 @@ pub fn run(scenario: &Scenario, opts: &RtOptions, stop: &AtomicBool) -> Result<R
     timing.lumped_lost = mc.lumped_lost;
     timing.commands_lost = mc.commands_lost;
     let sc: Vec<_> = slaves.iter().map(|s| s.counters()).collect();
-    let counted = mc.bad_frames + sc.iter().map(|c| c.bad_frames).sum::<u64>();
+    let counted = mc.rejected.get(Reject::Malformed)
+        + sc.iter()
+            .map(|c| c.rejected.get(Reject::Malformed))
+            .sum::<u64>();
     let failure = rec.group_stop_seen().map(|(t, reason)| {
         let quiet_since = t - f64::from(s.faults.watchdog_cycles) * s.ring.cycle.secs();
         let node = (1..=n)
@@ -747,31 +750,20 @@ impl Ring {
         }
         while let Some(ev) = self.master.poll_event() {
             match ev {
-                MasterEvent::Computed { k } => {
-                    self.computed_at = Some(now);
-                    self.rec.computed(k, self.master.record());
-                }
-                MasterEvent::GroupStop { at, reason } => {
+                MasterEvent::Computed { .. } => self.computed_at = Some(now),
+                MasterEvent::GroupStop { .. } => {
                     self.stop_cycle.get_or_insert(self.cycles_started);
-                    self.rec.group_stop(at.as_ns() as f64 * 1e-9, reason)
                 }
+                MasterEvent::TorqueOff { .. } => {}
             }
+            self.rec.master_event(ev, self.master.record());
         }
     }
 
     fn drain_slave(&mut self, i: usize, now: i64) {
         while let Some(ev) = self.slaves[i].poll_event() {
-            self.axes[i].advance(now);
-            match ev {
-                SlaveEvent::Apply { u } => {
-                    self.axes[i].u = u;
-                    self.rec.applied(i, now as f64 * 1e-9);
-                }
-                SlaveEvent::WatchdogExpired => {
-                    self.axes[i].u = 0.0;
-                    self.rec.watchdog(i + 1, now as f64 * 1e-9);
-                }
-            }
+            let safe = self.slaves[i].config().safe_state;
+            self.axes[i].take(ev, i, now, safe, &mut self.rec);
         }
         while let Some(tx) = self.slaves[i].poll_transmit() {
             let at = self.osc[i].true_at(tx.at);

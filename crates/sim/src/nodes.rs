@@ -3,9 +3,12 @@
 //! oscillators and the servo axes with their held commands.
 
 use ringsync_plant::{AxisModel, Encoder};
-use ringsync_proto::node::{LumpedOnlyControl, Master, MasterConfig, Slave, SlaveConfig};
-use ringsync_proto::{CyclePlan, Instant, PlanKind};
+use ringsync_proto::node::{
+    LumpedOnlyControl, Master, MasterConfig, SafeState, Slave, SlaveConfig, SlaveEvent,
+};
+use ringsync_proto::{CyclePlan, Duration, Instant, PlanKind};
 
+use crate::record::{FaultStep, Recorder};
 use crate::rng::Rng;
 use crate::scenario::{Scenario, ScenarioError};
 
@@ -52,19 +55,29 @@ impl RingConfig {
         };
         master.stop_deceleration = 200.0;
         master.watchdog_cycles = s.faults.watchdog_cycles;
+        let tolerance = timestamp_tolerance(s);
+        master.timestamp_tolerance = tolerance;
+        let t_cyc = s.ring.cycle.0;
+        // A lumped frame may reach a slave up to (n + 1) hops of jitter late, and half a
+        // cycle more: later than that it is of no use to the cycle it belongs to.
+        let late_limit = Duration::from_ns(t_cyc.as_ns() / 2) + s.ring.jitter.0 * (n as i64 + 1);
+        let kd = s.control.kd.expand(n);
         let slaves = (0..n)
             .map(|i| {
                 let a = &s.axis[i % s.axis.len()];
                 SlaveConfig {
-                    address: (i + 1) as u16,
-                    cycle: s.ring.cycle.0,
-                    path_delay: plan.d_c[i],
                     response_delay: s.ring.response_delay.0,
                     velocity_window: a.velocity_window.0,
                     sample_lead: s.clock.sample_lead.0,
                     watchdog_cycles: s.faults.watchdog_cycles,
                     clock_sync: s.clock.sync,
                     u_max: a.u_max,
+                    resolution: resolution[i],
+                    timestamp_tolerance: tolerance,
+                    late_limit,
+                    safe_state: s.faults.safe_state,
+                    brake_gain: kd[i],
+                    ..SlaveConfig::new((i + 1) as u16, t_cyc, plan.d_c[i])
                 }
             })
             .collect();
@@ -105,6 +118,19 @@ impl RingConfig {
             .collect::<Result<_, ScenarioError>>()?;
         Ok((master, slaves))
     }
+}
+
+/// How far ahead of a node's clock a received timestamp may be: 50 µs (the slaves'
+/// clocks follow the master's to nanoseconds in the simulator, to tens of µs over software
+/// timestamps), plus, when the slaves do not synchronise, what their free-running clocks can
+/// drift apart over the run.
+pub fn timestamp_tolerance(s: &Scenario) -> Duration {
+    let base = Duration::from_us(50);
+    if s.clock.sync {
+        return base;
+    }
+    let drift = s.clock.drift_ppm * 1e-6 * s.duration.0.as_ns() as f64;
+    base + s.clock.initial_offset.0 + Duration::from_ns(drift.ceil() as i64)
 }
 
 fn encoders(s: &Scenario) -> Result<Vec<Encoder>, ScenarioError> {
@@ -222,5 +248,30 @@ impl ServoAxis {
     /// The encoder count of the current position.
     pub fn counts(&self) -> i64 {
         self.encoder.counts(self.x)
+    }
+
+    /// Acts on what slave `i` (0-based) reported at true time `t` [ns]: a command or the
+    /// drive's own brake changes the held command, torque off holds 0 V; the recorder logs
+    /// applied commands and every fault step. Both drivers call this.
+    pub fn take(&mut self, ev: SlaveEvent, i: usize, t: i64, safe: SafeState, rec: &mut Recorder) {
+        self.advance(t);
+        let ts = t as f64 * 1e-9;
+        match ev {
+            SlaveEvent::Apply { u } => {
+                self.u = u;
+                rec.applied(i, ts);
+            }
+            SlaveEvent::Brake { u } => self.u = u,
+            SlaveEvent::WatchdogExpired => {
+                self.u = 0.0;
+                rec.watchdog(i + 1, ts);
+                rec.fault(ts, i + 1, FaultStep::Watchdog(safe));
+            }
+            SlaveEvent::TorqueOff { cause } => {
+                self.u = 0.0;
+                rec.fault(ts, i + 1, FaultStep::TorqueOff(cause));
+            }
+            SlaveEvent::Relocked { step } => rec.fault(ts, i + 1, FaultStep::Relocked(step)),
+        }
     }
 }

@@ -4,7 +4,11 @@
 //! their `summary.json` and `trace.csv` are the same files.
 
 use ringsync_control::{Coupling, Metrics};
-use ringsync_proto::node::{CycleRecord, MasterCounters, SlaveCounters, StopReason};
+use ringsync_proto::Duration;
+use ringsync_proto::node::{
+    CycleRecord, MasterCounters, MasterEvent, OffReason, SafeState, SlaveCounters, StopReason,
+    TorqueOffCause,
+};
 
 use crate::run::{Captured, LinkCounters, PassageLog, RunResult, TraceRow};
 
@@ -21,6 +25,65 @@ pub struct AxisProbe {
     pub u: f64,
     /// Whether the slave reports its command saturated.
     pub saturated: bool,
+}
+
+/// One step of a fault reaction.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum FaultStep {
+    /// The master stopped the group (the axis is the one that caused it).
+    GroupStop(StopReason),
+    /// During the stop, the master ordered the axis's torque off.
+    TorqueOffOrdered(OffReason),
+    /// The slave's watchdog expired (it lost the master) and it applied its safe state.
+    Watchdog(SafeState),
+    /// The axis's drive cut its torque.
+    TorqueOff(TorqueOffCause),
+    /// The slave's clock re-locked to a new master time line, stepping by this much.
+    Relocked(Duration),
+}
+
+impl FaultStep {
+    /// Short name used in summary.json.
+    pub fn name(&self) -> &'static str {
+        match self {
+            FaultStep::GroupStop(_) => "group_stop",
+            FaultStep::TorqueOffOrdered(_) => "torque_off_ordered",
+            FaultStep::Watchdog(_) => "watchdog",
+            FaultStep::TorqueOff(_) => "torque_off",
+            FaultStep::Relocked(_) => "clock_relock",
+        }
+    }
+    /// One line on what happened and why (axes 1-based).
+    pub fn detail(&self) -> String {
+        match self {
+            FaultStep::GroupStop(r) => match r {
+                StopReason::FollowingError { error, .. } => {
+                    format!("following error {error:.4} rad beyond the limit")
+                }
+                other => other.name().to_string(),
+            },
+            FaultStep::TorqueOffOrdered(w) => match w {
+                OffReason::FollowingError { error } => {
+                    format!("could not follow the stop ramp: {error:.4} rad off it")
+                }
+                other => other.name().to_string(),
+            },
+            FaultStep::Watchdog(s) => format!("master lost; safe state {}", s.name()),
+            FaultStep::TorqueOff(c) => c.name().to_string(),
+            FaultStep::Relocked(step) => format!("stepped by {step}"),
+        }
+    }
+}
+
+/// A fault-reaction step at a time, on an axis.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FaultEvent {
+    /// When [s, true time].
+    pub t: f64,
+    /// The axis (1-based: axis i is slave i).
+    pub axis: usize,
+    /// What happened.
+    pub step: FaultStep,
 }
 
 /// The per-cycle recorder.
@@ -45,6 +108,7 @@ pub struct Recorder {
     clock_count: u64,
     watchdog: Vec<(usize, f64)>,
     group_stop: Option<(f64, StopReason)>,
+    faults: Vec<FaultEvent>,
 }
 
 impl Recorder {
@@ -84,6 +148,7 @@ impl Recorder {
             clock_count: 0,
             watchdog: Vec::new(),
             group_stop: None,
+            faults: Vec::new(),
         }
     }
 
@@ -161,6 +226,29 @@ impl Recorder {
         }
     }
 
+    /// A fault-reaction step on axis `axis` (1-based) at true time `t` [s].
+    pub fn fault(&mut self, t: f64, axis: usize, step: FaultStep) {
+        self.faults.push(FaultEvent { t, axis, step });
+    }
+
+    /// What the master reported, from the driver's loop: the law's figures go to the
+    /// trace, the stop and its torque-off orders to the fault log.
+    pub fn master_event(&mut self, ev: MasterEvent, record: &CycleRecord) {
+        match ev {
+            MasterEvent::Computed { k } => self.computed(k, record),
+            MasterEvent::GroupStop { at, reason } => {
+                let t = at.as_ns() as f64 * 1e-9;
+                self.group_stop(t, reason);
+                self.fault(t, reason.axis() + 1, FaultStep::GroupStop(reason));
+            }
+            MasterEvent::TorqueOff { at, axis, why } => self.fault(
+                at.as_ns() as f64 * 1e-9,
+                axis + 1,
+                FaultStep::TorqueOffOrdered(why),
+            ),
+        }
+    }
+
     /// The first group stop, if any.
     pub fn group_stop_seen(&self) -> Option<(f64, StopReason)> {
         self.group_stop
@@ -189,6 +277,7 @@ impl Recorder {
             clock_error_rms_ns: self.clock_sq.iter().map(|s| (s / n).sqrt()).collect(),
             watchdog: self.watchdog,
             group_stop: self.group_stop,
+            faults: self.faults,
             trace: self.trace,
             passages,
             captured,

@@ -21,7 +21,7 @@
 
 use ringsync_control::Summary;
 use ringsync_proto::node::{
-    FrameOutcome, Master, MasterCounters, MasterEvent, Slave, SlaveCounters, SlaveEvent, StopReason,
+    FrameOutcome, Master, MasterCounters, Slave, SlaveCounters, StopReason,
 };
 use ringsync_proto::plan::{FrameRef, Node};
 use ringsync_proto::{Instant, PlanKind};
@@ -139,6 +139,8 @@ pub struct RunResult {
     pub watchdog: Vec<(usize, f64)>,
     /// The group stop, if any: (time [s], reason).
     pub group_stop: Option<(f64, StopReason)>,
+    /// Every step of the fault reactions, in time order per source.
+    pub faults: Vec<crate::record::FaultEvent>,
     /// Trace rows (with [`RunOptions::trace`]).
     pub trace: Vec<TraceRow>,
     /// Frame passages (with [`RunOptions::log_cycles`]).
@@ -604,12 +606,7 @@ impl<'a> Sim<'a> {
             self.send(0, tx.at.as_ns(), tx.bytes);
         }
         while let Some(ev) = self.master.poll_event() {
-            match ev {
-                MasterEvent::Computed { k } => self.rec.computed(k, self.master.record()),
-                MasterEvent::GroupStop { at, reason } => {
-                    self.rec.group_stop(at.as_ns() as f64 * 1e-9, reason)
-                }
-            }
+            self.rec.master_event(ev, self.master.record());
         }
     }
 
@@ -648,17 +645,8 @@ impl<'a> Sim<'a> {
 
     fn drain_slave(&mut self, i: usize, t: i64) {
         while let Some(ev) = self.slaves[i].poll_event() {
-            self.axes[i].advance(t);
-            match ev {
-                SlaveEvent::Apply { u } => {
-                    self.axes[i].u = u;
-                    self.rec.applied(i, t as f64 * 1e-9);
-                }
-                SlaveEvent::WatchdogExpired => {
-                    self.axes[i].u = 0.0;
-                    self.rec.watchdog(i + 1, t as f64 * 1e-9);
-                }
-            }
+            let safe = self.slaves[i].config().safe_state;
+            self.axes[i].take(ev, i, t, safe, &mut self.rec);
         }
         while let Some(tx) = self.slaves[i].poll_transmit() {
             let at = self.osc[i].true_at(tx.at);

@@ -13,6 +13,7 @@ use ringsync_control::{
     Sequence, Sign, SyncController, SyncParams, Trapezoid, VelocitySource,
 };
 use ringsync_plant::{AxisModel, Friction, PlantError, SignModel, TorqueAxis, VelocityAxis};
+use ringsync_proto::node::SafeState;
 use ringsync_proto::plan::parse_bit_rate;
 use ringsync_proto::{Duration, PlanKind, RingParams};
 use serde::{Deserialize, Deserializer};
@@ -253,6 +254,16 @@ pub struct Faults {
     pub silent_slave: u32,
     /// When the silent slave goes silent.
     pub silent_from: Dur,
+    /// What a slave does with its axis when it loses the master (no valid command for W
+    /// cycles): "brake" damps the axis to standstill, then cuts torque; "torque-off" cuts
+    /// torque at once.
+    #[serde(deserialize_with = "safe_state")]
+    pub safe_state: SafeState,
+}
+
+fn safe_state<'de, D: Deserializer<'de>>(d: D) -> Result<SafeState, D::Error> {
+    let s = String::deserialize(d)?;
+    s.parse().map_err(serde::de::Error::custom)
 }
 
 impl Default for Faults {
@@ -264,6 +275,7 @@ impl Default for Faults {
             following_error_limit: 1.0,
             silent_slave: 0,
             silent_from: Dur(Duration::ZERO),
+            safe_state: SafeState::Brake,
         }
     }
 }

@@ -4,7 +4,7 @@
 //! offset size type  field
 //!      0    1 u8    version (= 1)
 //!      1    1 u8    kind (1 lumped, 2 command, 3 response, 4 lumped-only)
-//!      2    1 u8    flags (bit 0: STOP; bits 1-7 reserved, 0)
+//!      2    1 u8    flags (bit 0: STOP, bit 1: TORQUE_OFF; bits 2-7 reserved, 0)
 //!      3    1 u8    retry (0 = first attempt, k = k-th retry)
 //!      4    4 u32   cycle counter
 //!      8    2 u16   sequence number of the sender
@@ -88,8 +88,11 @@ pub struct Flags(u8);
 impl Flags {
     /// The master orders a controlled stop of the whole group.
     pub const STOP: Flags = Flags(0x01);
+    /// The master orders the target axis's drive to cut torque (in a command frame): the
+    /// axis could not follow its stop ramp, or the stop is complete. Latched by the slave.
+    pub const TORQUE_OFF: Flags = Flags(0x02);
     /// Bits this version defines.
-    pub const DEFINED: u8 = 0x01;
+    pub const DEFINED: u8 = 0x03;
 
     /// No flag set.
     pub const fn empty() -> Self {
@@ -134,8 +137,13 @@ impl Status {
     pub const FOLLOWING_ERROR: Status = Status(0x0010);
     /// The axis is stopping on a controlled ramp.
     pub const STOPPING: Status = Status(0x0020);
+    /// The drive's torque is off (ordered by the master, or the end of the slave's own
+    /// fault reaction); latched.
+    pub const TORQUE_OFF: Status = Status(0x0040);
+    /// The slave lost its master and is braking its axis to standstill on its own.
+    pub const BRAKING: Status = Status(0x0080);
     /// Bits this version defines.
-    pub const DEFINED: u16 = 0x003F;
+    pub const DEFINED: u16 = 0x00FF;
 
     /// No bit set.
     pub const fn empty() -> Self {

@@ -109,19 +109,20 @@ impl SyncClock {
         self.rate
     }
 
-    /// Takes one sync: the frame was received at local time `local` and left the master at
-    /// master time `master_sent`, `path` before it reached this slave.
-    pub fn sync(&mut self, local: Instant, master_sent: Instant, path: Duration) {
+    /// Takes one sync: the frame was received at local time `local` and reached this slave
+    /// at master time `master_at` (its send stamp plus the path delay; the caller checks
+    /// that sum, which comes from the wire, for overflow and plausibility first).
+    pub fn sync(&mut self, local: Instant, master_at: Instant) {
         if !self.enabled {
             return;
         }
-        let (l, m) = (local.as_ns(), (master_sent + path).as_ns());
+        let (l, m) = (local.as_ns(), master_at.as_ns());
         let mut anchor = m;
         let mut outlier = false;
         if self.syncs >= 2 && self.last.is_some() {
-            let err = m - self.to_sync(local).as_ns();
+            let err = m.saturating_sub(self.to_sync(local).as_ns());
             if let Some(limit) = self.filter.outlier_limit
-                && err.abs() > limit.as_ns()
+                && err.saturating_abs() > limit.as_ns()
             {
                 if self.skipped_run < self.filter.max_skips {
                     self.skipped_run += 1;
@@ -131,14 +132,16 @@ impl SyncClock {
                 outlier = true;
             }
             if self.filter.offset_gain < 1.0 {
-                anchor = m - err + (self.filter.offset_gain * err as f64).round() as i64;
+                anchor = m
+                    .saturating_sub(err)
+                    .saturating_add((self.filter.offset_gain * err as f64).round() as i64);
             }
         }
         self.skipped_run = 0;
         // An outlier is taken for its offset only: it measures no rate, nor is it a baseline.
         if !outlier {
             match self.raw {
-                Some((l0, m0)) if m - m0 >= self.filter.rate_interval.as_ns() => {
+                Some((l0, m0)) if m.saturating_sub(m0) >= self.filter.rate_interval.as_ns() => {
                     if m > m0 && l > l0 {
                         let measured = (l - l0) as f64 / (m - m0) as f64;
                         self.rate += self.filter.rate_gain * (measured - self.rate);
@@ -153,6 +156,21 @@ impl SyncClock {
         self.syncs += 1;
     }
 
+    /// Re-locks to a new time line: the master's clock really stepped (it restarted, or its
+    /// time base was set), and frames of the new time line have come for long enough with
+    /// none of the old one (the slave decides: [`crate::node::Slave`]). The clock steps to
+    /// the pair and measures its rate afresh; the estimated rate is kept.
+    pub fn relock(&mut self, local: Instant, master_at: Instant) {
+        if !self.enabled {
+            return;
+        }
+        let pair = (local.as_ns(), master_at.as_ns());
+        self.last = Some(pair);
+        self.raw = Some(pair);
+        self.skipped_run = 0;
+        self.syncs = self.syncs.max(2);
+    }
+
     /// Whether at least one sync has been taken (or the clock free-runs by design).
     pub fn is_locked(&self) -> bool {
         !self.enabled || self.syncs >= 2
@@ -161,9 +179,9 @@ impl SyncClock {
     /// The synchronised time S(L) for local time `local`.
     pub fn to_sync(&self, local: Instant) -> Instant {
         match self.last {
-            Some((l0, m0)) if self.enabled => {
-                Instant::from_ns(m0 + ((local.as_ns() - l0) as f64 / self.rate).round() as i64)
-            }
+            Some((l0, m0)) if self.enabled => Instant::from_ns(m0.saturating_add(
+                (local.as_ns().saturating_sub(l0) as f64 / self.rate).round() as i64,
+            )),
             _ => local,
         }
     }
@@ -171,9 +189,9 @@ impl SyncClock {
     /// The local time at which the synchronised clock reads `sync`.
     pub fn to_local(&self, sync: Instant) -> Instant {
         match self.last {
-            Some((l0, m0)) if self.enabled => {
-                Instant::from_ns(l0 + ((sync.as_ns() - m0) as f64 * self.rate).round() as i64)
-            }
+            Some((l0, m0)) if self.enabled => Instant::from_ns(l0.saturating_add(
+                (sync.as_ns().saturating_sub(m0) as f64 * self.rate).round() as i64,
+            )),
             _ => sync,
         }
     }
@@ -206,8 +224,7 @@ mod tests {
             let sent = k * 1_000_000;
             c.sync(
                 local(sent + path + late(k), 300, ppm, 1),
-                Instant::from_ns(sent),
-                Duration::from_ns(path),
+                Instant::from_ns(sent + path),
             );
             each(k, sent, &c);
         }
@@ -227,11 +244,7 @@ mod tests {
         for k in 0..400i64 {
             let sent = k * 1_000_000;
             let rx = sent + path;
-            c.sync(
-                local(rx, offset, ppm, 8),
-                Instant::from_ns(sent),
-                Duration::from_ns(path),
-            );
+            c.sync(local(rx, offset, ppm, 8), Instant::from_ns(sent + path));
             // Half a cycle later the synchronised clock still reads master time.
             let t = sent + 500_000;
             let err = (c.to_sync(local(t, offset, ppm, 8)).as_ns() - t).abs();
@@ -386,10 +399,37 @@ mod tests {
         assert!(long < 100, "the clock stays: {long} ns");
     }
 
+    /// Clock readings never overflow, whatever pair the clock holds.
+    #[test]
+    fn readings_saturate_instead_of_overflowing() {
+        let mut c = SyncClock::new(true);
+        c.sync(Instant::from_ns(0), Instant::from_ns(i64::MAX - 10));
+        c.sync(Instant::from_ns(1_000), Instant::from_ns(i64::MAX - 5));
+        assert_eq!(
+            c.to_sync(Instant::from_ns(i64::MAX)),
+            Instant::from_ns(i64::MAX)
+        );
+        assert!(c.to_local(Instant::from_ns(i64::MIN)).as_ns() < i64::MIN / 2);
+    }
+
+    #[test]
+    fn a_relock_steps_to_the_new_time_line() {
+        let mut c = SyncClock::new(true);
+        for k in 0..10 {
+            c.sync(
+                Instant::from_ns(k * 1_000_000),
+                Instant::from_ns(k * 1_000_000 + 5),
+            );
+        }
+        c.relock(Instant::from_ns(10_000_000), Instant::from_ns(777_000_000));
+        assert_eq!(c.to_sync(Instant::from_ns(10_500_000)).as_ns(), 777_500_000);
+        assert!(c.is_locked());
+    }
+
     #[test]
     fn without_sync_the_clock_free_runs() {
         let mut c = SyncClock::new(false);
-        c.sync(Instant::from_ns(5), Instant::from_ns(0), Duration::ZERO);
+        c.sync(Instant::from_ns(5), Instant::from_ns(0));
         assert_eq!(c.to_sync(Instant::from_ns(1234)), Instant::from_ns(1234));
         assert!(c.is_locked());
         assert!(!SyncClock::new(true).is_locked());

@@ -9,9 +9,27 @@
 //!    slice without its response is retried in the ⌊n/4⌋ + 1 reserve slices.
 //!
 //! A lost lumped frame leaves the old samples in place (`fresh = false`), so the estimator
-//! extrapolates them over a longer D. When any axis reports a fault or exceeds the
-//! following-error limit, the master stops the whole group: every axis's desired motion
-//! becomes a ramp to standstill, and commands carry the STOP flag.
+//! extrapolates them over a longer D.
+//!
+//! # Frame acceptance
+//! Nothing from the wire is trusted ([`super::reject`]). A returning lumped frame is taken
+//! only if it is one the master sent in this cycle (its cycle, sequence number, send stamp
+//! and slot layout echo what went out) and has not come back before; each feedback slot in
+//! it only if its sampling instant is not in the future by the master's clock
+//! (`timestamp_tolerance`) and is newer than the last sample taken from that slave. A
+//! response is taken only if it answers the slice that is open (its source, cycle, echo
+//! and retry count). Refused frames change nothing and are counted per reason.
+//!
+//! # Supervision and the group stop
+//! An axis whose accepted samples stop advancing for W cycles (the feedback watchdog:
+//! counted in the master's own cycles, whatever timestamps a frame claims), that does not
+//! answer for W cycles, that reports a fault, or whose error exceeds the following-error
+//! limit stops the whole group. Like a drive's quick stop, every axis's desired motion
+//! becomes a ramp to standstill from where the axis is (its measured position and
+//! velocity), and commands carry the STOP flag. An axis that cannot follow its ramp within
+//! the following-error limit, or has no feedback, gets torque off (the `TORQUE_OFF` flag);
+//! every other axis gets torque off once its ramp has ended and it has held still for
+//! `stop_hold`, and in any case `stop_timeout` after the stop began.
 
 use std::collections::VecDeque;
 
@@ -21,10 +39,11 @@ use ringsync_control::{
 };
 use ringsync_wire::{
     CommandRepr, Common, FeedbackSlot, Flags, Frame, FrameKind, LumpedOnlySlot, LumpedPayload,
-    LumpedRepr, Pdu, SlotCodec, Status,
+    LumpedRepr, ResponseRepr, SlotCodec, Status,
 };
 
 use super::Transmit;
+use super::reject::{Reject, Rejections};
 use crate::plan::{CyclePlan, FrameRef, Node, PlanKind};
 use crate::time::{Duration, Instant};
 
@@ -57,11 +76,20 @@ pub struct MasterConfig {
     pub following_error_limit: f64,
     /// Deceleration of the group-stop ramp [rad/s²].
     pub stop_deceleration: f64,
-    /// W: consecutive cycles without a response from an axis before the group stops.
+    /// W: consecutive cycles without a response from an axis, or without a fresh
+    /// feedback sample, before the group stops.
     pub watchdog_cycles: u32,
     /// The communication plan. With the lumped-only plan the master only sends the lumped
     /// frame; the slaves run the law.
     pub plan: PlanKind,
+    /// How far in the future (by the master's clock) a feedback sample's sampling instant
+    /// may lie and still be taken (the slaves' clock error).
+    pub timestamp_tolerance: Duration,
+    /// During a group stop, how long an axis holds still at the end of its ramp before
+    /// its torque goes off.
+    pub stop_hold: Duration,
+    /// During a group stop, the longest any axis keeps its torque.
+    pub stop_timeout: Duration,
 }
 
 impl MasterConfig {
@@ -124,6 +152,9 @@ impl MasterConfig {
             stop_deceleration: 200.0,
             watchdog_cycles: 5,
             plan: PlanKind::P2pLumped,
+            timestamp_tolerance: Duration::from_us(50),
+            stop_hold: Duration::from_ms(100),
+            stop_timeout: Duration::from_ms(2_000),
         }
     }
 
@@ -161,6 +192,56 @@ pub enum StopReason {
     },
 }
 
+impl StopReason {
+    /// The axis that caused the stop (0-based).
+    pub fn axis(&self) -> usize {
+        match *self {
+            StopReason::FollowingError { axis, .. }
+            | StopReason::AxisFault { axis }
+            | StopReason::NoResponse { axis }
+            | StopReason::NoFeedback { axis } => axis,
+        }
+    }
+    /// A short name for outputs.
+    pub fn name(&self) -> &'static str {
+        match self {
+            StopReason::FollowingError { .. } => "following error",
+            StopReason::AxisFault { .. } => "axis fault",
+            StopReason::NoResponse { .. } => "no response",
+            StopReason::NoFeedback { .. } => "no feedback",
+        }
+    }
+}
+
+/// Why the master ordered an axis's torque off during a group stop.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum OffReason {
+    /// The axis could not follow its stop ramp: its error against the ramp [rad] exceeded
+    /// the following-error limit.
+    FollowingError {
+        /// The error against the ramp [rad].
+        error: f64,
+    },
+    /// The axis has no feedback (none fresh for W cycles): it cannot be controlled.
+    NoFeedback,
+    /// Its ramp has ended and it held still for the hold time.
+    StopComplete,
+    /// The stop has lasted its longest allowed time.
+    StopTimeout,
+}
+
+impl OffReason {
+    /// A short name for outputs.
+    pub fn name(&self) -> &'static str {
+        match self {
+            OffReason::FollowingError { .. } => "could not follow the stop ramp",
+            OffReason::NoFeedback => "no feedback",
+            OffReason::StopComplete => "stop complete",
+            OffReason::StopTimeout => "stop timed out",
+        }
+    }
+}
+
 /// Events for the driver.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum MasterEvent {
@@ -175,6 +256,15 @@ pub enum MasterEvent {
         at: Instant,
         /// Why.
         reason: StopReason,
+    },
+    /// During the group stop, the master ordered axis `axis`'s torque off at `at`.
+    TorqueOff {
+        /// When [master ns].
+        at: Instant,
+        /// The axis (0-based).
+        axis: usize,
+        /// Why.
+        why: OffReason,
     },
 }
 
@@ -199,8 +289,8 @@ pub struct MasterCounters {
     pub retries_ok: u64,
     /// Commands never acknowledged in their cycle.
     pub commands_lost: u64,
-    /// Frames dropped for a bad CRC or format.
-    pub bad_frames: u64,
+    /// Frames (and feedback slots) refused, per reason.
+    pub rejected: Rejections,
 }
 
 /// What the master computed in one cycle (for traces).
@@ -251,6 +341,15 @@ impl StopRamp {
     }
 }
 
+/// A lumped frame as it went out, to recognise it when it comes back.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+struct SentLumped {
+    seq: u16,
+    stamp: u64,
+    sent: bool,
+    back: bool,
+}
+
 /// The master.
 pub struct Master {
     cfg: MasterConfig,
@@ -279,8 +378,15 @@ pub struct Master {
     open: Option<(usize, u8)>,
     acked: Vec<bool>,
     missed: Vec<u32>,
-    /// Axes whose feedback is more than W cycles old: commanded 0 V.
+    /// Axes without a fresh sample for W cycles or more: commanded 0 V.
     blind: Vec<bool>,
+    /// Consecutive law runs without a fresh sample, per axis (the feedback watchdog).
+    since_fresh: Vec<u32>,
+    /// Axes whose torque the master ordered off (latched).
+    off: Vec<bool>,
+    /// Per lumped frame of this cycle: the sequence number and stamp it went out with,
+    /// and whether it has come back.
+    sent_lumped: Vec<SentLumped>,
     retry_queue: VecDeque<usize>,
     fb: Feedback,
     input: ControlInput,
@@ -323,6 +429,9 @@ impl Master {
             acked: vec![false; n],
             missed: vec![0; n],
             blind: vec![false; n],
+            since_fresh: vec![0; n],
+            off: vec![false; n],
+            sent_lumped: vec![SentLumped::default(); cfg.lumped_offsets.len()],
             retry_queue: VecDeque::new(),
             fb: Feedback::new(n),
             input: ControlInput::new(n, t_cyc),
@@ -427,6 +536,7 @@ impl Master {
                 self.next_lumped = 0;
                 self.lumped_back = 0;
                 self.fresh.fill(false);
+                self.sent_lumped.fill(SentLumped::default());
             }
             return;
         }
@@ -489,6 +599,7 @@ impl Master {
         self.lumped_back = 0;
         self.fresh.fill(false);
         self.acked.fill(false);
+        self.sent_lumped.fill(SentLumped::default());
     }
 
     fn send_lumped(&mut self, now: Instant) {
@@ -521,6 +632,14 @@ impl Master {
                 bytes: buf,
             });
             self.counters.frames_sent += 1;
+            if let Some(s) = self.sent_lumped.get_mut(self.next_lumped) {
+                *s = SentLumped {
+                    seq: repr.common.seq,
+                    stamp: repr.master_time_ns,
+                    sent: true,
+                    back: false,
+                };
+            }
         }
         repr.slots
     }
@@ -557,6 +676,7 @@ impl Master {
             self.counters.lumped_lost += (self.cfg.lumped_offsets.len() - self.lumped_back) as u64;
         }
         let t_start = self.cycle_start().as_ns() as f64 * 1e-9;
+        let t_now = now.as_ns() as f64 * 1e-9;
         let mut stop_reason = self.pending_stop.take();
         for i in 0..n {
             let res = self.cfg.resolution[i];
@@ -587,42 +707,25 @@ impl Master {
             {
                 stop_reason = Some(StopReason::FollowingError { axis: i, error: e });
             }
-            // Feedback watchdog: a law run on a sample W cycles old drives the axis blind
-            // (with the ring broken behind it, the error it sees never closes and the
-            // command winds up to saturation).
-            let w = i64::from(self.cfg.watchdog_cycles);
-            self.blind[i] = match self.latest[i] {
-                Some(_) => {
-                    t_start - self.fb.sample_time[i]
-                        > w as f64 * self.cfg.cycle.as_ns() as f64 * 1e-9
-                }
-                None => self.k >= w,
+            // Feedback watchdog, counted in the master's own cycles: a law run on a sample
+            // W cycles old drives the axis blind (with the ring broken behind it, the error
+            // it sees never closes and the command winds up to saturation), whatever
+            // timestamps the frames claim.
+            self.since_fresh[i] = if self.fresh[i] {
+                0
+            } else {
+                self.since_fresh[i].saturating_add(1)
             };
+            self.blind[i] = self.since_fresh[i] >= self.cfg.watchdog_cycles;
             if self.blind[i] && stop_reason.is_none() && self.stop.is_none() {
                 stop_reason = Some(StopReason::NoFeedback { axis: i });
             }
         }
         if let (Some(reason), None) = (stop_reason, &self.stop) {
-            let t = now.as_ns() as f64 * 1e-9;
-            let decel = self.cfg.stop_deceleration;
-            self.stop = Some(
-                (0..n)
-                    .map(|i| {
-                        let d = self.trajectories[i].at(t);
-                        StopRamp {
-                            t0: t,
-                            x0: d.x,
-                            v0: d.v,
-                            decel,
-                        }
-                    })
-                    .collect(),
-            );
-            self.events
-                .push_back(MasterEvent::GroupStop { at: now, reason });
-            for i in 0..n {
-                self.fb.desired[i] = self.desired(i, self.fb.sample_time[i]);
-            }
+            self.begin_stop(now, reason);
+        }
+        if self.stop.is_some() {
+            self.supervise_stop(now, t_now);
         }
         for i in 0..n {
             let a = t_start + self.cfg.command_arrival[i].as_ns() as f64 * 1e-9;
@@ -637,8 +740,8 @@ impl Master {
             // Lengths are fixed at construction; an error here is a bug. Command 0 V.
             self.output.u.fill(0.0);
         }
-        for (i, blind) in self.blind.iter().enumerate() {
-            if *blind {
+        for i in 0..n {
+            if self.blind[i] || self.off[i] {
                 self.output.u[i] = 0.0;
                 self.output.saturated[i] = false;
             }
@@ -652,6 +755,75 @@ impl Master {
         r.saturated.copy_from_slice(&self.output.saturated);
         r.apply_time.copy_from_slice(&self.input.apply_time);
         self.events.push_back(MasterEvent::Computed { k: self.k });
+    }
+
+    /// The group stop begins at `now`: every axis ramps down from where it is (its
+    /// measured position, moved on by its measured velocity to `now`, and that velocity),
+    /// like a drive's quick stop.
+    fn begin_stop(&mut self, now: Instant, reason: StopReason) {
+        let n = self.cfg.axes();
+        let t = now.as_ns() as f64 * 1e-9;
+        let decel = self.cfg.stop_deceleration;
+        self.stop = Some(
+            (0..n)
+                .map(|i| {
+                    let (x0, v0) = if self.latest[i].is_some() {
+                        let v = self.fb.velocity[i];
+                        (self.fb.position[i] + v * (t - self.fb.sample_time[i]), v)
+                    } else {
+                        let d = self.trajectories[i].at(t);
+                        (d.x, d.v)
+                    };
+                    StopRamp {
+                        t0: t,
+                        x0,
+                        v0,
+                        decel,
+                    }
+                })
+                .collect(),
+        );
+        self.events
+            .push_back(MasterEvent::GroupStop { at: now, reason });
+        for i in 0..n {
+            self.fb.desired[i] = self.desired(i, self.fb.sample_time[i]);
+        }
+    }
+
+    /// During the stop: torque off for every axis that cannot follow its ramp, has no
+    /// feedback, has finished its ramp and held still, or has run out of time.
+    fn supervise_stop(&mut self, now: Instant, t: f64) {
+        let Some(ramps) = &self.stop else { return };
+        let hold = self.cfg.stop_hold.as_ns() as f64 * 1e-9;
+        let timeout = self.cfg.stop_timeout.as_ns() as f64 * 1e-9;
+        let mut orders = Vec::new();
+        for (i, r) in ramps.iter().enumerate() {
+            if self.off[i] {
+                continue;
+            }
+            let why = if self.blind[i] || self.latest[i].is_none() {
+                Some(OffReason::NoFeedback)
+            } else {
+                let error = r.at(self.fb.sample_time[i]).x - self.fb.position[i];
+                if error.abs() > self.cfg.following_error_limit {
+                    Some(OffReason::FollowingError { error })
+                } else if t >= r.t0 + r.v0.abs() / r.decel + hold {
+                    Some(OffReason::StopComplete)
+                } else if t >= r.t0 + timeout {
+                    Some(OffReason::StopTimeout)
+                } else {
+                    None
+                }
+            };
+            if let Some(why) = why {
+                orders.push((i, why));
+            }
+        }
+        for (axis, why) in orders {
+            self.off[axis] = true;
+            self.events
+                .push_back(MasterEvent::TorqueOff { at: now, axis, why });
+        }
     }
 
     /// Sends slice `s`'s command; false when a reserve slice has nothing to retry.
@@ -673,11 +845,14 @@ impl Master {
         };
         self.open = Some((target, retry));
         self.seq = self.seq.wrapping_add(1);
-        let flags = if self.stop.is_some() {
+        let mut flags = if self.stop.is_some() {
             Flags::STOP
         } else {
             Flags::empty()
         };
+        if self.off[target] {
+            flags = flags.with(Flags::TORQUE_OFF);
+        }
         let cmd = CommandRepr {
             common: Common {
                 flags,
@@ -715,103 +890,199 @@ impl Master {
         }
     }
 
-    /// A frame received completely at `now` [master ns].
+    /// A frame received completely at `now` [master ns]. It is checked against what the
+    /// master sent and its own clock before it changes anything; a refused frame is counted
+    /// in [`MasterCounters::rejected`].
     pub fn handle_frame(&mut self, now: Instant, bytes: &[u8]) {
-        // The proposed plan's lumped frame comes back every cycle: read its slots in place
-        // (no allocation); everything else through the owned representations.
-        if let Ok(f) = Frame::new_checked(bytes)
-            && f.kind_byte() == FrameKind::Lumped as u8
-        {
-            match f.check() {
-                Ok(_) => self.take_lumped(&f),
-                Err(_) => self.counters.bad_frames += 1,
-            }
-            return;
-        }
-        match Pdu::parse(bytes) {
-            Ok(Pdu::Lumped(_)) => {}
-            Ok(Pdu::Response(r)) => {
-                let i = usize::from(r.source).wrapping_sub(1);
-                if i64::from(r.echo_cycle) == self.k & 0xFFFF_FFFF && i < self.acked.len() {
-                    if let Some((target, _)) = self.open
-                        && target == i
-                        && self.deadline.is_some()
-                    {
-                        // The slice ends when the master has the response (eq. 2).
-                        self.acked[i] = true;
-                        self.close_slice();
-                        self.deadline = None;
-                        self.open_at = Some(now + self.cfg.turnaround);
-                    }
-                    if r.status.contains(Status::FAULT)
-                        && let Some(s) = self.latest[i].as_mut()
-                    {
-                        s.status = s.status.with(Status::FAULT);
-                    }
-                }
-            }
-            Ok(Pdu::LumpedOnly(l)) => {
-                if i64::from(l.common.cycle) != self.k & 0xFFFF_FFFF {
-                    return;
-                }
-                self.lumped_back += 1;
-                let r = &mut self.record;
-                r.k = self.k;
-                for (k, slot) in l.slots.iter().enumerate() {
-                    let i = usize::from(l.first_slot) + k;
-                    if i >= self.lo_slots.len() {
-                        continue;
-                    }
-                    self.lo_slots[i] = *slot;
-                    let f = slot.feedback;
-                    if !f.written {
-                        self.counters.samples_missing += 1;
-                    }
-                    r.fresh[i] = f.written;
-                    r.position[i] = f64::from(f.position) * self.cfg.resolution[i];
-                    r.sample_time[i] = f.sample_time_ns as f64 * 1e-9;
-                    r.u[i] = f64::from(slot.command_v);
-                    r.saturated[i] = f.status.contains(Status::SATURATED);
-                    r.apply_time[i] = r.sample_time[i];
-                }
-                if self.lumped_back == self.cfg.lumped_offsets.len() {
-                    self.events.push_back(MasterEvent::Computed { k: self.k });
-                }
-            }
-            Ok(Pdu::Command(_)) => {}
-            Err(_) => self.counters.bad_frames += 1,
+        if let Err(r) = self.accept_frame(now, bytes) {
+            self.counters.rejected.count(r);
         }
     }
 
-    /// A returned lumped frame (CRC checked): the feedback of every slave that wrote its slot.
-    fn take_lumped(&mut self, f: &Frame<&[u8]>) {
-        if i64::from(f.cycle()) != self.k & 0xFFFF_FFFF {
-            return; // a late frame of an older cycle
+    fn accept_frame(&mut self, now: Instant, bytes: &[u8]) -> Result<(), Reject> {
+        let f = Frame::new_checked(bytes).map_err(|_| Reject::Malformed)?;
+        let kind = f.check().map_err(|_| Reject::Malformed)?;
+        match (kind, self.cfg.plan) {
+            // The proposed plan's lumped frame comes back every cycle: read its slots in
+            // place (no allocation).
+            (FrameKind::Lumped, PlanKind::P2pLumped) => self.take_lumped(now, &f),
+            (FrameKind::Response, PlanKind::P2pLumped) => {
+                let r = ResponseRepr::parse_verified(bytes).map_err(|_| Reject::Malformed)?;
+                self.take_response(now, &r)
+            }
+            (FrameKind::LumpedOnly, PlanKind::LumpedOnly) => {
+                let l = LumpedRepr::<LumpedOnlySlot>::parse_verified(bytes)
+                    .map_err(|_| Reject::Malformed)?;
+                self.take_lumped_only(now, &l)
+            }
+            _ => Err(Reject::UnexpectedKind),
         }
-        let Ok(p) = LumpedPayload::new_checked(f.payload(), FrameKind::Lumped) else {
-            self.counters.bad_frames += 1;
-            return;
-        };
-        self.lumped_back += 1;
+    }
+
+    /// Which lumped frame of this cycle `frame` echoes (its index), or why it is refused:
+    /// the cycle, sequence number, stamp and first slot must be those it went out with,
+    /// and it must not have come back already.
+    fn echo_of(
+        &self,
+        cycle: u32,
+        seq: u16,
+        stamp: u64,
+        first: usize,
+        count: usize,
+    ) -> Result<usize, Reject> {
+        if i64::from(cycle) != self.k & 0xFFFF_FFFF {
+            return Err(Reject::WrongCycle);
+        }
+        let mut start = 0;
+        let mut j = None;
+        for (i, &m) in self.cfg.lumped_slots.iter().enumerate() {
+            if start == first {
+                j = Some((i, m));
+                break;
+            }
+            start += m;
+        }
+        let (j, slots) = j.ok_or(Reject::Unsolicited)?;
+        let sent = self.sent_lumped[j];
+        if !sent.sent || sent.seq != seq || sent.stamp != stamp || slots != count {
+            return Err(Reject::Unsolicited);
+        }
+        if sent.back {
+            return Err(Reject::Duplicate);
+        }
+        Ok(j)
+    }
+
+    /// The latest sampling instant a slot may carry when it is read at `now` [ns, the
+    /// slaves' synchronised clocks, which follow the master's].
+    fn newest_sample(&self, now: Instant) -> u64 {
+        now.as_ns()
+            .saturating_add(self.cfg.timestamp_tolerance.as_ns())
+            .max(0) as u64
+    }
+
+    /// A returned lumped frame (CRC checked): the feedback of every slave that wrote its slot.
+    fn take_lumped(&mut self, now: Instant, f: &Frame<&[u8]>) -> Result<(), Reject> {
+        let p = LumpedPayload::new_checked(f.payload(), FrameKind::Lumped)
+            .map_err(|_| Reject::Malformed)?;
         let first = usize::from(p.first_slot());
-        for k in 0..usize::from(p.slot_count()) {
+        let count = usize::from(p.slot_count());
+        let j = self.echo_of(f.cycle(), f.seq(), p.master_time_ns(), first, count)?;
+        // Every slot must parse before any is taken: a frame is taken whole or not at all.
+        for k in 0..count {
+            match p.slot_bytes(k).map(FeedbackSlot::parse) {
+                Some(Ok(_)) => {}
+                _ => return Err(Reject::Malformed),
+            }
+        }
+        self.sent_lumped[j].back = true;
+        self.lumped_back += 1;
+        let newest = self.newest_sample(now);
+        for k in 0..count {
             let i = first + k;
+            let Some(Ok(slot)) = p.slot_bytes(k).map(FeedbackSlot::parse) else {
+                continue;
+            };
             if i >= self.latest.len() {
                 break;
             }
-            match p.slot_bytes(k).map(FeedbackSlot::parse) {
-                Some(Ok(slot)) if slot.written => {
-                    if self.latest[i].is_some_and(|l| slot.sample_time_ns <= l.sample_time_ns) {
-                        self.counters.samples_stale += 1;
-                    } else {
-                        self.latest[i] = Some(slot);
-                        self.fresh[i] = true;
-                    }
-                }
-                Some(Ok(_)) => self.counters.samples_missing += 1,
-                _ => self.counters.bad_frames += 1,
-            }
+            self.take_sample(i, slot, newest);
         }
+        Ok(())
+    }
+
+    /// One written feedback slot of slave i + 1 in an accepted lumped frame.
+    fn take_sample(&mut self, i: usize, slot: FeedbackSlot, newest: u64) {
+        if !slot.written {
+            self.counters.samples_missing += 1;
+        } else if slot.sample_time_ns > newest {
+            self.counters.rejected.count(Reject::FutureTimestamp);
+        } else if self.latest[i].is_some_and(|l| slot.sample_time_ns <= l.sample_time_ns) {
+            self.counters.samples_stale += 1;
+        } else {
+            self.latest[i] = Some(slot);
+            self.fresh[i] = true;
+        }
+    }
+
+    /// A response: taken only if it answers the open slice.
+    fn take_response(&mut self, now: Instant, r: &ResponseRepr) -> Result<(), Reject> {
+        let k = self.k & 0xFFFF_FFFF;
+        if i64::from(r.echo_cycle) != k || i64::from(r.common.cycle) != k {
+            return Err(Reject::WrongCycle);
+        }
+        let i = usize::from(r.source).wrapping_sub(1);
+        if i >= self.acked.len() {
+            return Err(Reject::Unsolicited);
+        }
+        match self.open {
+            Some((target, retry))
+                if target == i && self.deadline.is_some() && r.common.retry == retry =>
+            {
+                if self.acked[i] {
+                    return Err(Reject::Duplicate);
+                }
+                // The slice ends when the master has the response (eq. 2).
+                self.acked[i] = true;
+                self.close_slice();
+                self.deadline = None;
+                self.open_at = Some(now + self.cfg.turnaround);
+                if r.status.contains(Status::FAULT)
+                    && let Some(s) = self.latest[i].as_mut()
+                {
+                    s.status = s.status.with(Status::FAULT);
+                }
+                Ok(())
+            }
+            _ if self.acked[i] => Err(Reject::Duplicate),
+            _ => Err(Reject::Unsolicited),
+        }
+    }
+
+    /// The lumped-only plan's returned frame: the master monitors what the slaves did.
+    fn take_lumped_only(
+        &mut self,
+        now: Instant,
+        l: &LumpedRepr<LumpedOnlySlot>,
+    ) -> Result<(), Reject> {
+        let first = usize::from(l.first_slot);
+        self.echo_of(
+            l.common.cycle,
+            l.common.seq,
+            l.master_time_ns,
+            first,
+            l.slots.len(),
+        )
+        .map(|j| self.sent_lumped[j].back = true)?;
+        self.lumped_back += 1;
+        let newest = self.newest_sample(now);
+        let r = &mut self.record;
+        r.k = self.k;
+        for (k, slot) in l.slots.iter().enumerate() {
+            let i = first + k;
+            if i >= self.lo_slots.len() {
+                continue;
+            }
+            let f = slot.feedback;
+            if f.written && f.sample_time_ns > newest {
+                self.counters.rejected.count(Reject::FutureTimestamp);
+                continue;
+            }
+            self.lo_slots[i] = *slot;
+            if !f.written {
+                self.counters.samples_missing += 1;
+            }
+            r.fresh[i] = f.written;
+            r.position[i] = f64::from(f.position) * self.cfg.resolution[i];
+            r.sample_time[i] = f.sample_time_ns as f64 * 1e-9;
+            r.u[i] = f64::from(slot.command_v);
+            r.saturated[i] = f.status.contains(Status::SATURATED);
+            r.apply_time[i] = r.sample_time[i];
+        }
+        if self.lumped_back == self.cfg.lumped_offsets.len() {
+            self.events.push_back(MasterEvent::Computed { k: self.k });
+        }
+        Ok(())
     }
 
     /// Hands back the buffer of a frame the driver is done with (sent, or received and

@@ -7,11 +7,19 @@
 
 pub mod clock;
 pub mod master;
+pub mod reject;
 pub mod slave;
+pub mod testbed;
 
 pub use clock::{ClockFilter, SyncClock};
-pub use master::{CycleRecord, Master, MasterConfig, MasterCounters, MasterEvent, StopReason};
-pub use slave::{FrameOutcome, LumpedOnlyControl, Slave, SlaveConfig, SlaveCounters, SlaveEvent};
+pub use master::{
+    CycleRecord, Master, MasterConfig, MasterCounters, MasterEvent, OffReason, StopReason,
+};
+pub use reject::{Reject, Rejections};
+pub use slave::{
+    FrameOutcome, LumpedOnlyControl, SafeState, Slave, SlaveConfig, SlaveCounters, SlaveEvent,
+    TorqueOffCause,
+};
 
 use crate::time::Instant;
 
@@ -50,5 +58,7 @@ pub struct Transmit {
     pub bytes: Vec<u8>,
 }
 
+#[cfg(test)]
+mod hostile;
 #[cfg(test)]
 mod tests;

@@ -1,7 +1,7 @@
 //! The slave node of the proposed plan: takes the master's timestamp from the passing lumped
 //! frame (clock sync), writes its feedback into its own slot, applies its command when it
-//! arrives and answers after T_ti, and goes to its safe state (0 V, FAULT | WATCHDOG) when no
-//! valid command arrives for W cycles.
+//! arrives and answers after T_ti, and applies its local fault reaction when no valid
+//! command arrives for W cycles.
 //!
 //! Sampling: at synchronised time k·T_cyc − lead the slave latches its encoder count; the
 //! velocity is the count difference over the window that ends there, so the driver is asked
@@ -10,6 +10,32 @@
 //! well under the lumped frame's first hop; a lead (EtherCAT's "input shift") keeps the
 //! latch ahead of the frame when the clocks are only good to tens of µs (software
 //! timestamps).
+//!
+//! # Frame acceptance
+//! Nothing from the wire is trusted ([`super::reject`]). A lumped frame is taken (its
+//! timestamp for the clock, its slot for the feedback) only when its cycle counter matches
+//! its own send stamp, both are newer than the last lumped frame taken, and the stamp plus
+//! the path delay lies within the clock window of the slave's own estimate of master time
+//! (`timestamp_tolerance` ahead, `late_limit` behind). A command is taken only when its
+//! cycle is the one in progress by the slave's clock, its cycle is newer than the last
+//! command taken (a retry of that command is answered again, not applied again), and the
+//! sample it was computed from is not in the future. Refused frames change nothing: a
+//! lumped frame is forwarded unchanged, a command is not answered, the watchdog is not fed.
+//!
+//! A clock step beyond the window is never taken from one frame or a burst. When the
+//! master's time line really moves (the master restarted), frames of the new time line are
+//! consistent with each other but not with the slave's clock; after `relock_after` of them
+//! with no frame of the old time line in between, the slave re-locks to the new one
+//! ([`SlaveEvent::Relocked`]). While it waits it takes no command, so its watchdog has long
+//! put the axis in its safe state.
+//!
+//! # Fault reaction
+//! When no valid command arrives for W cycles (the master or the ring is gone) the slave
+//! applies its configured [`SafeState`], as a drive does (CiA 402 "quick stop, then
+//! disable"): `TorqueOff` cuts torque at once; `Brake` damps the axis's own measured
+//! velocity (u = −K_b·v, clipped) until it stands still for [`STANDSTILL_SAMPLES`] samples,
+//! or for at most `brake_timeout`, then cuts torque. A `TORQUE_OFF` command from the master
+//! cuts torque too. Torque off is latched.
 
 use std::collections::VecDeque;
 
@@ -18,13 +44,76 @@ use ringsync_control::{
     VelocitySource,
 };
 use ringsync_wire::{
-    CommandRepr, Common, FeedbackSlot, Frame, FrameKind, LumpedOnlySlot, LumpedPayload,
+    CommandRepr, Common, FeedbackSlot, Flags, Frame, FrameKind, LumpedOnlySlot, LumpedPayload,
     ResponseRepr, SlotCodec, Status,
 };
 
 use super::Transmit;
 use super::clock::SyncClock;
+use super::reject::{Reject, Rejections, unwrap_cycle};
 use crate::time::{Duration, Instant};
+
+/// Consecutive samples with at most one count of motion over the velocity window after
+/// which a braking axis is taken to stand still.
+pub const STANDSTILL_SAMPLES: u32 = 10;
+
+/// What a slave that loses its master does with its axis.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum SafeState {
+    /// Cut torque at once (the axis coasts against its friction).
+    TorqueOff,
+    /// Damp the axis's own velocity to standstill, then cut torque.
+    #[default]
+    Brake,
+}
+
+impl SafeState {
+    /// The name used in scenarios and outputs.
+    pub fn name(self) -> &'static str {
+        match self {
+            SafeState::TorqueOff => "torque-off",
+            SafeState::Brake => "brake",
+        }
+    }
+}
+
+impl std::str::FromStr for SafeState {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "torque-off" => Ok(SafeState::TorqueOff),
+            "brake" => Ok(SafeState::Brake),
+            other => Err(format!(
+                "unknown safe state '{other}': use \"brake\" or \"torque-off\""
+            )),
+        }
+    }
+}
+
+/// Why a drive's torque went off.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TorqueOffCause {
+    /// The master ordered it (a command with the `TORQUE_OFF` flag).
+    Commanded,
+    /// The watchdog expired and the safe state is `TorqueOff`.
+    Watchdog,
+    /// The brake reaction brought the axis to standstill.
+    Standstill,
+    /// The brake reaction ran out of time.
+    BrakeTimeout,
+}
+
+impl TorqueOffCause {
+    /// The name used in outputs.
+    pub fn name(self) -> &'static str {
+        match self {
+            TorqueOffCause::Commanded => "ordered by the master",
+            TorqueOffCause::Watchdog => "watchdog, safe state torque-off",
+            TorqueOffCause::Standstill => "brake reached standstill",
+            TorqueOffCause::BrakeTimeout => "brake timed out",
+        }
+    }
+}
 
 /// What a slave needs to run the control law itself (the lumped-only plan of ref. [3]).
 pub struct LumpedOnlyControl {
@@ -80,18 +169,79 @@ pub struct SlaveConfig {
     pub clock_sync: bool,
     /// Drive range ±u_max [V].
     pub u_max: f64,
+    /// Encoder resolution [rad per count] (the brake reaction's velocity).
+    pub resolution: f64,
+    /// How far ahead of the slave's own estimate of master time a received timestamp may
+    /// be (the clock error the slave allows; a command's cycle is placed with the same
+    /// allowance).
+    pub timestamp_tolerance: Duration,
+    /// How late after the slave's own estimate a lumped frame may reach it (link jitter,
+    /// a host that read it late) and still be taken.
+    pub late_limit: Duration,
+    /// Frames of a new, self-consistent master time line outside the clock window are
+    /// taken as a real clock step after this long with no frame of the old time line.
+    pub relock_after: Duration,
+    /// The local reaction when the master is lost.
+    pub safe_state: SafeState,
+    /// K_b of the brake reaction u = −K_b·v [V·s/rad].
+    pub brake_gain: f64,
+    /// Longest brake before the torque goes off anyway.
+    pub brake_timeout: Duration,
+}
+
+impl SlaveConfig {
+    /// Slave `address` on a ring of cycle `cycle`, `path_delay` from the master, with the
+    /// reference ring's other settings: T_ti 2 µs, a 125 µs velocity window, no sampling
+    /// lead, W = 5, synchronised clock, ±10 V, a 20-bit encoder, a clock window of 50 µs
+    /// ahead and half a cycle behind, re-lock after 100 cycles, brake with K_b = 1.591
+    /// V·s/rad for at most 2 s.
+    pub fn new(address: u16, cycle: Duration, path_delay: Duration) -> Self {
+        SlaveConfig {
+            address,
+            cycle,
+            path_delay,
+            response_delay: Duration::from_us(2),
+            velocity_window: Duration::from_us(125),
+            sample_lead: Duration::ZERO,
+            watchdog_cycles: 5,
+            clock_sync: true,
+            u_max: 10.0,
+            resolution: std::f64::consts::TAU / f64::from(1u32 << 20),
+            timestamp_tolerance: Duration::from_us(50),
+            late_limit: Duration::from_ns(cycle.as_ns() / 2),
+            relock_after: cycle * 100,
+            safe_state: SafeState::Brake,
+            brake_gain: 1.591,
+            brake_timeout: Duration::from_ms(2_000),
+        }
+    }
 }
 
 /// Something the driver must act on.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum SlaveEvent {
-    /// Apply this command to the drive [V] from now on.
+    /// Apply this command from the master to the drive [V] from now on.
     Apply {
         /// The command after clipping [V].
         u: f64,
     },
-    /// The watchdog expired: the drive is at 0 V from now on.
+    /// The watchdog expired: the master is lost; the safe state's reaction follows.
     WatchdogExpired,
+    /// The drive's own brake command (the `Brake` safe state) [V] from now on.
+    Brake {
+        /// The command after clipping [V].
+        u: f64,
+    },
+    /// The drive's torque is off from now on (latched; the drive holds 0 V).
+    TorqueOff {
+        /// Why.
+        cause: TorqueOffCause,
+    },
+    /// The clock re-locked to a new master time line.
+    Relocked {
+        /// The step taken [ns]: new time line minus the slave's clock.
+        step: Duration,
+    },
 }
 
 /// What the hardware does with a received frame.
@@ -101,7 +251,7 @@ pub enum FrameOutcome {
     Forward,
     /// It was for this slave; it ends here.
     Consumed,
-    /// Bad frame (CRC, format); dropped and counted.
+    /// Bad or refused frame for this slave; dropped and counted.
     Dropped,
 }
 
@@ -112,10 +262,12 @@ pub struct SlaveCounters {
     pub syncs: u64,
     /// Valid commands applied.
     pub commands: u64,
-    /// Frames dropped for a bad CRC or format.
-    pub bad_frames: u64,
-    /// Commands seen again (retries of an already applied cycle).
+    /// Retries of a command already applied, answered again (not applied again).
     pub duplicates: u64,
+    /// Frames refused, per reason.
+    pub rejected: Rejections,
+    /// Clock re-locks to a new master time line.
+    pub relocks: u64,
 }
 
 /// Which encoder latch comes next.
@@ -125,6 +277,32 @@ enum Latch {
     Window,
     /// The sampling instant.
     Sample,
+}
+
+/// The drive's state.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Drive {
+    /// Following the master's commands.
+    Enabled,
+    /// Braking on its own: since local time `since` [ns]; `still` samples at standstill.
+    Braking { since: i64, still: u32 },
+    /// Torque off (latched).
+    Off,
+}
+
+/// Frames of a foreign time line seen in a row: the first and last one's local receive
+/// time and the last one's master time at the slave [ns].
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Candidate {
+    first_local: i64,
+    last_local: i64,
+    last_at: i64,
+}
+
+/// A command that passed acceptance: apply it, or answer a retry of the last one again.
+enum CommandAction {
+    Apply,
+    Repeat,
 }
 
 /// A slave.
@@ -138,8 +316,15 @@ pub struct Slave {
     sample: FeedbackSlot,
     u: f64,
     status: Status,
+    drive: Drive,
     cycles_without_command: u32,
-    last_cycle_applied: Option<u32>,
+    /// Cycle and retry count of the last command taken.
+    last_command: Option<(u32, u8)>,
+    /// The last lumped frame taken: its full cycle, its send stamp [master ns], and its
+    /// local receive time with the master time it reached this slave [ns].
+    last_lumped: Option<(i64, i64)>,
+    anchor: Option<(i64, i64)>,
+    candidate: Option<Candidate>,
     seq: u16,
     out: VecDeque<Transmit>,
     events: VecDeque<SlaveEvent>,
@@ -195,8 +380,12 @@ impl Slave {
             sample: FeedbackSlot::default(),
             u: 0.0,
             status: Status::CLOCK_UNLOCKED,
+            drive: Drive::Enabled,
             cycles_without_command: 0,
-            last_cycle_applied: None,
+            last_command: None,
+            last_lumped: None,
+            anchor: None,
+            candidate: None,
             seq: 0,
             out: VecDeque::new(),
             events: VecDeque::new(),
@@ -230,9 +419,38 @@ impl Slave {
     pub fn command(&self) -> f64 {
         self.u
     }
+    /// Whether the drive's torque is off.
+    pub fn torque_off(&self) -> bool {
+        self.drive == Drive::Off
+    }
+    /// The full cycle index of the last lumped frame taken: the node's "last seen"
+    /// counter, from which a driver tells where a ring broke.
+    pub fn last_lumped_cycle(&self) -> Option<i64> {
+        self.last_lumped.map(|(c, _)| c)
+    }
+    /// Encoder latches taken so far (the node's own heartbeat: it advances as long as the
+    /// slave runs, whatever reaches it).
+    pub fn samples_taken(&self) -> i64 {
+        self.k
+    }
 
     fn sample_instant(&self) -> Instant {
-        Instant::from_ns(self.k * self.cfg.cycle.as_ns()) - self.cfg.sample_lead
+        Instant::from_ns(self.k.saturating_mul(self.cfg.cycle.as_ns())) - self.cfg.sample_lead
+    }
+
+    /// The slave's own estimate of master time at local time `local`: its synchronised
+    /// clock once locked; before that (or without clock sync), the last lumped frame taken
+    /// plus the local time since; `None` before any.
+    fn master_now(&self, local: Instant) -> Option<i64> {
+        if self.cfg.clock_sync && self.clock.is_locked() && self.anchor.is_some() {
+            return Some(self.clock.to_sync(local).as_ns());
+        }
+        self.anchor
+            .map(|(l, m)| m.saturating_add(local.as_ns().saturating_sub(l)))
+    }
+
+    fn reject(&mut self, r: Reject) {
+        self.counters.rejected.count(r);
     }
 
     /// Hands back the buffer of a frame the driver is done with (sent, consumed or
@@ -258,8 +476,9 @@ impl Slave {
                 self.latch = Latch::Sample;
             }
             Latch::Sample => {
+                let moved = counts.saturating_sub(self.window_counts);
                 let w = self.cfg.velocity_window.as_ns() as f64 * 1e-9;
-                let velocity = (counts - self.window_counts) as f64 / w;
+                let velocity = moved as f64 / w;
                 let sync_now = self.clock.to_sync(now);
                 self.sample = FeedbackSlot {
                     position: clamp_i32(counts),
@@ -270,12 +489,13 @@ impl Slave {
                 };
                 self.latch = Latch::Window;
                 self.k += 1;
-                self.tick_watchdog();
+                self.tick_watchdog(now);
+                self.brake_step(now, moved, velocity);
             }
         }
     }
 
-    fn tick_watchdog(&mut self) {
+    fn tick_watchdog(&mut self, now: Instant) {
         if self.status.contains(Status::WATCHDOG) {
             return;
         }
@@ -284,11 +504,55 @@ impl Slave {
             self.u = 0.0;
             self.status = self.status.with(Status::FAULT).with(Status::WATCHDOG);
             self.events.push_back(SlaveEvent::WatchdogExpired);
+            match (self.drive, self.cfg.safe_state) {
+                (Drive::Off, _) => {}
+                (_, SafeState::TorqueOff) => self.cut_torque(TorqueOffCause::Watchdog),
+                (_, SafeState::Brake) => {
+                    self.status = self.status.with(Status::BRAKING);
+                    self.drive = Drive::Braking {
+                        since: now.as_ns(),
+                        still: 0,
+                    };
+                }
+            }
         }
     }
 
+    /// One step of the brake reaction at a sample: `moved` counts over the velocity window,
+    /// `velocity` [counts/s].
+    fn brake_step(&mut self, now: Instant, moved: i64, velocity: f64) {
+        let Drive::Braking { since, still } = self.drive else {
+            return;
+        };
+        let still = if moved.abs() <= 1 { still + 1 } else { 0 };
+        if still >= STANDSTILL_SAMPLES {
+            self.cut_torque(TorqueOffCause::Standstill);
+            return;
+        }
+        if now.as_ns().saturating_sub(since) > self.cfg.brake_timeout.as_ns() {
+            self.cut_torque(TorqueOffCause::BrakeTimeout);
+            return;
+        }
+        let (u, _) = saturate(
+            -self.cfg.brake_gain * velocity * self.cfg.resolution,
+            self.cfg.u_max,
+        );
+        self.u = u;
+        self.drive = Drive::Braking { since, still };
+        self.events.push_back(SlaveEvent::Brake { u });
+    }
+
+    fn cut_torque(&mut self, cause: TorqueOffCause) {
+        self.u = 0.0;
+        self.drive = Drive::Off;
+        self.status = Status::from_bits(self.status.bits() & !Status::BRAKING.bits())
+            .unwrap_or(self.status)
+            .with(Status::TORQUE_OFF);
+        self.events.push_back(SlaveEvent::TorqueOff { cause });
+    }
+
     /// A frame whose first bit arrived at local `rx_start` and last bit at `rx_end`. A lumped
-    /// frame is modified in place (this slave's slot, then the CRC).
+    /// frame is modified in place (this slave's slot, then the CRC) once it is accepted.
     pub fn handle_frame(
         &mut self,
         rx_start: Instant,
@@ -296,56 +560,158 @@ impl Slave {
         bytes: &mut [u8],
     ) -> FrameOutcome {
         let Ok(mut frame) = Frame::new_checked(&mut bytes[..]) else {
-            self.counters.bad_frames += 1;
+            self.reject(Reject::Malformed);
             return FrameOutcome::Dropped;
         };
         let kind = match frame.check() {
             Ok(k) => k,
             Err(_) => {
-                self.counters.bad_frames += 1;
+                self.reject(Reject::Malformed);
                 return FrameOutcome::Dropped;
             }
         };
         match kind {
-            FrameKind::Lumped => {
+            FrameKind::Lumped if self.law.is_none() => {
+                let cycle = frame.cycle();
                 let Ok(mut p) = LumpedPayload::new_checked(frame.payload_mut(), kind) else {
-                    self.counters.bad_frames += 1;
+                    self.reject(Reject::Malformed);
                     return FrameOutcome::Dropped;
                 };
-                let sent = Instant::from_ns(p.master_time_ns() as i64);
-                if let Some(k) = p.slot_index(self.cfg.address) {
-                    self.clock.sync(rx_start, sent, self.cfg.path_delay);
-                    self.counters.syncs += 1;
-                    if self.clock.is_locked() {
-                        self.status =
-                            Status::from_bits(self.status.bits() & !Status::CLOCK_UNLOCKED.bits())
-                                .unwrap_or(self.status);
-                    }
-                    if let Some(slot) = p.slot_bytes_mut(k) {
-                        // Infallible for a feedback slot of the right length.
-                        let _ = self.sample.emit(slot);
-                    }
-                    frame.fill_crc();
+                let Some(k) = p.slot_index(self.cfg.address) else {
+                    return FrameOutcome::Forward;
+                };
+                if let Err(r) = self.take_sync(rx_start, cycle, p.master_time_ns()) {
+                    self.reject(r);
+                    return FrameOutcome::Forward;
                 }
+                if let Some(slot) = p.slot_bytes_mut(k) {
+                    // Infallible for a feedback slot of the right length.
+                    let _ = self.sample.emit(slot);
+                }
+                frame.fill_crc();
                 FrameOutcome::Forward
             }
             FrameKind::Command => {
                 let Ok(cmd) = CommandRepr::parse_verified(bytes) else {
-                    self.counters.bad_frames += 1;
+                    self.reject(Reject::Malformed);
                     return FrameOutcome::Dropped;
                 };
                 if cmd.target != self.cfg.address {
                     return FrameOutcome::Forward;
                 }
-                self.take_command(&cmd, rx_end);
-                FrameOutcome::Consumed
+                match self.check_command(&cmd, rx_end) {
+                    Ok(action) => {
+                        self.take_command(&cmd, rx_end, action);
+                        FrameOutcome::Consumed
+                    }
+                    Err(r) => {
+                        self.reject(r);
+                        FrameOutcome::Dropped
+                    }
+                }
             }
             FrameKind::LumpedOnly if self.law.is_some() => {
                 self.take_lumped_only(rx_start, rx_end, &mut frame);
                 FrameOutcome::Forward
             }
-            FrameKind::Response | FrameKind::LumpedOnly => FrameOutcome::Forward,
+            // A lumped frame of the other plan: not ours to read; the ring carries it on.
+            FrameKind::Lumped | FrameKind::LumpedOnly => {
+                self.reject(Reject::UnexpectedKind);
+                FrameOutcome::Forward
+            }
+            FrameKind::Response => FrameOutcome::Forward,
         }
+    }
+
+    /// Checks a lumped frame that carries this slave's slot (its `cycle` and send `stamp`,
+    /// received at local `rx`) and, if it passes, takes it for the clock.
+    fn take_sync(&mut self, rx: Instant, cycle: u32, stamp: u64) -> Result<(), Reject> {
+        let sent = Instant::from_wire(stamp).ok_or(Reject::Overflow)?;
+        let at = sent
+            .checked_add(self.cfg.path_delay)
+            .ok_or(Reject::Overflow)?;
+        // The master stamps a lumped frame with its send time, in its cycle (a late master
+        // up to one cycle after): the counter must match the stamp.
+        let t = self.cfg.cycle.as_ns().max(1);
+        let stamp_cycle = sent.as_ns().div_euclid(t);
+        let c = unwrap_cycle(cycle, stamp_cycle);
+        if c != stamp_cycle && c != stamp_cycle - 1 {
+            return Err(Reject::WrongCycle);
+        }
+        // Against the slave's own time line: newer than the last frame taken, and within
+        // the clock window. A frame that fails only these may belong to a new time line.
+        let verdict = match (self.last_lumped, self.master_now(rx)) {
+            (Some((last_c, last_stamp)), _) if c == last_c || sent.as_ns() == last_stamp => {
+                return Err(Reject::Duplicate);
+            }
+            (Some((last_c, last_stamp)), _) if c < last_c || sent.as_ns() < last_stamp => {
+                Err(Reject::Stale)
+            }
+            (_, Some(expect)) => {
+                let err = at.as_ns().saturating_sub(expect);
+                if err > self.cfg.timestamp_tolerance.as_ns() {
+                    Err(Reject::FutureTimestamp)
+                } else if err < -self.cfg.late_limit.as_ns() {
+                    Err(Reject::Stale)
+                } else {
+                    Ok(())
+                }
+            }
+            (_, None) => Ok(()), // the first frame: nothing to check it against
+        };
+        match verdict {
+            Ok(()) => {
+                self.candidate = None;
+                self.clock.sync(rx, at);
+            }
+            Err(r) => {
+                if !self.relock(rx, at) {
+                    return Err(r);
+                }
+            }
+        }
+        self.last_lumped = Some((c, sent.as_ns()));
+        self.anchor = Some((rx.as_ns(), at.as_ns()));
+        self.counters.syncs += 1;
+        if self.clock.is_locked() {
+            self.status = Status::from_bits(self.status.bits() & !Status::CLOCK_UNLOCKED.bits())
+                .unwrap_or(self.status);
+        }
+        Ok(())
+    }
+
+    /// A lumped frame outside the slave's time line, received at `rx`, reaching it at
+    /// master time `at`: one more frame of a candidate new time line. True when the
+    /// candidate has lasted `relock_after` and the clock re-locked to it.
+    fn relock(&mut self, rx: Instant, at: Instant) -> bool {
+        let (l, m) = (rx.as_ns(), at.as_ns());
+        let consistent = self.candidate.is_some_and(|c| {
+            let dm = m.saturating_sub(c.last_at);
+            let dl = l.saturating_sub(c.last_local);
+            dm > 0 && (dm - dl).abs() <= self.cfg.timestamp_tolerance.as_ns()
+        });
+        let first = match self.candidate {
+            Some(c) if consistent => c.first_local,
+            _ => l,
+        };
+        self.candidate = Some(Candidate {
+            first_local: first,
+            last_local: l,
+            last_at: m,
+        });
+        if l.saturating_sub(first) < self.cfg.relock_after.as_ns() {
+            return false;
+        }
+        let step = self
+            .master_now(rx)
+            .map_or(Duration::ZERO, |e| Duration::from_ns(m.saturating_sub(e)));
+        self.clock.relock(rx, at);
+        self.candidate = None;
+        self.last_lumped = None;
+        self.last_command = None;
+        self.counters.relocks += 1;
+        self.events.push_back(SlaveEvent::Relocked { step });
+        true
     }
 
     /// The lumped-only plan: sync, write the fresh sample, run the law on what the frame
@@ -357,24 +723,28 @@ impl Slave {
         rx_end: Instant,
         frame: &mut Frame<&mut [u8]>,
     ) {
-        let me = usize::from(self.cfg.address) - 1;
+        let me = usize::from(self.cfg.address).saturating_sub(1);
+        let cycle = frame.cycle();
         let Ok(mut p) = LumpedPayload::new_checked(frame.payload_mut(), FrameKind::LumpedOnly)
         else {
-            self.counters.bad_frames += 1;
+            self.reject(Reject::Malformed);
             return;
         };
         let Some(k_me) = p.slot_index(self.cfg.address) else {
             return;
         };
-        let sent = Instant::from_ns(p.master_time_ns() as i64);
-        self.clock.sync(rx_start, sent, self.cfg.path_delay);
-        self.counters.syncs += 1;
-        if self.clock.is_locked() {
-            self.status = Status::from_bits(self.status.bits() & !Status::CLOCK_UNLOCKED.bits())
-                .unwrap_or(self.status);
+        if let Err(r) = self.take_sync(rx_start, cycle, p.master_time_ns()) {
+            self.reject(r);
+            return;
         }
         let first = usize::from(p.first_slot());
         let now = self.clock.to_sync(rx_end);
+        // A slot may not carry a sample from the future (by this slave's clock).
+        let newest = now
+            .as_ns()
+            .saturating_add(self.cfg.timestamp_tolerance.as_ns())
+            .max(0) as u64;
+        let mut future = 0;
         let Some(law) = self.law.as_mut() else { return };
         let n = law.seen.len();
         for a in 0..n {
@@ -393,6 +763,10 @@ impl Slave {
                     _ => continue,
                 }
             };
+            if slot.sample_time_ns > newest {
+                future += 1;
+                continue;
+            }
             if slot.sample_time_ns == law.seen[a]
                 || slot.sample_time_ns == 0 && law.seen[a] != u64::MAX
             {
@@ -417,12 +791,15 @@ impl Slave {
             .update(&law.fb, &law.input, &mut law.out)
             .is_ok()
         {
-            law.out.u[me]
+            law.out.u.get(me).copied().unwrap_or(0.0)
         } else {
             0.0
         };
-        if !self.status.contains(Status::FAULT) {
-            let (u, sat) = ringsync_plant::saturate(u, self.cfg.u_max);
+        for _ in 0..future {
+            self.reject(Reject::FutureTimestamp);
+        }
+        if !self.status.contains(Status::FAULT) && self.drive == Drive::Enabled {
+            let (u, sat) = saturate(u, self.cfg.u_max);
             self.u = u;
             let mut st = Status::from_bits(self.status.bits() & !Status::SATURATED.bits())
                 .unwrap_or(self.status);
@@ -446,25 +823,66 @@ impl Slave {
         frame.fill_crc();
     }
 
-    fn take_command(&mut self, cmd: &CommandRepr, rx_end: Instant) {
-        if self.last_cycle_applied == Some(cmd.common.cycle) {
-            self.counters.duplicates += 1;
-        } else if !self.status.contains(Status::FAULT) {
-            let (u, sat) = ringsync_plant::saturate(f64::from(cmd.command_v), self.cfg.u_max);
-            self.u = u;
-            let mut st = self.status;
-            st = Status::from_bits(st.bits() & !Status::SATURATED.bits()).unwrap_or(st);
-            if sat {
-                st = st.with(Status::SATURATED);
-            }
-            if cmd.common.flags.contains(ringsync_wire::Flags::STOP) {
-                st = st.with(Status::STOPPING);
-            }
-            self.status = st;
-            self.events.push_back(SlaveEvent::Apply { u });
-            self.counters.commands += 1;
+    /// Whether a command for this slave, received (last bit) at local `rx`, may be taken.
+    fn check_command(&self, cmd: &CommandRepr, rx: Instant) -> Result<CommandAction, Reject> {
+        // Place it on the slave's own time line: a command belongs to the cycle in
+        // progress (its slice or a retry of it); before any lumped frame there is none.
+        let now = self.master_now(rx).ok_or(Reject::WrongCycle)?;
+        let t = self.cfg.cycle.as_ns().max(1);
+        let c = unwrap_cycle(cmd.common.cycle, now.div_euclid(t));
+        let tol = self.cfg.timestamp_tolerance.as_ns();
+        let start = c.checked_mul(t).ok_or(Reject::Overflow)?;
+        if now < start.saturating_sub(tol) || now > start.saturating_add(t).saturating_add(tol) {
+            return Err(Reject::WrongCycle);
         }
-        self.last_cycle_applied = Some(cmd.common.cycle);
+        // The sample the command was computed from cannot be in the future.
+        let sampled = Instant::from_wire(cmd.sample_time_ns).ok_or(Reject::Overflow)?;
+        if sampled.as_ns() > now.saturating_add(tol) {
+            return Err(Reject::FutureTimestamp);
+        }
+        match self.last_command {
+            Some((last, last_retry)) => {
+                let d = cmd.common.cycle.wrapping_sub(last) as i32;
+                if d < 0 {
+                    Err(Reject::Stale)
+                } else if d == 0 && cmd.common.retry > last_retry {
+                    Ok(CommandAction::Repeat)
+                } else if d == 0 {
+                    Err(Reject::Duplicate)
+                } else {
+                    Ok(CommandAction::Apply)
+                }
+            }
+            None => Ok(CommandAction::Apply),
+        }
+    }
+
+    fn take_command(&mut self, cmd: &CommandRepr, rx_end: Instant, action: CommandAction) {
+        let flags = cmd.common.flags;
+        match action {
+            CommandAction::Repeat => self.counters.duplicates += 1,
+            CommandAction::Apply => {
+                if flags.contains(Flags::TORQUE_OFF) && self.drive != Drive::Off {
+                    self.cut_torque(TorqueOffCause::Commanded);
+                }
+                if !self.status.contains(Status::FAULT) && self.drive == Drive::Enabled {
+                    let (u, sat) = saturate(f64::from(cmd.command_v), self.cfg.u_max);
+                    self.u = u;
+                    let mut st = self.status;
+                    st = Status::from_bits(st.bits() & !Status::SATURATED.bits()).unwrap_or(st);
+                    if sat {
+                        st = st.with(Status::SATURATED);
+                    }
+                    self.status = st;
+                    self.events.push_back(SlaveEvent::Apply { u });
+                    self.counters.commands += 1;
+                }
+                if flags.contains(Flags::STOP) {
+                    self.status = self.status.with(Status::STOPPING);
+                }
+            }
+        }
+        self.last_command = Some((cmd.common.cycle, cmd.common.retry));
         if !self.status.contains(Status::WATCHDOG) {
             self.cycles_without_command = 0;
         }
@@ -501,6 +919,17 @@ impl Slave {
     /// The next event for the driver.
     pub fn poll_event(&mut self) -> Option<SlaveEvent> {
         self.events.pop_front()
+    }
+}
+
+/// `u` clipped to ±`limit`, and whether it was clipped.
+pub(crate) fn saturate(u: f64, limit: f64) -> (f64, bool) {
+    if u > limit {
+        (limit, true)
+    } else if u < -limit {
+        (-limit, true)
+    } else {
+        (u, false)
     }
 }
 

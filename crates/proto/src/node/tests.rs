@@ -30,16 +30,10 @@ fn ring(n: u32, lead: Duration) -> (Master, Vec<Slave>) {
     let slaves = (0..n)
         .map(|i| {
             Slave::new(SlaveConfig {
-                address: (i + 1) as u16,
-                cycle: Duration::from_ns(T_CYC),
-                path_delay: plan.d_c[i],
-                response_delay: Duration::from_us(2),
-                velocity_window: Duration::from_us(125),
                 sample_lead: lead,
-                watchdog_cycles: 5,
                 // Free-running clocks read true time: local time is the test's time.
                 clock_sync: false,
-                u_max: 10.0,
+                ..SlaveConfig::new((i + 1) as u16, Duration::from_ns(T_CYC), plan.d_c[i])
             })
         })
         .collect();

@@ -1,0 +1,565 @@
+//! The nodes on a hostile wire: forged, duplicated, stale, reordered, future-stamped and
+//! wrong-cycle frames, all with a valid CRC, driven through the [`Testbed`]. And the fault
+//! reactions: the group stop that ends in torque off, the slave's own brake.
+
+use ringsync_wire::{
+    CommandRepr, Common, FeedbackSlot, Flags, FrameKind, LumpedRepr, ResponseRepr, SlotCodec,
+    Status,
+};
+
+use super::testbed::{Fate, Hop, Testbed, TestbedConfig, seal};
+use super::*;
+use crate::time::{Duration, Instant};
+
+const MS: i64 = 1_000_000;
+
+fn ring() -> Testbed {
+    Testbed::new(TestbedConfig::default())
+}
+
+fn lumped(cycle: u32, stamp: u64, slots: usize) -> Vec<u8> {
+    let repr = LumpedRepr {
+        common: Common {
+            cycle,
+            seq: 999,
+            ..Common::default()
+        },
+        master_time_ns: stamp,
+        first_slot: 0,
+        slots: vec![FeedbackSlot::default(); slots],
+    };
+    let mut b = vec![0; repr.buffer_len()];
+    repr.emit(&mut b).expect("emit lumped");
+    b
+}
+
+fn command(cycle: u32, target: u16, v: f32, retry: u8, sample: u64) -> Vec<u8> {
+    let repr = CommandRepr {
+        common: Common {
+            cycle,
+            retry,
+            ..Common::default()
+        },
+        target,
+        command_v: v,
+        sample_time_ns: sample,
+    };
+    let mut b = vec![0; repr.buffer_len()];
+    repr.emit(&mut b).expect("emit command");
+    b
+}
+
+fn response(cycle: u32, source: u16, retry: u8) -> Vec<u8> {
+    let repr = ResponseRepr {
+        common: Common {
+            cycle,
+            retry,
+            ..Common::default()
+        },
+        source,
+        status: Status::empty(),
+        echo_cycle: cycle,
+        position: 0,
+        velocity: 0,
+        sample_time_ns: 0,
+        applied_v: 0.0,
+    };
+    let mut b = vec![0; repr.buffer_len()];
+    repr.emit(&mut b).expect("emit response");
+    b
+}
+
+fn is_kind(b: &[u8], k: FrameKind) -> bool {
+    b.get(1) == Some(&(k as u8))
+}
+
+fn cycle_of(b: &[u8]) -> i64 {
+    i64::from(u32::from_le_bytes([b[4], b[5], b[6], b[7]]))
+}
+
+/// Slave i's (1-based) synchronised clock minus true time now [ns].
+fn clock_error(r: &Testbed, i: usize) -> i64 {
+    let now = r.now();
+    r.slaves[i - 1].clock().to_sync(r.local(i, now)).as_ns() - now
+}
+
+fn stops(r: &Testbed) -> Vec<(i64, StopReason)> {
+    r.master_events
+        .iter()
+        .filter_map(|(t, e)| match e {
+            MasterEvent::GroupStop { reason, .. } => Some((*t, *reason)),
+            _ => None,
+        })
+        .collect()
+}
+
+#[test]
+fn a_clean_ring_refuses_nothing_and_tracks_its_motion() {
+    let mut r = ring();
+    r.run_until(1_000 * MS);
+    assert_eq!(r.master.counters().rejected.total(), 0);
+    for s in &r.slaves {
+        assert_eq!(s.counters().rejected.total(), 0, "{:?}", s.counters());
+    }
+    assert!(stops(&r).is_empty());
+    assert!(r.worst_error() < 0.1, "error {}", r.worst_error());
+    // Every slave took one command per cycle and every clock followed the master's.
+    for (i, s) in r.slaves.iter().enumerate() {
+        assert!(s.counters().commands >= 999, "{:?}", s.counters());
+        assert!(clock_error(&r, i + 1).abs() < 100);
+    }
+}
+
+/// Commands with a valid CRC but another cycle's counter are refused, counted, never
+/// applied, and do not feed the slave's watchdog. Before the fix a slave applied any
+/// valid-CRC command addressed to it and reset its watchdog.
+#[test]
+fn forged_wrong_cycle_commands_are_refused_and_never_applied() {
+    let mut r = ring();
+    r.run_until(100 * MS);
+    for k in 100..400i64 {
+        // At 1 kHz, mid-cycle: a command 7 cycles ahead and one 3 behind, at 10 V.
+        let t = k * MS + 500_000;
+        r.inject(2, t, command((k + 7) as u32, 2, 10.0, 0, (k * MS) as u64));
+        r.inject(
+            2,
+            t + 1_000,
+            command((k - 3) as u32, 2, -10.0, 0, (k * MS) as u64),
+        );
+        r.run_until(t + 2_000);
+    }
+    r.run_until(400 * MS);
+    let c = r.slaves[1].counters();
+    assert_eq!(c.rejected.get(Reject::WrongCycle), 600, "{c:?}");
+    assert!(
+        r.applied.iter().all(|&(_, s, u)| s != 2 || u.abs() < 5.0),
+        "a forged 10 V command was applied"
+    );
+    assert!(stops(&r).is_empty());
+    assert!(r.worst_error() < 0.1);
+
+    // With the master gone, the same forgeries do not keep the slave's watchdog fed.
+    r.dead[0] = true;
+    for k in 400..500i64 {
+        let t = k * MS + 500_000;
+        r.inject(2, t, command((k + 7) as u32, 2, 10.0, 0, (k * MS) as u64));
+        r.run_until(t + 1_000);
+    }
+    let expiry = r
+        .slave_events
+        .iter()
+        .find(|(_, s, e)| *s == 2 && *e == SlaveEvent::WatchdogExpired)
+        .map(|(t, _, _)| *t)
+        .expect("slave 2's watchdog expired");
+    assert!(
+        expiry <= 400 * MS + 7 * MS,
+        "expired at {expiry} ns, W = 5 cycles after 400 ms"
+    );
+}
+
+/// A returning lumped frame whose slot claims a sample 1000 s in the future: the master
+/// refuses that slot and keeps taking the real samples after it. Before the fix every later
+/// sample was "stale", the axis ran on frozen feedback and its command wound up to 10 V.
+#[test]
+fn a_future_stamped_sample_does_not_freeze_the_feedback() {
+    let mut r = ring();
+    r.tap = Some(Box::new(|hop: &Hop, b: &mut Vec<u8>| {
+        if hop.to == 0 && is_kind(b, FrameKind::Lumped) && cycle_of(b) == 50 {
+            // Slave 1's slot: sampling timestamp at payload 12 + 8.
+            let at = 12 + 12 + 8;
+            b[at..at + 8].copy_from_slice(&1_000_000_000_000u64.to_le_bytes());
+            seal(b);
+        }
+        Fate::Deliver
+    }));
+    r.run_until(1_000 * MS);
+    let c = r.master.counters();
+    assert_eq!(c.rejected.get(Reject::FutureTimestamp), 1, "{c:?}");
+    assert_eq!(c.samples_stale, 0);
+    assert!(stops(&r).is_empty(), "{:?}", stops(&r));
+    assert!(r.worst_error() < 0.1, "error {}", r.worst_error());
+    let u_max = r.applied.iter().map(|a| a.2.abs()).fold(0.0, f64::max);
+    assert!(u_max < 5.0, "command {u_max} V");
+}
+
+/// Bursts of 30 valid-CRC lumped frames at every slave: with a wrong cycle and a far
+/// timestamp; with a cycle that matches a far-future timestamp; with a far-past one. None
+/// moves a clock, none faults a slave. Before the fix the clock filter took the 21st frame
+/// of a burst and every slave's clock stepped.
+#[test]
+fn bursts_of_forged_lumped_frames_never_step_the_clocks() {
+    let mut r = ring();
+    r.run_until(300 * MS + 500_000);
+    let far = 50_000 * MS as u64;
+    for (cycle, stamp) in [(7u32, far), (50_000, far), (1, MS as u64)] {
+        for _ in 0..30 {
+            r.inject(1, r.now(), lumped(cycle, stamp, 4));
+        }
+        r.run_until(r.now() + 100_000);
+    }
+    r.run_until(1_000 * MS);
+    // Each forged frame passes every slave (refused, forwarded unchanged) and the master.
+    for s in &r.slaves {
+        let c = s.counters().rejected;
+        assert_eq!(c.get(Reject::WrongCycle), 30, "{c:?}");
+        assert_eq!(c.get(Reject::FutureTimestamp), 30, "{c:?}");
+        assert_eq!(c.get(Reject::Stale), 30, "{c:?}");
+        assert!(!s.status().contains(Status::FAULT));
+    }
+    assert_eq!(r.master.counters().rejected.get(Reject::WrongCycle), 90);
+    for i in 1..=4 {
+        assert!(
+            clock_error(&r, i).abs() < 100,
+            "slave {i} clock off by {} ns",
+            clock_error(&r, i)
+        );
+    }
+    assert!(
+        r.slave_events
+            .iter()
+            .all(|(_, _, e)| matches!(e, SlaveEvent::Apply { .. }))
+    );
+    assert!(stops(&r).is_empty());
+}
+
+/// Timestamps at the end of the time line: refused as overflows, no panic (a debug build
+/// panicked on the slave's clock arithmetic before the fix).
+#[test]
+fn an_overflowing_timestamp_is_refused_without_a_panic() {
+    let mut r = ring();
+    r.run_until(50 * MS + 500_000);
+    let t = r.now();
+    r.inject(1, t, lumped(0, u64::MAX, 4));
+    r.inject(1, t + 1, lumped(u32::MAX, i64::MAX as u64, 4));
+    r.inject(3, t + 2, command(50, 3, 1.0, 0, u64::MAX));
+    r.run_until(200 * MS);
+    let c = r.slaves[0].counters().rejected;
+    assert_eq!(c.get(Reject::Overflow), 2, "{c:?}");
+    assert_eq!(r.slaves[2].counters().rejected.get(Reject::Overflow), 3);
+    assert!(stops(&r).is_empty());
+}
+
+/// Every frame arrives twice: each is taken once. A command is never applied twice and a
+/// lumped frame never read twice.
+#[test]
+fn duplicated_frames_are_taken_once() {
+    let mut r = ring();
+    r.tap = Some(Box::new(|_: &Hop, _: &mut Vec<u8>| Fate::Duplicate {
+        after: 300,
+    }));
+    r.run_until(500 * MS);
+    let m = r.master.counters();
+    assert!(m.rejected.get(Reject::Duplicate) >= 500, "{m:?}");
+    for (i, s) in r.slaves.iter().enumerate() {
+        let c = s.counters();
+        assert!(
+            c.rejected.get(Reject::Duplicate) >= 500,
+            "slave {}: {c:?}",
+            i + 1
+        );
+        let applied = r.applied.iter().filter(|a| a.1 == i + 1).count() as u64;
+        assert_eq!(applied, c.commands);
+        assert!(c.commands <= 500, "{c:?}");
+    }
+    assert!(stops(&r).is_empty());
+    assert!(r.worst_error() < 0.1);
+}
+
+/// Frames of cycle 100 replayed at cycle 200: the slave refuses the lumped frame as stale
+/// and the command as another cycle's; the master refuses the lumped frame.
+#[test]
+fn replayed_frames_are_refused() {
+    let mut r = ring();
+    let seen = std::rc::Rc::new(std::cell::RefCell::new(Vec::<(usize, Vec<u8>)>::new()));
+    let keep = seen.clone();
+    r.tap = Some(Box::new(move |hop: &Hop, b: &mut Vec<u8>| {
+        if cycle_of(b) == 100 && (hop.to == 1 || hop.to == 3) {
+            keep.borrow_mut().push((hop.to, b.clone()));
+        }
+        Fate::Deliver
+    }));
+    r.run_until(200 * MS + 500_000);
+    let before = r.slaves[2].counters().commands;
+    for (to, b) in seen.borrow().iter() {
+        r.inject(*to, r.now(), b.clone());
+    }
+    r.run_until(200 * MS + 600_000);
+    let s1 = r.slaves[0].counters().rejected;
+    assert!(s1.get(Reject::Stale) >= 1, "{s1:?}");
+    let s3 = r.slaves[2].counters().rejected;
+    assert!(s3.get(Reject::WrongCycle) >= 1, "{s3:?}");
+    assert_eq!(
+        r.slaves[2].counters().commands,
+        before,
+        "nothing replayed was applied"
+    );
+    r.run_until(300 * MS);
+    assert!(r.master.counters().rejected.get(Reject::WrongCycle) >= 1);
+    assert!(stops(&r).is_empty());
+}
+
+/// Slave 2's response of cycle 100 is held back 15 µs: it comes after its slice has closed
+/// and is refused; the master retries the slice in a reserve slice, the slave answers the
+/// retry without applying the command again, and no command is lost.
+#[test]
+fn a_late_response_is_refused_and_its_slice_retried() {
+    let mut r = ring();
+    r.tap = Some(Box::new(|hop: &Hop, b: &mut Vec<u8>| {
+        // Slave 2's own response (source at payload byte 0), first attempt.
+        let own = b.get(12) == Some(&2) && b[3] == 0;
+        if hop.from == 2 && is_kind(b, FrameKind::Response) && cycle_of(b) == 100 && own {
+            return Fate::Delay { by: 15_000 };
+        }
+        Fate::Deliver
+    }));
+    r.run_until(300 * MS);
+    let m = r.master.counters();
+    assert_eq!(m.rejected.get(Reject::Unsolicited), 1, "{m:?}");
+    assert_eq!((m.slices_failed, m.retries, m.retries_ok), (1, 1, 1));
+    assert_eq!(m.commands_lost, 0);
+    assert_eq!(r.slaves[1].counters().duplicates, 1);
+    assert!(stops(&r).is_empty());
+}
+
+/// Responses that answer nothing: from a slave whose slice is not open, of another cycle.
+#[test]
+fn foreign_and_wrong_cycle_responses_are_refused() {
+    let mut r = ring();
+    r.run_until(100 * MS);
+    // Cycle 100's P2P phase starts after the plan's T_syn (≈ 130 µs); slice 1 is open at
+    // about 135 µs.
+    let p2p = r.master.config().p2p_start.as_ns();
+    r.run_until(100 * MS + p2p + 2_000);
+    let t = r.now();
+    r.inject(0, t, response(100, 3, 0));
+    r.inject(0, t, response(101, 1, 0));
+    r.inject(0, t, response(100, 9, 0));
+    r.run_until(200 * MS);
+    let m = r.master.counters();
+    assert_eq!(m.rejected.get(Reject::Unsolicited), 2, "{m:?}");
+    assert_eq!(m.rejected.get(Reject::WrongCycle), 1, "{m:?}");
+    assert_eq!(m.commands_lost, 0);
+}
+
+/// From cycle 100 the frames keep carrying slave 2's sample of cycle 100 (a frozen slave
+/// or a forger replaying it): the feedback watchdog, counted in the master's cycles, stops
+/// the group after W cycles without a fresh sample.
+#[test]
+fn frozen_feedback_trips_the_watchdog_within_w_cycles() {
+    let mut r = ring();
+    let frozen = std::rc::Rc::new(std::cell::RefCell::new(None::<Vec<u8>>));
+    let keep = frozen.clone();
+    r.tap = Some(Box::new(move |hop: &Hop, b: &mut Vec<u8>| {
+        if hop.to == 0 && is_kind(b, FrameKind::Lumped) && cycle_of(b) >= 100 {
+            let at = 12 + 12 + FeedbackSlot::LEN;
+            let slot = at..at + FeedbackSlot::LEN;
+            let mut k = keep.borrow_mut();
+            match k.as_ref() {
+                None => *k = Some(b[slot].to_vec()),
+                Some(old) => {
+                    b[slot].copy_from_slice(old);
+                    seal(b);
+                }
+            }
+        }
+        Fate::Deliver
+    }));
+    r.run_until(200 * MS);
+    let s = stops(&r);
+    assert_eq!(s.len(), 1, "{s:?}");
+    assert_eq!(s[0].1, StopReason::NoFeedback { axis: 1 });
+    // Fresh at cycle 100, then W = 5 law runs without: the stop comes at cycle 105.
+    assert!(
+        (105 * MS..106 * MS).contains(&s[0].0),
+        "stop at {} ns",
+        s[0].0
+    );
+    assert!(r.master.counters().samples_stale >= 5);
+}
+
+/// Axis 2 seizes at full speed (its drive can no longer move it): the following error
+/// stops the group; axis 2 cannot follow its stop ramp and gets torque off at once; the
+/// others ramp down from where they are and get torque off when they have held still.
+/// Everything is off within a bounded time, and each step is an event with its axis.
+#[test]
+fn a_group_stop_ramps_down_then_cuts_torque() {
+    let mut r = ring();
+    r.run_until(500 * MS);
+    // At 0.5 s every axis moves at its peak speed (15 rad/s): axis 2 keeps that speed.
+    r.gains[1] = 0.0;
+    r.run_until(2_000 * MS);
+    let s = stops(&r);
+    assert_eq!(s.len(), 1);
+    let (t_stop, reason) = s[0];
+    assert!(
+        matches!(reason, StopReason::FollowingError { axis: 1, .. }),
+        "{reason:?}"
+    );
+    let offs: Vec<(i64, usize, OffReason)> = r
+        .master_events
+        .iter()
+        .filter_map(|(t, e)| match e {
+            MasterEvent::TorqueOff { axis, why, .. } => Some((*t, *axis, *why)),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(offs.len(), 4, "{offs:?}");
+    let seized = offs.iter().find(|o| o.1 == 1).expect("axis 2 off");
+    assert!(
+        matches!(seized.2, OffReason::FollowingError { .. }),
+        "{seized:?}"
+    );
+    assert!(
+        seized.0 - t_stop < 120 * MS,
+        "axis 2 off {} ms after the stop",
+        (seized.0 - t_stop) / MS
+    );
+    for o in offs.iter().filter(|o| o.1 != 1) {
+        assert_eq!(o.2, OffReason::StopComplete, "{o:?}");
+        // A ramp from ≤ 15.2 rad/s at 200 rad/s² lasts ≤ 76 ms, then 100 ms of hold.
+        assert!(
+            o.0 - t_stop <= 190 * MS,
+            "axis {} off {} ms after the stop",
+            o.1 + 1,
+            (o.0 - t_stop) / MS
+        );
+    }
+    // Every slave applied the order, and the ramping axes ended at standstill near where
+    // the ramp put them.
+    for i in 1..=4 {
+        assert!(r.slaves[i - 1].torque_off(), "slave {i}");
+        assert!(r.slave_events.iter().any(|(_, s, e)| *s == i
+            && *e
+                == SlaveEvent::TorqueOff {
+                    cause: TorqueOffCause::Commanded
+                }));
+    }
+    // (The testbed's frictionless axes under PD settle slowly: near standstill, not at it.)
+    for i in [0, 2, 3] {
+        assert!(
+            r.axes[i].v.abs() < 0.5,
+            "axis {} at {} rad/s",
+            i + 1,
+            r.axes[i].v
+        );
+    }
+    // No command beyond the drive range; commands to an axis after its torque-off are 0.
+    assert!(r.applied.iter().all(|a| a.2.abs() <= 10.0));
+}
+
+/// The master is gone at full speed. With `brake`, each slave damps its own axis to
+/// standstill and then cuts torque; with `torque-off` it cuts torque at once and the axis
+/// coasts (the testbed's axes have no friction: they keep their speed).
+#[test]
+fn a_slave_that_loses_its_master_brakes_or_cuts_torque() {
+    for safe_state in [SafeState::Brake, SafeState::TorqueOff] {
+        let mut r = Testbed::new(TestbedConfig {
+            safe_state,
+            ..TestbedConfig::default()
+        });
+        r.run_until(500 * MS);
+        r.dead[0] = true;
+        r.run_until(1_000 * MS);
+        for i in 1..=4 {
+            let ev: Vec<&SlaveEvent> = r
+                .slave_events
+                .iter()
+                .filter(|(t, s, _)| *s == i && *t > 500 * MS)
+                .map(|(_, _, e)| e)
+                .collect();
+            assert!(ev.contains(&&SlaveEvent::WatchdogExpired));
+            let cause = ev.iter().find_map(|e| match e {
+                SlaveEvent::TorqueOff { cause } => Some(*cause),
+                _ => None,
+            });
+            let v = r.axes[i - 1].v;
+            match safe_state {
+                SafeState::Brake => {
+                    assert_eq!(cause, Some(TorqueOffCause::Standstill), "slave {i}");
+                    assert!(v.abs() < 0.1, "axis {i} at {v} rad/s");
+                }
+                SafeState::TorqueOff => {
+                    assert_eq!(cause, Some(TorqueOffCause::Watchdog), "slave {i}");
+                    assert!(v.abs() > 10.0, "axis {i} coasts at {v} rad/s");
+                }
+            }
+            assert!(r.slaves[i - 1].torque_off());
+            assert!(r.slaves[i - 1].status().contains(Status::TORQUE_OFF));
+        }
+    }
+}
+
+/// A slave driven by hand through a real step of the master's clock: the frames of the
+/// new time line are refused for `relock_after`, then the slave re-locks once. A burst of
+/// such frames between frames of the old time line never re-locks it.
+#[test]
+fn a_real_clock_step_relocks_after_a_bounded_time_and_a_burst_never_does() {
+    let t_cyc = Duration::from_ms(1);
+    let path = Duration::from_us(1);
+    let mut s = Slave::new(SlaveConfig::new(1, t_cyc, path));
+    let feed = |s: &mut Slave, k: i64, master_k: i64| {
+        let rx = Instant::from_ns(k * MS + 1_000);
+        let mut b = lumped(master_k as u32, (master_k * MS) as u64, 1);
+        s.handle_frame(rx, rx, &mut b);
+    };
+    for k in 0..50 {
+        feed(&mut s, k, k);
+    }
+    // A burst of 30 frames of a time line 5 s ahead, then the old one goes on.
+    for k in 50..80 {
+        feed(&mut s, k, k + 5_000);
+    }
+    for k in 80..400 {
+        feed(&mut s, k, k);
+    }
+    assert_eq!(s.counters().relocks, 0);
+    assert_eq!(s.counters().rejected.get(Reject::FutureTimestamp), 30);
+    // Now the master really steps 5 s ahead and stays there.
+    for k in 400..700 {
+        feed(&mut s, k, k + 5_000);
+    }
+    let c = s.counters();
+    assert_eq!(c.relocks, 1, "{c:?}");
+    // Refused for relock_after (100 cycles), then taken.
+    assert_eq!(c.rejected.get(Reject::FutureTimestamp), 30 + 100);
+    let step = std::iter::from_fn(|| s.poll_event())
+        .find_map(|e| match e {
+            SlaveEvent::Relocked { step } => Some(step),
+            _ => None,
+        })
+        .expect("a relock event");
+    assert!((step.as_ns() - 5_000 * MS).abs() < 10_000, "step {step}");
+    let now = Instant::from_ns(700 * MS);
+    assert!((s.clock().to_sync(now).as_ns() - (5_700 * MS)).abs() < 10_000);
+    // The old time line is now the foreign one.
+    feed(&mut s, 700, 700);
+    assert_eq!(s.counters().rejected.get(Reject::Stale), 1);
+}
+
+/// A TORQUE_OFF order (here forged into cycle 100's command to slave 2) is latched: the
+/// slave cuts torque and applies none of the master's later commands.
+#[test]
+fn a_torque_off_order_is_latched() {
+    let mut r = ring();
+    r.tap = Some(Box::new(|hop: &Hop, b: &mut Vec<u8>| {
+        if hop.to == 2 && is_kind(b, FrameKind::Command) && cycle_of(b) == 100 && b[12] == 2 {
+            b[2] = Flags::STOP.with(Flags::TORQUE_OFF).bits();
+            seal(b);
+        }
+        Fate::Deliver
+    }));
+    r.run_until(300 * MS);
+    assert!(r.slaves[1].torque_off());
+    assert!(r.slaves[1].status().contains(Status::TORQUE_OFF));
+    assert!(r.axes[1].off && r.axes[1].u == 0.0);
+    let last = r
+        .applied
+        .iter()
+        .filter(|a| a.1 == 2)
+        .map(|a| a.0)
+        .max()
+        .unwrap_or(0);
+    assert!(last < 100 * MS, "slave 2 applied a command at {last} ns");
+    // The others go on.
+    assert!(r.applied.iter().any(|a| a.1 == 3 && a.0 > 299 * MS));
+}
