@@ -6,9 +6,11 @@ use anyhow::Context as _;
 use clap::{Args, ValueEnum};
 use ringsync_proto::Duration;
 use ringsync_report::sim::{summary_json, trace_csv};
-use ringsync_rt::run::{ASSUMPTIONS, NodeFailure};
+use ringsync_rt::run::ASSUMPTIONS;
 use ringsync_rt::stats::Percentiles;
-use ringsync_rt::{Kill, Realtime, RtError, RtOptions, RtResult, SimPrediction, TransportKind};
+use ringsync_rt::{
+    Flap, Forgery, Kill, Realtime, RtError, RtOptions, RtResult, SimPrediction, TransportKind,
+};
 use ringsync_sim::scenario::Scenario;
 use serde_json::{Value, json};
 
@@ -74,6 +76,22 @@ pub struct RtArgs {
     /// Inject garbage and bad-CRC frames onto the ring at this rate [frames/s].
     #[arg(long, default_value_t = 0.0)]
     inject_garbage: f64,
+    /// Inject forged frames with a valid CRC (repeatable): wrong-cycle-commands (commands
+    /// 2-1000 cycles off at ±10 V, 1000/s), future-lumped (lumped frames stamped 1 s ahead,
+    /// 100/s), sync-burst (30 lumped frames with a wrong cycle and a far timestamp, 1/s).
+    #[arg(long, value_name = "KIND")]
+    forge: Vec<Forgery>,
+    /// Take a link down for a while: A-B, the link from node A to the next node B (m is the
+    /// master), e.g. 2-3, m-1, 4-m. veth: both ends go down with `ip`; UDP: the runtime
+    /// drops what the link would carry.
+    #[arg(long, value_name = "A-B", requires_all = ["flap_at", "flap_for"])]
+    flap_link: Option<String>,
+    /// When the link goes down, from the start (e.g. 1s).
+    #[arg(long, value_parser = duration, requires = "flap_link")]
+    flap_at: Option<Duration>,
+    /// How long the link stays down (e.g. 8ms).
+    #[arg(long, value_parser = duration, requires = "flap_link")]
+    flap_for: Option<Duration>,
     /// Slaves latch their encoders this long before each cycle start (default: the
     /// scenario's clock.sample_lead, or 100us when that is 0). Software clocks are off by
     /// tens of µs; a latch after the lumped frame has passed sends last cycle's sample.
@@ -136,17 +154,20 @@ pub(crate) fn pct(p: &Percentiles) -> Value {
     })
 }
 
-fn failure_json(f: &Option<NodeFailure>) -> Value {
-    match f {
-        None => Value::Null,
-        Some(f) => json!({
-            "node": if f.node == 0 { "none identified".to_string() } else { format!("slave {}", f.node) },
-            "slave": f.node,
-            "last_frame_s": f.last_frame_s,
-            "detected_s": f.detected_s,
-            "reason": format!("{:?}", f.reason),
-        }),
-    }
+/// The nodes' own "last seen" counters: frames each read, when it last read one, and the
+/// last cycle whose lumped frame it took.
+fn nodes_json(r: &RtResult) -> Value {
+    r.nodes_rx
+        .iter()
+        .enumerate()
+        .map(|(i, (frames, last))| {
+            json!({
+                "node": if i == 0 { "master".to_string() } else { format!("slave {i}") },
+                "frames_read": frames,
+                "last_frame_s": last,
+            })
+        })
+        .collect()
 }
 
 /// summary.json of a real-time run: the simulator's fields plus the timing.
@@ -162,6 +183,7 @@ fn rt_summary(
     let mc = &r.run.master;
     let extra = json!({
         "transport": transport,
+        "cycles_planned": t.cycles_planned,
         "overruns": t.overruns,
         "stalls_us": pct(&t.stalls),
         "stall_threshold_us": ringsync_rt::run::STALL as f64 * 1e-3,
@@ -202,8 +224,20 @@ fn rt_summary(
         },
         "realtime": r.realtime,
         "killed": r.killed.map(|(s, t)| json!({"slave": s, "at_s": t, "detected_after_cycles": r.detection_cycles})),
-        "failure": failure_json(&r.failure),
-        "garbage": {"injected": r.garbage.0, "counted_bad": r.garbage.1},
+        "nodes": nodes_json(r),
+        "injected": {
+            "garbage": r.injected.garbage,
+            "garbage_counted_malformed": r.injected.counted_malformed,
+            "forged": r.injected.forged.iter().map(|(f, n)| json!({"kind": f.name(), "frames": n})).collect::<Vec<_>>(),
+        },
+        "flap": {
+            "dropped_by_runtime_udp": t.flap_dropped,
+            "link_down_ms": t.flap_down_ns.map(|d| d as f64 * 1e-6),
+        },
+        "commands": {
+            "max_sent_v": r.command_max.0,
+            "max_applied_v": r.command_max.1,
+        },
         "interrupted": r.interrupted,
         "runtime_assumptions": ASSUMPTIONS,
     });
@@ -221,6 +255,16 @@ pub(crate) fn rt(args: &RtArgs) -> Result<(), CliError> {
             args.inject_garbage
         )));
     }
+    let n = s.axes_count();
+    let flap = match (&args.flap_link, args.flap_at, args.flap_for) {
+        (Some(link), Some(at), Some(down_for)) => Some(Flap {
+            from: Flap::parse_link(link, n)
+                .map_err(|e| CliError::Usage(format!("--flap-link {link}: {e}")))?,
+            at,
+            down_for,
+        }),
+        _ => None,
+    };
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("cannot create {}", args.out.display()))?;
     let transport = match args.transport {
@@ -240,6 +284,8 @@ pub(crate) fn rt(args: &RtArgs) -> Result<(), CliError> {
             .zip(args.kill_at)
             .map(|(slave, at)| Kill { slave, at }),
         garbage_rate: args.inject_garbage,
+        forge: args.forge.clone(),
+        flap,
         sample_lead: args.sample_lead,
         verbose: true,
         ..RtOptions::default()
@@ -308,30 +354,30 @@ pub(crate) fn rt(args: &RtArgs) -> Result<(), CliError> {
         "\n  residual clock error ≤ {:.0} ns",
         r.run.clock_error_max_ns.iter().copied().fold(0.0, f64::max)
     );
-    if r.garbage.0 > 0 {
+    if r.injected.garbage > 0 {
         text += &format!(
-            "\n  injected {} garbage frames; the nodes counted {} bad frames and dropped them",
-            r.garbage.0, r.garbage.1
+            "\n  injected {} garbage frames; the nodes refused {} malformed frames",
+            r.injected.garbage, r.injected.counted_malformed
         );
     }
-    if let Some(f) = &r.failure {
+    for (f, frames) in &r.injected.forged {
+        text += &format!("\n  injected {frames} forged frames ({})", f.name());
+    }
+    text += &format!(
+        "\n  rejected by the nodes: {}",
+        ringsync_rt::run::rejected_summary(&r.run)
+    );
+    if let Some((t_stop, reason)) = r.run.group_stop {
         text += &format!(
-            "\n  GROUP STOP at {:.3} s{} ({:?}); failed node: {}",
-            f.detected_s,
+            "\n  GROUP STOP at {t_stop:.3} s{}: {} on axis {}; failed: {}",
             r.detection_cycles.map_or(String::new(), |c| format!(
                 ", {c} cycles after the slave was taken out"
             )),
-            f.reason,
-            if f.node == 0 {
-                "none identified".to_string()
-            } else {
-                format!(
-                    "slave {} (last frame at {})",
-                    f.node,
-                    f.last_frame_s
-                        .map_or("never".to_string(), |t| format!("{t:.3} s"))
-                )
-            }
+            reason.name(),
+            reason.axis() + 1,
+            r.run
+                .ring_break
+                .map_or("not located".to_string(), |b| b.describe())
         );
     }
     text += &format!(

@@ -117,6 +117,8 @@ pub fn summary_json(s: &Scenario, hash: u64, r: &RunResult) -> Value {
             "group_stop": stop_json(&r.group_stop),
             "safe_state": s.faults.safe_state.name(),
             "steps": fault_steps_json(r),
+            "failed": r.ring_break.map(|b| b.describe()),
+            "failed_slave": r.ring_break.and_then(|b| b.slave()),
         },
         "assumptions": ASSUMPTIONS,
     })

@@ -5,6 +5,7 @@
 
 pub mod calibrate;
 pub mod host;
+pub mod inject;
 pub mod netns;
 pub mod realtime;
 pub mod run;
@@ -12,6 +13,7 @@ pub mod stats;
 mod sys;
 pub mod transport;
 
+pub use inject::{Flap, Forgery};
 pub use realtime::Realtime;
 pub use run::{Kill, RtError, RtOptions, RtResult, SimPrediction, Timing, run, sim_prediction};
 pub use transport::TransportKind;

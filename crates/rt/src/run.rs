@@ -16,21 +16,21 @@
 
 use std::io;
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicI64, Ordering};
 use std::thread::JoinHandle;
 
 use ringsync_proto::node::{
-    ClockFilter, FrameOutcome, MasterCounters, MasterEvent, Reject, StopReason,
+    ClockFilter, FrameOutcome, MasterCounters, MasterEvent, Reject, SlaveEvent,
 };
 use ringsync_proto::{Duration, Instant, PlanKind};
-use ringsync_sim::nodes::{Oscillator, RingConfig, ServoAxis};
+use ringsync_sim::nodes::{Oscillator, RingConfig, ServoAxis, locate_break_of};
 use ringsync_sim::record::{AxisProbe, Recorder};
-use ringsync_sim::rng::Rng;
 use ringsync_sim::run::{Captured, LinkCounters, RunResult};
 use ringsync_sim::{RunOptions, Scenario};
-use ringsync_wire::{CommandRepr, Common, FrameKind, Status};
+use ringsync_wire::{FrameKind, Status};
 
 use crate::calibrate::{Calibration, calibrate};
+use crate::inject::{self, Flap, Forgery, Injected, InjectorPlan};
 use crate::netns::{NetnsError, VethRing};
 use crate::realtime::Realtime;
 use crate::stats::Percentiles;
@@ -88,6 +88,10 @@ pub struct RtOptions {
     pub kill: Option<Kill>,
     /// Garbage and bad-CRC frames injected onto the ring [frames/s] (0: none).
     pub garbage_rate: f64,
+    /// Forged frames with a valid CRC injected onto the ring.
+    pub forge: Vec<Forgery>,
+    /// A link taken down for a while.
+    pub flap: Option<Flap>,
     /// Sampling lead (slaves latch this long before each cycle start). `None`: the
     /// scenario's `clock.sample_lead`, or [`SAMPLE_LEAD`] when that is 0.
     pub sample_lead: Option<Duration>,
@@ -109,6 +113,8 @@ impl Default for RtOptions {
             capture: false,
             kill: None,
             garbage_rate: 0.0,
+            forge: Vec::new(),
+            flap: None,
             sample_lead: None,
             verbose: false,
         }
@@ -118,8 +124,10 @@ impl Default for RtOptions {
 /// The ring's timing over the run.
 #[derive(Debug, Clone, Default)]
 pub struct Timing {
-    /// Cycles run.
+    /// Cycles the master started (fewer than planned when the run was interrupted).
     pub cycles: i64,
+    /// Cycles planned: the duration over the cycle time.
+    pub cycles_planned: i64,
     /// Cycles that did not finish in time (lumped frame or a command lost).
     pub overruns: u64,
     /// Cycles whose lumped frame was lost or late.
@@ -134,8 +142,13 @@ pub struct Timing {
     pub late_timers: u64,
     /// Sends that failed (a node gone, a link down).
     pub send_errors: u64,
-    /// Ports whose receive failed (a link down); they are not read again.
+    /// Receives that failed (a link went down); the port is read again [`RX_RETRY`] later.
     pub receive_errors: u64,
+    /// Frames the runtime dropped on the link of a `--flap` over UDP while it was down
+    /// (UDP has no link to take down: the loop drops what the link would carry).
+    pub flap_dropped: u64,
+    /// How long the flapped link was really down [ns] (the `ip` calls take milliseconds).
+    pub flap_down_ns: Option<i64>,
     /// Cycle starts whose true axis states were read after the axis had moved on.
     pub probes_late: u64,
     /// Encoder latches taken after their axis had moved past their instant (0 by design:
@@ -165,19 +178,14 @@ const SPIN_OTHER: i64 = 20_000;
 /// loop takes a few µs; measured in docs/runtime.md).
 pub const STALL: i64 = 50_000;
 
-/// Which node failed and when, from what each node still received.
-#[derive(Debug, Clone, PartialEq)]
-pub struct NodeFailure {
-    /// The first node along the ring (1..n) that received nothing in the W cycles before
-    /// the group stop; 0 if every slave still received frames.
-    pub node: usize,
-    /// Its last received frame [s from the start]; None if it never received one.
-    pub last_frame_s: Option<f64>,
-    /// The group stop [s].
-    pub detected_s: f64,
-    /// The master's reason.
-    pub reason: StopReason,
-}
+/// After a receive error (a link went down) a port is read again this much later [ns]: a
+/// link flap costs the cycles it lasts, not the run.
+pub const RX_RETRY: i64 = 1_000_000;
+
+/// How far from a node's clock a received timestamp may be in the runtime, ahead or behind
+/// (software timestamps: the slaves' clocks are good to tens of µs, measured in
+/// docs/runtime.md; a frame read later than this after a host stall is refused as stale).
+pub const RT_TIMESTAMP_TOLERANCE: Duration = Duration::from_us(200);
 
 /// What a real-time run produced.
 #[derive(Debug, Clone)]
@@ -194,16 +202,31 @@ pub struct RtResult {
     pub schedule: (i64, i64, i64),
     /// Real-time settings applied, and warnings for those that were not.
     pub realtime: Vec<String>,
-    /// The failure diagnosis after a group stop.
-    pub failure: Option<NodeFailure>,
-    /// Frames injected onto the ring, and frames the nodes counted as bad.
-    pub garbage: (u64, u64),
+    /// Frames injected onto the ring, per kind.
+    pub injected: Injection,
+    /// Per node (index 0 the master, i slave i): frames read from its port, and when it
+    /// last read one [s]: the nodes' "last seen" counters.
+    pub nodes_rx: Vec<(u64, Option<f64>)>,
+    /// The largest |command| the master sent to each axis, and the largest a slave applied
+    /// [V]: a slave applies only what the master sent.
+    pub command_max: (Vec<f64>, Vec<f64>),
     /// The run was interrupted (Ctrl-C) before its end.
     pub interrupted: bool,
     /// The slave taken out, and when [s].
     pub killed: Option<(usize, f64)>,
     /// Cycles the master started from the slave's removal to the group stop.
     pub detection_cycles: Option<i64>,
+}
+
+/// Frames injected onto the ring.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Injection {
+    /// Garbage and bad-CRC frames.
+    pub garbage: u64,
+    /// Forged frames with a valid CRC, per kind.
+    pub forged: Vec<(Forgery, u64)>,
+    /// Frames the nodes refused as malformed (the garbage among them).
+    pub counted_malformed: u64,
 }
 
 /// What can stop a real-time run from starting.
@@ -356,7 +379,9 @@ pub fn run(scenario: &Scenario, opts: &RtOptions, stop: &AtomicBool) -> Result<R
     }
     for i in 0..n {
         rc.slaves[i].path_delay = Duration::from_ns(cal.path[i]);
+        rc.slaves[i].clock_window = RT_TIMESTAMP_TOLERANCE;
     }
+    rc.master.timestamp_tolerance = RT_TIMESTAMP_TOLERANCE;
     // Warm-up: the real nodes on the real loop for a few hundred cycles, to measure each
     // slave's path delay as the running loop sees it (the calibration's frames skip the
     // nodes' processing and the loop's timers).
@@ -373,6 +398,9 @@ pub fn run(scenario: &Scenario, opts: &RtOptions, stop: &AtomicBool) -> Result<R
     }
     let mut ports = std::mem::take(&mut ring.ports);
     drop(ring);
+    // Frames of the warm-up still in the kernel's queues arrive within microseconds: let
+    // them, then read them all away, so that the run's fresh nodes never see one.
+    sys::sleep_until(sys::now_ns() + 2_000_000);
     drain(&mut ports);
     say(&format!(
         "warm-up of {warm} cycles: path delays {} µs",
@@ -384,20 +412,55 @@ pub fn run(scenario: &Scenario, opts: &RtOptions, stop: &AtomicBool) -> Result<R
     ));
     let cycles = s.duration.0.as_ns() / t_cyc;
     let mut ring = Ring::new(&s, &rc, ports, cycles, opts.trace, opts.capture, false)?;
-    // Garbage injector (its own thread and sockets, like a faulty device on the ring).
-    let injected = Arc::new(AtomicU64::new(0));
+    // Fault injection: its own threads and sockets, like a faulty device on the ring.
+    let injected = Arc::new(Injected::default());
     let stop_inject = Arc::new(AtomicBool::new(false));
-    let injector = if opts.garbage_rate > 0.0 {
-        Some(spawn_injector(
-            &veth,
-            &ring,
-            opts.garbage_rate,
-            s.seed,
+    let injector = if opts.garbage_rate > 0.0 || !opts.forge.is_empty() {
+        let udp: Vec<std::net::SocketAddr> = ring
+            .ports
+            .iter()
+            .flatten()
+            .filter_map(|p| p.udp_addr())
+            .collect();
+        let senders =
+            inject::senders(&veth, &udp).map_err(io_err("opening the injector's sockets"))?;
+        Some(inject::spawn(
+            senders,
+            InjectorPlan {
+                garbage_rate: opts.garbage_rate,
+                forgeries: opts.forge.clone(),
+                slaves: n,
+                t_cyc,
+                seed: s.seed,
+                t0: ring.t0_shared.clone(),
+            },
             injected.clone(),
             stop_inject.clone(),
-        )?)
+        ))
     } else {
         None
+    };
+    if let Some(f) = opts.flap {
+        say(&format!(
+            "link {} goes down at {:.3} s for {:.1} ms{}",
+            f.name(n),
+            f.at.as_ns() as f64 * 1e-9,
+            f.down_for.as_ns() as f64 * 1e-6,
+            if veth.is_some() {
+                ""
+            } else {
+                " (UDP: the runtime drops what it would carry)"
+            }
+        ));
+    }
+    let flapper = match (opts.flap, &veth) {
+        (Some(f), Some(v)) => Some(inject::spawn_flap(
+            v.clone(),
+            f,
+            ring.t0_shared.clone(),
+            stop_inject.clone(),
+        )),
+        _ => None,
     };
     say(&format!(
         "running {} for {:.1} s: {cycles} cycles of {:.1} µs, {n} slaves over {}",
@@ -411,6 +474,9 @@ pub fn run(scenario: &Scenario, opts: &RtOptions, stop: &AtomicBool) -> Result<R
     stop_inject.store(true, Ordering::SeqCst);
     if let Some(h) = injector {
         let _ = h.join();
+    }
+    if let Some(h) = flapper {
+        ring.timing.flap_down_ns = h.join().ok().flatten();
     }
     if let Some(h) = killer {
         let _ = h.join();
@@ -426,6 +492,10 @@ pub fn run(scenario: &Scenario, opts: &RtOptions, stop: &AtomicBool) -> Result<R
         p2p,
         stalls,
         last_rx,
+        rx_frames,
+        sent_max,
+        applied_max,
+        cycles_started,
         captured,
         kill_cycle,
         stop_cycle,
@@ -445,19 +515,8 @@ pub fn run(scenario: &Scenario, opts: &RtOptions, stop: &AtomicBool) -> Result<R
         + sc.iter()
             .map(|c| c.rejected.get(Reject::Malformed))
             .sum::<u64>();
-    let failure = rec.group_stop_seen().map(|(t, reason)| {
-        let quiet_since = t - f64::from(s.faults.watchdog_cycles) * s.ring.cycle.secs();
-        let node = (1..=n)
-            .find(|&i| last_rx[i].is_none_or(|r| r < quiet_since))
-            .unwrap_or(0);
-        NodeFailure {
-            node,
-            last_frame_s: if node == 0 { None } else { last_rx[node] },
-            detected_s: t,
-            reason,
-        }
-    });
-    let run = rec.finish(
+    timing.cycles = cycles_started;
+    let mut run = rec.finish(
         &s.name,
         mc,
         sc,
@@ -465,6 +524,7 @@ pub fn run(scenario: &Scenario, opts: &RtOptions, stop: &AtomicBool) -> Result<R
         Vec::new(),
         captured,
     );
+    run.cycles = cycles_started;
     Ok(RtResult {
         scenario: s,
         run,
@@ -472,12 +532,55 @@ pub fn run(scenario: &Scenario, opts: &RtOptions, stop: &AtomicBool) -> Result<R
         calibration: cal,
         schedule: (p2p_start, slice, timeout),
         realtime,
-        failure,
-        garbage: (injected.load(Ordering::SeqCst), counted),
+        injected: Injection {
+            garbage: injected.garbage.load(Ordering::SeqCst),
+            forged: opts
+                .forge
+                .iter()
+                .map(|f| (*f, injected.forged(*f)))
+                .collect(),
+            counted_malformed: counted,
+        },
+        nodes_rx: rx_frames.into_iter().zip(last_rx).collect(),
+        command_max: (sent_max, applied_max),
         interrupted,
         killed,
         detection_cycles: kill_cycle.zip(stop_cycle).map(|(k, s)| s - k),
     })
+}
+
+/// The frames every node refused so far: the total and its non-zero reasons, e.g.
+/// `3012 (wrong_cycle 3000, future_timestamp 12)`.
+pub fn rejected_line(
+    master: &ringsync_proto::node::Master,
+    slaves: &[ringsync_proto::node::Slave],
+) -> String {
+    let all = slaves.iter().fold(master.counters().rejected, |a, s| {
+        a.plus(&s.counters().rejected)
+    });
+    rejections_text(&all)
+}
+
+/// [`rejected_line`] from a finished run's counters.
+pub fn rejected_summary(r: &RunResult) -> String {
+    let all = r
+        .slaves
+        .iter()
+        .fold(r.master.rejected, |a, c| a.plus(&c.rejected));
+    rejections_text(&all)
+}
+
+fn rejections_text(all: &ringsync_proto::node::Rejections) -> String {
+    let reasons: Vec<String> = all
+        .iter()
+        .filter(|(_, n)| *n > 0)
+        .map(|(r, n)| format!("{} {n}", r.name()))
+        .collect();
+    if reasons.is_empty() {
+        "0".into()
+    } else {
+        format!("{} ({})", all.total(), reasons.join(", "))
+    }
 }
 
 /// The simulator's prediction for a scenario: means over several seeds, because one run's
@@ -517,78 +620,6 @@ pub fn sim_prediction(s: &Scenario, seeds: u64) -> Result<SimPrediction, RtError
     })
 }
 
-fn spawn_injector(
-    veth: &Option<Arc<VethRing>>,
-    ring: &Ring,
-    rate: f64,
-    seed: u64,
-    injected: Arc<AtomicU64>,
-    stop: Arc<AtomicBool>,
-) -> Result<JoinHandle<()>, RtError> {
-    let nodes = ring.ports.len();
-    // One sending port onto every link.
-    let mut senders: Vec<Box<dyn Port>> = match veth {
-        Some(v) => (0..nodes)
-            .map(|i| {
-                VethPort::injector(v, i)
-                    .map(|fd| Box::new(crate::transport::RawSender::new(fd, i)) as Box<dyn Port>)
-            })
-            .collect::<io::Result<_>>()
-            .map_err(io_err("opening the injector's sockets"))?,
-        None => {
-            let targets: Vec<std::net::SocketAddr> = ring
-                .ports
-                .iter()
-                .flatten()
-                .map(|p| p.udp_addr())
-                .collect::<Option<_>>()
-                .ok_or_else(|| RtError::Config("UDP ports without addresses".into()))?;
-            targets
-                .into_iter()
-                .map(|a| crate::transport::UdpSender::new(a).map(|p| Box::new(p) as Box<dyn Port>))
-                .collect::<io::Result<_>>()
-                .map_err(io_err("opening the injector's socket"))?
-        }
-    };
-    Ok(std::thread::spawn(move || {
-        sys::set_normal();
-        let mut rng = Rng::stream(seed, 0x6A7B);
-        let mut next = sys::now_ns();
-        while !stop.load(Ordering::SeqCst) {
-            next += (2.0 * rng.unit() / rate * 1e9) as i64;
-            sys::sleep_until(next);
-            let link = (rng.next_u64() % senders.len() as u64) as usize;
-            let frame = garbage(&mut rng);
-            if senders[link].send(&frame).is_ok() {
-                injected.fetch_add(1, Ordering::SeqCst);
-            }
-        }
-    }))
-}
-
-/// A random frame: half plain random bytes, half a well-formed command with a wrong CRC.
-fn garbage(rng: &mut Rng) -> Vec<u8> {
-    if rng.next_u64().is_multiple_of(2) {
-        let len = 1 + (rng.next_u64() % 100) as usize;
-        (0..len).map(|_| rng.next_u64() as u8).collect()
-    } else {
-        let cmd = CommandRepr {
-            common: Common {
-                cycle: rng.next_u64() as u32,
-                ..Common::default()
-            },
-            target: 1 + (rng.next_u64() % 4) as u16,
-            command_v: 10.0,
-            sample_time_ns: 0,
-        };
-        let mut b = vec![0u8; cmd.buffer_len()];
-        let _ = cmd.emit(&mut b);
-        let last = b.len() - 1;
-        b[last] ^= 0x5A;
-        b
-    }
-}
-
 /// The running ring.
 struct Ring {
     master: ringsync_proto::node::Master,
@@ -596,14 +627,25 @@ struct Ring {
     osc: Vec<Oscillator>,
     axes: Vec<ServoAxis>,
     alive: Vec<bool>,
-    rx_failed: Vec<bool>,
+    /// Per port: read again from this time on after a receive error [ns, true time].
+    rx_paused: Vec<Option<i64>>,
+    /// The set of ports to wait on changed.
+    fds_dirty: bool,
     ports: Vec<Option<Box<dyn Port>>>,
     rec: Recorder,
     /// Slave transmissions waiting for their time: (true ns, slave 0-based, bytes).
     pending: Vec<(i64, usize, Vec<u8>)>,
     sample_due: Vec<i64>,
-    /// Last frame read per node [s].
+    /// Last frame read per node [s], and frames read per node.
     last_rx: Vec<Option<f64>>,
+    rx_frames: Vec<u64>,
+    /// Largest |command| the master sent, and a slave applied, per axis [V].
+    sent_max: Vec<f64>,
+    applied_max: Vec<f64>,
+    /// A link flap over UDP: frames sent on it in [from, to) [ns] are dropped.
+    flap: Option<(usize, i64, i64)>,
+    /// CLOCK_MONOTONIC at true time 0, for the injector's threads [ns].
+    t0_shared: Arc<AtomicI64>,
     captured: Vec<Captured>,
     capture: bool,
     /// CLOCK_MONOTONIC at true time 0 [ns].
@@ -673,12 +715,18 @@ impl Ring {
             osc: Oscillator::for_scenario(s),
             axes: ServoAxis::for_scenario(s)?,
             alive: vec![true; n + 1],
-            rx_failed: vec![false; n + 1],
+            rx_paused: vec![None; n + 1],
+            fds_dirty: false,
             ports,
             rec: Recorder::new(n, cycles, s.ring.cycle.secs(), trace),
             pending: Vec::new(),
             sample_due: vec![0; n],
             last_rx: vec![None; n + 1],
+            rx_frames: vec![0; n + 1],
+            sent_max: vec![0.0; n],
+            applied_max: vec![0.0; n],
+            flap: None,
+            t0_shared: Arc::new(AtomicI64::new(0)),
             // Every send: the lumped frame's n + 1 hops and each slice's n + 1 (command and
             // response), so that capturing never reallocates mid-run.
             captured: Vec::with_capacity(if capture {
@@ -690,7 +738,7 @@ impl Ring {
             t0: 0,
             end: cycles * s.ring.cycle.0.as_ns(),
             timing: Timing {
-                cycles,
+                cycles_planned: cycles,
                 ..Timing::default()
             },
             lateness: Vec::with_capacity(cycles.max(0) as usize),
@@ -735,6 +783,13 @@ impl Ring {
                 bytes: bytes.to_vec(),
             });
         }
+        if let Some((link, from, to)) = self.flap
+            && link == node
+            && (from..to).contains(&t)
+        {
+            self.timing.flap_dropped += 1;
+            return;
+        }
         if let Some(p) = self.ports[node].as_mut()
             && self.alive[node]
             && p.send(bytes).is_err()
@@ -750,9 +805,18 @@ impl Ring {
         }
         while let Some(ev) = self.master.poll_event() {
             match ev {
-                MasterEvent::Computed { .. } => self.computed_at = Some(now),
+                MasterEvent::Computed { .. } => {
+                    self.computed_at = Some(now);
+                    for (m, u) in self.sent_max.iter_mut().zip(&self.master.record().u) {
+                        *m = m.max(u.abs());
+                    }
+                }
                 MasterEvent::GroupStop { .. } => {
                     self.stop_cycle.get_or_insert(self.cycles_started);
+                    // Where the ring broke, from what each node last took.
+                    let running = self.alive[1..].to_vec();
+                    self.rec
+                        .ring_break(locate_break_of(&self.master, &self.slaves, &running));
                 }
                 MasterEvent::TorqueOff { .. } => {}
             }
@@ -762,6 +826,9 @@ impl Ring {
 
     fn drain_slave(&mut self, i: usize, now: i64) {
         while let Some(ev) = self.slaves[i].poll_event() {
+            if let SlaveEvent::Apply { u } = ev {
+                self.applied_max[i] = self.applied_max[i].max(u.abs());
+            }
             let safe = self.slaves[i].config().safe_state;
             self.axes[i].take(ev, i, now, safe, &mut self.rec);
         }
@@ -774,6 +841,8 @@ impl Ring {
 
     fn on_frame(&mut self, node: usize, now: i64, bytes: &mut [u8]) {
         self.last_rx[node] = Some(now as f64 * 1e-9);
+        self.rx_frames[node] += 1;
+
         if node == 0 {
             self.last_master_rx = now;
             self.master.handle_frame(Instant::from_ns(now), bytes);
@@ -861,18 +930,24 @@ impl Ring {
     fn receive_all(&mut self, buf: &mut [u8]) -> bool {
         let mut got = false;
         for node in 0..self.ports.len() {
-            while let Some(p) = self.ports[node].as_mut() {
-                if self.rx_failed[node] {
-                    break;
+            if let Some(until) = self.rx_paused[node] {
+                if self.last_read < until {
+                    continue;
                 }
+                self.rx_paused[node] = None;
+                self.fds_dirty = true;
+            }
+            while let Some(p) = self.ports[node].as_mut() {
                 let len = match p.recv(buf) {
                     Ok(Some(len)) => len,
                     Ok(None) => break,
                     Err(_) => {
                         // A link gone down: the socket reports an error (and would keep the
-                        // poll awake); stop reading it.
+                        // poll awake). Read it again a little later: a flap shorter than W
+                        // cycles costs those cycles, not the run.
                         self.timing.receive_errors += 1;
-                        self.rx_failed[node] = true;
+                        self.rx_paused[node] = Some(self.last_read + RX_RETRY);
+                        self.fds_dirty = true;
                         break;
                     }
                 };
@@ -886,10 +961,13 @@ impl Ring {
 
     fn take_out(&mut self, k: Kill, veth: &Option<Arc<VethRing>>) -> JoinHandle<()> {
         self.alive[k.slave] = false;
-        self.ports[k.slave] = None;
+        // Closing a raw socket waits for an RCU grace period in the kernel (milliseconds):
+        // the helper thread closes it, not the loop.
+        let port = self.ports[k.slave].take();
         let v = veth.clone();
         std::thread::spawn(move || {
             sys::set_normal();
+            drop(port);
             if let Some(v) = v {
                 let _ = v.take_down(k.slave);
             }
@@ -911,16 +989,16 @@ impl Ring {
         let spin = opts.realtime.spin.as_ns();
         let end = self.end;
         let mut buf = vec![0u8; MAX_PDU];
-        let fds_of = |ports: &[Option<Box<dyn Port>>], failed: &[bool]| -> Vec<libc::pollfd> {
-            ports
-                .iter()
-                .zip(failed)
-                .filter(|(_, f)| !**f)
-                .filter_map(|(p, _)| p.as_ref().map(|p| sys::pollfd(p.rx_fd())))
-                .collect()
-        };
-        let mut fds = fds_of(&self.ports, &self.rx_failed);
-        let mut failed_rx = 0;
+        let fds_of =
+            |ports: &[Option<Box<dyn Port>>], paused: &[Option<i64>]| -> Vec<libc::pollfd> {
+                ports
+                    .iter()
+                    .zip(paused)
+                    .filter(|(_, p)| p.is_none())
+                    .filter_map(|(p, _)| p.as_ref().map(|p| sys::pollfd(p.rx_fd())))
+                    .collect()
+            };
+        let mut fds = fds_of(&self.ports, &self.rx_paused);
         for i in 0..n {
             self.sample_due[i] = self.osc[i].true_at(self.slaves[i].poll_timeout());
         }
@@ -931,6 +1009,11 @@ impl Ring {
         let mut next_progress = 1_000_000_000;
         // Start 2 ms from now, so that the first cycle starts on time.
         self.t0 = sys::now_ns() + 2_000_000;
+        self.t0_shared.store(self.t0, Ordering::SeqCst);
+        self.flap = opts
+            .flap
+            .filter(|_| veth.is_none())
+            .map(|f| (f.from, f.at.as_ns(), f.at.as_ns() + f.down_for.as_ns()));
         self.last_read = -2_000_000;
         loop {
             if stop.load(Ordering::Relaxed) {
@@ -945,7 +1028,7 @@ impl Ring {
             {
                 kill = None;
                 *killer = Some(self.take_out(k, veth));
-                fds = fds_of(&self.ports, &self.rx_failed);
+                fds = fds_of(&self.ports, &self.rx_paused);
                 killed = Some((k.slave, now as f64 * 1e-9));
                 self.kill_cycle = Some(cycle_k);
                 if opts.verbose {
@@ -971,9 +1054,8 @@ impl Ring {
             }
             // 2. Every frame waiting anywhere.
             let got = self.receive_all(&mut buf);
-            if self.timing.receive_errors != failed_rx {
-                failed_rx = self.timing.receive_errors;
-                fds = fds_of(&self.ports, &self.rx_failed);
+            if std::mem::take(&mut self.fds_dirty) {
+                fds = fds_of(&self.ports, &self.rx_paused);
             }
             // 3. The master, once per pass, so that a late master never runs its next step
             //    before the frames of its last one have gone round.
@@ -1029,11 +1111,12 @@ impl Ring {
                 next_progress += 1_000_000_000;
                 let p = Percentiles::of(&self.lateness);
                 eprintln!(
-                    "ringsync rt: {:5.1} s  {cycle_k} cycles  overruns {}  cycle-start lateness p50 {:.1} µs, p99 {:.1} µs",
+                    "ringsync rt: {:5.1} s  {cycle_k} cycles  overruns {}  cycle-start lateness p50 {:.1} µs, p99 {:.1} µs  rejected {}",
                     now as f64 * 1e-9,
                     self.timing.overruns,
                     p.p50 as f64 * 1e-3,
-                    p.p99 as f64 * 1e-3
+                    p.p99 as f64 * 1e-3,
+                    rejected_line(&self.master, &self.slaves)
                 );
             }
             // Wait for the next deadline, or for a frame while the master awaits one. Only

@@ -6,9 +6,14 @@ use std::sync::atomic::AtomicBool;
 use std::sync::{Mutex, OnceLock};
 
 use ringsync_proto::Duration;
+use ringsync_proto::node::Reject;
 use ringsync_rt::netns::ringsync_namespaces;
-use ringsync_rt::{Kill, RtOptions, RtResult, SimPrediction, TransportKind, run, sim_prediction};
+use ringsync_rt::{
+    Flap, Forgery, Kill, RtOptions, RtResult, SimPrediction, TransportKind, run, sim_prediction,
+};
 use ringsync_sim::Scenario;
+use ringsync_sim::nodes::RingBreak;
+use ringsync_sim::record::FaultStep;
 
 static SERIAL: Mutex<()> = Mutex::new(());
 static PREDICTION: OnceLock<SimPrediction> = OnceLock::new();
@@ -35,35 +40,87 @@ fn run_ref(opts: RtOptions) -> RtResult {
 }
 
 /// A run the host left alone: its longest outage (consecutive cycles that lost their
-/// lumped frame or a command) shorter than W. A virtual machine's host now and then holds
-/// the loop off its CPU for milliseconds on end (docs/runtime.md: the host's stalls,
-/// measured without the ring); when that cuts the ring for W cycles, the slaves' watchdogs
-/// put the drives at 0 V and the master stops the group, as they must, and the run is an
-/// experiment in coasting axes, not a measurement of the runtime. The criterion is the
-/// ring's own outage counter, not the figures the test then checks; such a run is repeated
-/// (at most [`ATTEMPTS`] in all), and when every attempt was cut the test fails. Shorter
-/// outages stay in the measured runs. Measured over 30 UDP runs of this build here: 29
-/// with outages under W, Sync-RMSE within −13.4 % and +10.1 % of the simulator's; one cut
-/// for 8 cycles.
+/// lumped frame or a command) shorter than W, and no more than W cycles left unstarted at
+/// the end. A virtual machine's host now and then holds the loop off its CPU for
+/// milliseconds on end (docs/runtime.md: the host's stalls, measured without the ring); when
+/// that cuts the ring for W cycles, the slaves' watchdogs put the drives in their safe state
+/// and the master stops the group, as they must, and the run is an experiment in stopping
+/// axes, not a measurement of the runtime. The criterion is the ring's own outage counter,
+/// not the figures the test then checks; such a run is repeated (at most [`ATTEMPTS`] in
+/// all), and when every attempt was cut the test fails. Shorter outages stay in the
+/// measured runs. Measured over 30 UDP runs of this build here: 29 with outages under W,
+/// Sync-RMSE within −13.4 % and +10.1 % of the simulator's; one cut for 8 cycles.
 fn run_undisturbed(opts: RtOptions) -> RtResult {
-    let w = u64::from(Scenario::default().faults.watchdog_cycles);
-    let mut outages = Vec::new();
+    let w = u64::from(
+        opts.watchdog_cycles
+            .unwrap_or(Scenario::default().faults.watchdog_cycles),
+    );
+    run_uncut(opts, |r| {
+        // The host may also hold the loop past the run's end: cycles it never started.
+        let t = &r.timing;
+        let unstarted = (t.cycles_planned - t.cycles) as u64;
+        if t.longest_outage < w && unstarted < w {
+            return None;
+        }
+        // Only the host's doing if the host held the loop for a cycle or more: an outage
+        // without such a stall is the ring's own failure, and fails the test at once.
+        let t_cyc = r.scenario.ring.cycle.0.as_ns();
+        assert!(
+            t.stalls.max >= t_cyc,
+            "an outage of {} cycles without a host stall of a cycle (longest {} µs): the ring failed, not the host; stop {:?}, rejected {}",
+            t.longest_outage,
+            t.stalls.max / 1_000,
+            r.run.group_stop,
+            ringsync_rt::run::rejected_summary(&r.run)
+        );
+        Some(format!(
+            "outage of {} cycles, {unstarted} unstarted (W = {w}), host stall up to {} µs",
+            t.longest_outage,
+            t.stalls.max / 1_000
+        ))
+    })
+}
+
+/// Runs until a run is not cut by the host (`cut` says why one was), at most
+/// [`ATTEMPTS`] times.
+fn run_uncut(opts: RtOptions, cut: impl Fn(&RtResult) -> Option<String>) -> RtResult {
+    let mut why = Vec::new();
     for _ in 0..ATTEMPTS {
         let r = run_ref(opts.clone());
-        if r.timing.longest_outage < w {
-            if !outages.is_empty() {
-                eprintln!(
-                    "earlier runs were cut by the host: outages of {outages:?} cycles (W = {w})"
-                );
+        match cut(&r) {
+            None => {
+                if !why.is_empty() {
+                    eprintln!("earlier runs were cut by the host: {why:?}");
+                }
+                return r;
             }
-            return r;
+            Some(w) => {
+                eprintln!(
+                    "cut run ({w}): stalls {:?}, stop {:?}, located {:?}, rejected {}",
+                    r.timing.stalls,
+                    r.run.group_stop,
+                    r.run.ring_break,
+                    ringsync_rt::run::rejected_summary(&r.run)
+                );
+                why.push(w);
+            }
         }
-        outages.push(r.timing.longest_outage);
     }
-    panic!(
-        "the host cut every {} run: outages of {outages:?} cycles (W = {w})",
-        opts.transport.name()
-    );
+    panic!("the host cut every {} run: {why:?}", opts.transport.name());
+}
+
+/// A run cut by the host before `t` [s]: a group stop that came before the fault the test
+/// injects at `t`.
+fn stopped_before(r: &RtResult, t: f64) -> Option<String> {
+    r.run
+        .group_stop
+        .filter(|(at, _)| *at < t)
+        .map(|(at, reason)| {
+            format!(
+                "group stop at {at:.3} s ({}) before the fault at {t} s",
+                reason.name()
+            )
+        })
 }
 
 /// See [`run_undisturbed`].
@@ -104,13 +161,22 @@ fn matches_simulator(r: &RtResult) {
     );
     assert!((m.track_rmse - p.track_rmse).abs() / p.track_rmse < 0.02);
     assert!(r.run.group_stop.is_none(), "{:?}", r.run.group_stop);
-    assert_eq!(r.timing.cycles, 4000);
-    assert!(r.timing.overruns < 200, "{} overruns", r.timing.overruns);
-    assert_eq!(r.timing.lateness.count, 4000);
-    // Every slave synchronised on (nearly) every cycle, and its clock followed the master's.
+    // What the ring reports about itself, never a count the host can steal: every cycle
+    // it started has its lateness; the overruns the host did not cause are few.
+    let t = &r.timing;
+    assert!(t.cycles_planned == 4000 && t.cycles <= 4000, "{t:?}");
+    assert_eq!(t.lateness.count, t.cycles as usize);
+    let own = t.overruns - t.overruns_stalled;
+    assert!(own < 200, "{own} overruns in cycles the host did not stall");
+    // Every slave synchronised on every cycle but those the host stalled, and its clock
+    // followed the master's.
     for c in &r.run.slaves {
-        assert!(c.syncs > 3900, "{c:?}");
+        assert!(
+            c.syncs as i64 >= t.cycles - 2 * t.cycles_stalled as i64 - 20,
+            "{c:?} {t:?}"
+        );
     }
+
     assert_eq!(
         r.timing.latches_late, 0,
         "latches after their axis moved on"
@@ -131,6 +197,32 @@ fn matches_simulator(r: &RtResult) {
     assert!(clock < 200_000.0, "clock error {clock} ns");
 }
 
+/// On a ring nobody attacks, the nodes refuse only frames that a host stall made late
+/// (read after their cycle, or after the clock window).
+fn refuses_only_late_frames(r: &RtResult) {
+    let t = &r.timing;
+    let n = r.run.slaves.len() as u64;
+    let refused = r
+        .run
+        .slaves
+        .iter()
+        .fold(r.run.master.rejected, |a, c| a.plus(&c.rejected));
+    for why in [
+        Reject::Malformed,
+        Reject::UnexpectedKind,
+        Reject::FutureTimestamp,
+        Reject::Duplicate,
+        Reject::Overflow,
+    ] {
+        assert_eq!(refused.get(why), 0, "{why}: {refused:?}");
+    }
+    assert!(
+        refused.total() <= 4 * (n + 1) * (t.cycles_stalled + 1),
+        "{refused:?} with {} stalled cycles",
+        t.cycles_stalled
+    );
+}
+
 #[test]
 fn udp_ring_runs_the_reference_motion_like_the_simulator() {
     let r = run_undisturbed(RtOptions {
@@ -138,6 +230,7 @@ fn udp_ring_runs_the_reference_motion_like_the_simulator() {
         ..RtOptions::default()
     });
     matches_simulator(&r);
+    refuses_only_late_frames(&r);
 }
 
 #[test]
@@ -147,29 +240,186 @@ fn veth_ring_runs_the_reference_motion_like_the_simulator() {
         ..RtOptions::default()
     });
     matches_simulator(&r);
+    refuses_only_late_frames(&r);
 }
 
+/// A slave taken out mid-run: the master stops the group within W cycles, the report
+/// names the slave from the nodes' own counters (on both transports), and every other
+/// axis ends with its torque off.
 #[test]
-fn a_slave_taken_out_stops_the_group_within_w_cycles() {
-    let r = run_ref(RtOptions {
-        transport: TransportKind::Veth,
-        duration: Some(Duration::from_ms(1500)),
-        kill: Some(Kill {
-            slave: 2,
-            at: Duration::from_ms(1000),
-        }),
-        ..RtOptions::default()
-    });
-    let w = i64::from(r.scenario.faults.watchdog_cycles);
-    let f = r.failure.as_ref().expect("a group stop with a diagnosis");
-    assert_eq!(f.node, 2, "{f:?}");
-    assert!(f.detected_s > 1.0, "{f:?}");
-    let cycles = r.detection_cycles.expect("detected");
-    assert!(cycles <= w + 1, "detected after {cycles} cycles, W = {w}");
-    // The ring is broken at slave 2: the others lose their commands and go to 0 V.
-    let mut wd: Vec<usize> = r.run.watchdog.iter().map(|(s, _)| *s).collect();
-    wd.sort_unstable();
-    assert_eq!(wd, vec![1, 3, 4]);
+fn a_slave_taken_out_is_named_and_the_group_stops_within_w_cycles() {
+    for transport in [TransportKind::Veth, TransportKind::Udp] {
+        let opts = RtOptions {
+            transport,
+            duration: Some(Duration::from_ms(1500)),
+            kill: Some(Kill {
+                slave: 2,
+                at: Duration::from_ms(1000),
+            }),
+            ..RtOptions::default()
+        };
+        let r = run_uncut(opts, |r| stopped_before(r, 1.0));
+        let w = i64::from(r.scenario.faults.watchdog_cycles);
+        assert_eq!(
+            r.run.ring_break,
+            Some(RingBreak::Node(2)),
+            "{}",
+            transport.name()
+        );
+        let (t, _) = r.run.group_stop.expect("a group stop");
+        assert!(t > 1.0, "stopped at {t}");
+        let cycles = r.detection_cycles.expect("detected");
+        assert!(cycles <= w + 1, "detected after {cycles} cycles, W = {w}");
+        // The ring is broken at slave 2: the master orders every axis's torque off (it has
+        // no feedback); slaves 3 and 4 no longer get commands and brake on their own.
+        for axis in [1, 3, 4] {
+            assert!(
+                r.run
+                    .faults
+                    .iter()
+                    .any(|f| f.axis == axis && matches!(f.step, FaultStep::TorqueOff(_))),
+                "{}: axis {axis}: {:?}",
+                transport.name(),
+                r.run.faults
+            );
+        }
+        let mut wd: Vec<usize> = r.run.watchdog.iter().map(|(s, _)| *s).collect();
+        wd.sort_unstable();
+        assert!(wd.contains(&3) && wd.contains(&4), "{wd:?}");
+    }
+}
+
+/// Forged frames with a valid CRC on a running ring, for the whole 4 s run: commands of
+/// other cycles at 1 kHz, lumped frames from the future, bursts of 30 sync frames. They
+/// change nothing: no stop, no axis off its path, no command beyond what the master sent,
+/// the motion as the simulator predicts; and every forgery is counted as refused.
+#[test]
+fn forged_frames_are_refused_and_change_nothing() {
+    for transport in [TransportKind::Udp, TransportKind::Veth] {
+        let r = run_undisturbed(RtOptions {
+            transport,
+            forge: Forgery::ALL.to_vec(),
+            ..RtOptions::default()
+        });
+        let name = transport.name();
+        let inj = |f: Forgery| {
+            r.injected
+                .forged
+                .iter()
+                .find(|(k, _)| *k == f)
+                .map_or(0, |(_, n)| *n)
+        };
+        let (commands, future, burst) = (
+            inj(Forgery::WrongCycleCommands),
+            inj(Forgery::FutureLumped),
+            inj(Forgery::SyncBurst),
+        );
+        assert!(
+            commands > 3000 && future > 300 && burst >= 90,
+            "{name}: {:?}",
+            r.injected
+        );
+        let slaves = r.run.slaves.iter().fold(
+            Default::default(),
+            |a: ringsync_proto::node::Rejections, c| a.plus(&c.rejected),
+        );
+        let n = r.run.slaves.len() as u64;
+        // Every forged command reaches its target and is refused (a few may still be in a
+        // socket at the end); each forged lumped frame passes every slave.
+        assert!(
+            slaves.get(Reject::WrongCycle) + 5 >= commands + n * burst,
+            "{name}: {slaves:?}"
+        );
+        assert!(
+            slaves.get(Reject::FutureTimestamp) + 5 * n >= n * future,
+            "{name}: {slaves:?}"
+        );
+        assert!(r.run.master.rejected.get(Reject::WrongCycle) + 5 >= future + burst);
+        let (sent, applied) = &r.command_max;
+        for (i, (s, a)) in sent.iter().zip(applied).enumerate() {
+            assert!(
+                a <= &(s + 1e-5),
+                "{name}: axis {} applied {a} V, the master sent at most {s} V",
+                i + 1
+            );
+            assert!(*a < 5.0, "{name}: axis {} applied {a} V", i + 1);
+        }
+        let limit = r.scenario.faults.following_error_limit;
+        for a in &r.run.summary.axes {
+            assert!(a.max_e < limit, "{name}: {a:?}");
+        }
+        matches_simulator(&r);
+    }
+}
+
+/// A link down for 8 ms (about 10 ms with the `ip` call) with W = 25: it costs the cycles
+/// it lasts, not the run; every port reads frames again after it. On veth the receiving
+/// end goes down, so its socket reports a receive error: before the fix one receive error
+/// disabled a port for good and the run ended in a group stop.
+#[test]
+fn a_link_flap_shorter_than_w_costs_cycles_not_the_run() {
+    for transport in [TransportKind::Veth, TransportKind::Udp] {
+        let r = run_undisturbed(RtOptions {
+            transport,
+            duration: Some(Duration::from_ms(2000)),
+            watchdog_cycles: Some(25),
+            flap: Some(Flap {
+                from: 2,
+                at: Duration::from_ms(1000),
+                down_for: Duration::from_ms(8),
+            }),
+            ..RtOptions::default()
+        });
+        let name = transport.name();
+        let t = &r.timing;
+        assert!(
+            r.run.group_stop.is_none(),
+            "{name}: {:?} {t:?}",
+            r.run.group_stop
+        );
+        assert!(t.overruns >= 5, "{name}: the flap cost no cycle? {t:?}");
+        assert!(t.longest_outage < 25, "{name}: {t:?}");
+        match transport {
+            TransportKind::Veth => {
+                assert!(t.flap_down_ns.is_some_and(|d| d >= 8_000_000), "{t:?}");
+                assert!(t.receive_errors >= 1, "{t:?}");
+            }
+            TransportKind::Udp => assert!(t.flap_dropped > 0, "{t:?}"),
+        }
+        for (i, (_, last)) in r.nodes_rx.iter().enumerate() {
+            assert!(
+                last.is_some_and(|s| s > 1.9),
+                "{name}: node {i} read nothing after the flap: {:?}",
+                r.nodes_rx
+            );
+        }
+    }
+}
+
+/// A link down for longer than W: the group stops, and the report names the link (the
+/// nodes behind it still run), not a node.
+#[test]
+fn a_link_down_longer_than_w_is_named() {
+    for transport in [TransportKind::Veth, TransportKind::Udp] {
+        let opts = RtOptions {
+            transport,
+            duration: Some(Duration::from_ms(1500)),
+            flap: Some(Flap {
+                from: 2,
+                at: Duration::from_ms(1000),
+                down_for: Duration::from_ms(200),
+            }),
+            ..RtOptions::default()
+        };
+        let r = run_uncut(opts, |r| stopped_before(r, 1.0));
+        assert!(r.run.group_stop.is_some(), "{}", transport.name());
+        assert_eq!(
+            r.run.ring_break,
+            Some(RingBreak::Link { from: 2, to: 3 }),
+            "{}",
+            transport.name()
+        );
+    }
 }
 
 #[test]
@@ -179,7 +429,7 @@ fn garbage_and_bad_crc_frames_are_counted_and_ignored() {
         garbage_rate: 500.0,
         ..RtOptions::default()
     });
-    let (injected, counted) = r.garbage;
+    let (injected, counted) = (r.injected.garbage, r.injected.counted_malformed);
     assert!(injected > 1500, "{injected} injected");
     // The last frame or two may still be in a socket when the run ends.
     assert!(

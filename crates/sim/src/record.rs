@@ -109,6 +109,7 @@ pub struct Recorder {
     watchdog: Vec<(usize, f64)>,
     group_stop: Option<(f64, StopReason)>,
     faults: Vec<FaultEvent>,
+    ring_break: Option<crate::nodes::RingBreak>,
 }
 
 impl Recorder {
@@ -149,6 +150,7 @@ impl Recorder {
             watchdog: Vec::new(),
             group_stop: None,
             faults: Vec::new(),
+            ring_break: None,
         }
     }
 
@@ -249,6 +251,11 @@ impl Recorder {
         }
     }
 
+    /// Where the ring broke, located when the group stopped (the first located counts).
+    pub fn ring_break(&mut self, b: crate::nodes::RingBreak) {
+        self.ring_break.get_or_insert(b);
+    }
+
     /// The first group stop, if any.
     pub fn group_stop_seen(&self) -> Option<(f64, StopReason)> {
         self.group_stop
@@ -278,6 +285,7 @@ impl Recorder {
             watchdog: self.watchdog,
             group_stop: self.group_stop,
             faults: self.faults,
+            ring_break: self.ring_break,
             trace: self.trace,
             passages,
             captured,

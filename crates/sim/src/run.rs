@@ -27,7 +27,7 @@ use ringsync_proto::plan::{FrameRef, Node};
 use ringsync_proto::{Instant, PlanKind};
 use ringsync_wire::{Frame, FrameKind, SlotCodec};
 
-use crate::nodes::{Oscillator, RingConfig, ServoAxis};
+use crate::nodes::{Oscillator, RingConfig, ServoAxis, locate_break_of};
 use crate::record::{AxisProbe, Recorder};
 use crate::rng::Rng;
 use crate::scenario::{Scenario, ScenarioError};
@@ -141,6 +141,8 @@ pub struct RunResult {
     pub group_stop: Option<(f64, StopReason)>,
     /// Every step of the fault reactions, in time order per source.
     pub faults: Vec<crate::record::FaultEvent>,
+    /// Where the ring broke, located from the nodes' own counters when the group stopped.
+    pub ring_break: Option<crate::nodes::RingBreak>,
     /// Trace rows (with [`RunOptions::trace`]).
     pub trace: Vec<TraceRow>,
     /// Frame passages (with [`RunOptions::log_cycles`]).
@@ -606,6 +608,13 @@ impl<'a> Sim<'a> {
             self.send(0, tx.at.as_ns(), tx.bytes);
         }
         while let Some(ev) = self.master.poll_event() {
+            if let ringsync_proto::node::MasterEvent::GroupStop { at, .. } = ev {
+                let running: Vec<bool> = (1..=self.n)
+                    .map(|i| !self.is_silent(i, at.as_ns()))
+                    .collect();
+                self.rec
+                    .ring_break(locate_break_of(&self.master, &self.slaves, &running));
+            }
             self.rec.master_event(ev, self.master.record());
         }
     }

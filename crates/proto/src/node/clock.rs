@@ -156,6 +156,19 @@ impl SyncClock {
         self.syncs += 1;
     }
 
+    /// Starts acquisition afresh from one pair (the frames before it disagreed with it):
+    /// the clock steps to the pair and is not locked until the next sync.
+    pub fn restart(&mut self, local: Instant, master_at: Instant) {
+        if !self.enabled {
+            return;
+        }
+        let pair = (local.as_ns(), master_at.as_ns());
+        self.last = Some(pair);
+        self.raw = Some(pair);
+        self.skipped_run = 0;
+        self.syncs = 1;
+    }
+
     /// Re-locks to a new time line: the master's clock really stepped (it restarted, or its
     /// time base was set), and frames of the new time line have come for long enough with
     /// none of the old one (the slave decides: [`crate::node::Slave`]). The clock steps to

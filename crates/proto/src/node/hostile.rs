@@ -563,3 +563,20 @@ fn a_torque_off_order_is_latched() {
     // The others go on.
     assert!(r.applied.iter().any(|a| a.1 == 3 && a.0 > 299 * MS));
 }
+
+/// A stray lumped frame (one left in a socket by an earlier run, or a forgery) reaches
+/// every slave before the master's first: it cannot capture them. The first real frame
+/// disagrees with it and starts acquisition afresh; the second agrees and locks.
+#[test]
+fn a_stray_frame_before_the_first_cannot_capture_a_slave() {
+    let mut r = ring();
+    r.inject(1, 0, lumped(300, 300 * MS as u64, 4));
+    r.run_until(200 * MS);
+    assert!(stops(&r).is_empty(), "{:?}", stops(&r));
+    for (i, s) in r.slaves.iter().enumerate() {
+        let c = s.counters();
+        assert!(c.commands >= 198, "slave {}: {c:?}", i + 1);
+        assert_eq!(c.rejected.total(), 0, "slave {}: {c:?}", i + 1);
+        assert!(clock_error(&r, i + 1).abs() < 100);
+    }
+}

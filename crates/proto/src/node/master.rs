@@ -387,6 +387,8 @@ pub struct Master {
     /// Per lumped frame of this cycle: the sequence number and stamp it went out with,
     /// and whether it has come back.
     sent_lumped: Vec<SentLumped>,
+    /// The cycle of the last lumped frame taken.
+    last_back: Option<i64>,
     retry_queue: VecDeque<usize>,
     fb: Feedback,
     input: ControlInput,
@@ -432,6 +434,7 @@ impl Master {
             since_fresh: vec![0; n],
             off: vec![false; n],
             sent_lumped: vec![SentLumped::default(); cfg.lumped_offsets.len()],
+            last_back: None,
             retry_queue: VecDeque::new(),
             fb: Feedback::new(n),
             input: ControlInput::new(n, t_cyc),
@@ -469,6 +472,19 @@ impl Master {
     /// Whether the group is stopping.
     pub fn is_stopping(&self) -> bool {
         self.stop.is_some()
+    }
+    /// The cycle in progress, k.
+    pub fn cycle(&self) -> i64 {
+        self.k
+    }
+    /// The cycle of the last lumped frame that came back and was taken: the master's
+    /// "last seen" counter, from which a driver tells where a ring broke.
+    pub fn last_lumped_cycle(&self) -> Option<i64> {
+        self.last_back
+    }
+    /// Whether the master ordered axis `i`'s (0-based) torque off.
+    pub fn torque_off(&self, i: usize) -> bool {
+        self.off.get(i).copied().unwrap_or(false)
     }
 
     /// Whether the master is waiting for frames: a lumped frame of this cycle not back yet,
@@ -977,6 +993,7 @@ impl Master {
         }
         self.sent_lumped[j].back = true;
         self.lumped_back += 1;
+        self.last_back = Some(self.k);
         let newest = self.newest_sample(now);
         for k in 0..count {
             let i = first + k;
@@ -1055,6 +1072,7 @@ impl Master {
         )
         .map(|j| self.sent_lumped[j].back = true)?;
         self.lumped_back += 1;
+        self.last_back = Some(self.k);
         let newest = self.newest_sample(now);
         let r = &mut self.record;
         r.k = self.k;

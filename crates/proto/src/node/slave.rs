@@ -15,12 +15,21 @@
 //! Nothing from the wire is trusted ([`super::reject`]). A lumped frame is taken (its
 //! timestamp for the clock, its slot for the feedback) only when its cycle counter matches
 //! its own send stamp, both are newer than the last lumped frame taken, and the stamp plus
-//! the path delay lies within the clock window of the slave's own estimate of master time
-//! (`timestamp_tolerance` ahead, `late_limit` behind). A command is taken only when its
+//! the path delay lies within `clock_window` of the slave's own estimate of master time,
+//! ahead or behind. (The window is symmetric on purpose: a frame taken at the edge of it
+//! moves the clock by at most the window, so the next frame on time is still inside it. A
+//! window wider behind than ahead would let late frames walk the clock out of it for good.)
+//! A command is taken only when its
 //! cycle is the one in progress by the slave's clock, its cycle is newer than the last
 //! command taken (a retry of that command is answered again, not applied again), and the
 //! sample it was computed from is not in the future. Refused frames change nothing: a
 //! lumped frame is forwarded unchanged, a command is not answered, the watchdog is not fed.
+//!
+//! Acquisition: the first lumped frame is taken on trust; until a second frame agrees
+//! with it (within the window, newer, the local time between them matching the master time
+//! between them) the slave is not locked, and a frame that disagrees starts acquisition
+//! afresh from itself. A single stray frame (a frame left in a socket from an earlier run,
+//! a forgery before the master's first frame) therefore cannot capture a slave.
 //!
 //! A clock step beyond the window is never taken from one frame or a burst. When the
 //! master's time line really moves (the master restarted), frames of the new time line are
@@ -171,13 +180,10 @@ pub struct SlaveConfig {
     pub u_max: f64,
     /// Encoder resolution [rad per count] (the brake reaction's velocity).
     pub resolution: f64,
-    /// How far ahead of the slave's own estimate of master time a received timestamp may
-    /// be (the clock error the slave allows; a command's cycle is placed with the same
-    /// allowance).
-    pub timestamp_tolerance: Duration,
-    /// How late after the slave's own estimate a lumped frame may reach it (link jitter,
-    /// a host that read it late) and still be taken.
-    pub late_limit: Duration,
+    /// How far from the slave's own estimate of master time a received timestamp may be,
+    /// ahead or behind (the clock error plus the link jitter the slave allows; a command's
+    /// cycle is placed with the same allowance).
+    pub clock_window: Duration,
     /// Frames of a new, self-consistent master time line outside the clock window are
     /// taken as a real clock step after this long with no frame of the old time line.
     pub relock_after: Duration,
@@ -192,9 +198,8 @@ pub struct SlaveConfig {
 impl SlaveConfig {
     /// Slave `address` on a ring of cycle `cycle`, `path_delay` from the master, with the
     /// reference ring's other settings: T_ti 2 µs, a 125 µs velocity window, no sampling
-    /// lead, W = 5, synchronised clock, ±10 V, a 20-bit encoder, a clock window of 50 µs
-    /// ahead and half a cycle behind, re-lock after 100 cycles, brake with K_b = 1.591
-    /// V·s/rad for at most 2 s.
+    /// lead, W = 5, synchronised clock, ±10 V, a 20-bit encoder, a clock window of ±50 µs,
+    /// re-lock after 100 cycles, brake with K_b = 1.591 V·s/rad for at most 2 s.
     pub fn new(address: u16, cycle: Duration, path_delay: Duration) -> Self {
         SlaveConfig {
             address,
@@ -207,8 +212,7 @@ impl SlaveConfig {
             clock_sync: true,
             u_max: 10.0,
             resolution: std::f64::consts::TAU / f64::from(1u32 << 20),
-            timestamp_tolerance: Duration::from_us(50),
-            late_limit: Duration::from_ns(cycle.as_ns() / 2),
+            clock_window: Duration::from_us(50),
             relock_after: cycle * 100,
             safe_state: SafeState::Brake,
             brake_gain: 1.591,
@@ -324,6 +328,8 @@ pub struct Slave {
     /// local receive time with the master time it reached this slave [ns].
     last_lumped: Option<(i64, i64)>,
     anchor: Option<(i64, i64)>,
+    /// Two agreeing lumped frames have been taken: the slave follows its own time line.
+    acquired: bool,
     candidate: Option<Candidate>,
     seq: u16,
     out: VecDeque<Transmit>,
@@ -385,6 +391,7 @@ impl Slave {
             last_command: None,
             last_lumped: None,
             anchor: None,
+            acquired: false,
             candidate: None,
             seq: 0,
             out: VecDeque::new(),
@@ -640,6 +647,7 @@ impl Slave {
         }
         // Against the slave's own time line: newer than the last frame taken, and within
         // the clock window. A frame that fails only these may belong to a new time line.
+        let acquired = self.acquired;
         let verdict = match (self.last_lumped, self.master_now(rx)) {
             (Some((last_c, last_stamp)), _) if c == last_c || sent.as_ns() == last_stamp => {
                 return Err(Reject::Duplicate);
@@ -649,9 +657,9 @@ impl Slave {
             }
             (_, Some(expect)) => {
                 let err = at.as_ns().saturating_sub(expect);
-                if err > self.cfg.timestamp_tolerance.as_ns() {
+                if err > self.cfg.clock_window.as_ns() {
                     Err(Reject::FutureTimestamp)
-                } else if err < -self.cfg.late_limit.as_ns() {
+                } else if err < -self.cfg.clock_window.as_ns() {
                     Err(Reject::Stale)
                 } else {
                     Ok(())
@@ -663,6 +671,12 @@ impl Slave {
             Ok(()) => {
                 self.candidate = None;
                 self.clock.sync(rx, at);
+                self.acquired = self.last_lumped.is_some();
+            }
+            // Not yet locked: the frames so far disagree with this one; start over from it.
+            Err(_) if !acquired => {
+                self.clock.restart(rx, at);
+                self.candidate = None;
             }
             Err(r) => {
                 if !self.relock(rx, at) {
@@ -670,14 +684,38 @@ impl Slave {
                 }
             }
         }
+        let first = self.last_lumped.is_none() || !acquired;
         self.last_lumped = Some((c, sent.as_ns()));
         self.anchor = Some((rx.as_ns(), at.as_ns()));
         self.counters.syncs += 1;
+        if first || !self.acquired {
+            self.resync_sampling(rx);
+        }
         if self.clock.is_locked() {
             self.status = Status::from_bits(self.status.bits() & !Status::CLOCK_UNLOCKED.bits())
                 .unwrap_or(self.status);
         }
         Ok(())
+    }
+
+    /// Puts the next sampling instant after local time `rx` on the clock's time line: the
+    /// first sampling instant k·T_cyc − lead later than now (or the one just before, if its
+    /// latch is still to come). A clock that was stepped (its
+    /// first frames, a restart of acquisition, a re-lock) would otherwise leave the sample
+    /// counter where the old time line had it: hundreds of latches in a burst, or none for
+    /// as long as the step.
+    fn resync_sampling(&mut self, rx: Instant) {
+        let now = self.clock.to_sync(rx).as_ns();
+        let t = self.cfg.cycle.as_ns().max(1);
+        let next = now
+            .saturating_add(self.cfg.sample_lead.as_ns())
+            .div_euclid(t)
+            .saturating_add(1);
+        // The instant just passed may still be due (its latch not taken yet): leave it.
+        if self.k != next && self.k != next - 1 {
+            self.k = next;
+            self.latch = Latch::Window;
+        }
     }
 
     /// A lumped frame outside the slave's time line, received at `rx`, reaching it at
@@ -688,7 +726,7 @@ impl Slave {
         let consistent = self.candidate.is_some_and(|c| {
             let dm = m.saturating_sub(c.last_at);
             let dl = l.saturating_sub(c.last_local);
-            dm > 0 && (dm - dl).abs() <= self.cfg.timestamp_tolerance.as_ns()
+            dm > 0 && (dm - dl).abs() <= self.cfg.clock_window.as_ns()
         });
         let first = match self.candidate {
             Some(c) if consistent => c.first_local,
@@ -706,6 +744,7 @@ impl Slave {
             .master_now(rx)
             .map_or(Duration::ZERO, |e| Duration::from_ns(m.saturating_sub(e)));
         self.clock.relock(rx, at);
+        self.resync_sampling(rx);
         self.candidate = None;
         self.last_lumped = None;
         self.last_command = None;
@@ -742,7 +781,7 @@ impl Slave {
         // A slot may not carry a sample from the future (by this slave's clock).
         let newest = now
             .as_ns()
-            .saturating_add(self.cfg.timestamp_tolerance.as_ns())
+            .saturating_add(self.cfg.clock_window.as_ns())
             .max(0) as u64;
         let mut future = 0;
         let Some(law) = self.law.as_mut() else { return };
@@ -830,7 +869,7 @@ impl Slave {
         let now = self.master_now(rx).ok_or(Reject::WrongCycle)?;
         let t = self.cfg.cycle.as_ns().max(1);
         let c = unwrap_cycle(cmd.common.cycle, now.div_euclid(t));
-        let tol = self.cfg.timestamp_tolerance.as_ns();
+        let tol = self.cfg.clock_window.as_ns();
         let start = c.checked_mul(t).ok_or(Reject::Overflow)?;
         if now < start.saturating_sub(tol) || now > start.saturating_add(t).saturating_add(tol) {
             return Err(Reject::WrongCycle);

@@ -180,6 +180,8 @@ fn a_silent_slave_stops_the_group_within_w_cycles() {
         ),
         "{reason:?}"
     );
+    // Located from the nodes' own counters: slave 3 stopped, not a link.
+    assert_eq!(r.ring_break, Some(crate::nodes::RingBreak::Node(3)));
     // Silent from cycle 500; W = 5 missed cycles, detected at the next law run.
     assert!(t > 0.5 && t <= 0.5 + 7.0 * 1e-3, "stopped at {t}");
     // Slave 4 sits behind the silent one: no commands reach it, its watchdog expires.

@@ -1,0 +1,423 @@
+//! Fault injection onto a running ring, from a thread of its own and sockets of its own,
+//! like a faulty or hostile device on the wire: garbage (random bytes, bad CRCs), forged
+//! frames with a valid CRC (commands of another cycle, lumped frames from the future, bursts
+//! of sync frames with a wrong cycle and a far timestamp), and link flaps.
+
+use std::io;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicI64, AtomicU64, Ordering};
+use std::thread::JoinHandle;
+
+use ringsync_proto::Duration;
+use ringsync_sim::rng::Rng;
+use ringsync_wire::{CommandRepr, Common, FeedbackSlot, LumpedRepr};
+
+use crate::netns::VethRing;
+use crate::sys;
+use crate::transport::{Port, RawSender, UdpSender, VethPort};
+
+/// A kind of forged frame with a valid CRC.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Forgery {
+    /// Commands of another cycle (2 to 1000 cycles off), ±10 V, each at its target's
+    /// input link, 1000 a second.
+    WrongCycleCommands,
+    /// Lumped frames stamped 1 s in the future with a cycle that matches the stamp, into
+    /// slave 1's input link, 100 a second.
+    FutureLumped,
+    /// Once a second, 30 lumped frames back to back with a wrong cycle and a timestamp 10 s
+    /// ahead, into slave 1's input link.
+    SyncBurst,
+}
+
+impl Forgery {
+    /// Every kind.
+    pub const ALL: [Forgery; 3] = [
+        Forgery::WrongCycleCommands,
+        Forgery::FutureLumped,
+        Forgery::SyncBurst,
+    ];
+
+    /// The name used on the command line and in summary.json.
+    pub fn name(self) -> &'static str {
+        match self {
+            Forgery::WrongCycleCommands => "wrong-cycle-commands",
+            Forgery::FutureLumped => "future-lumped",
+            Forgery::SyncBurst => "sync-burst",
+        }
+    }
+
+    /// Bursts per second.
+    fn rate(self) -> f64 {
+        match self {
+            Forgery::WrongCycleCommands => 1_000.0,
+            Forgery::FutureLumped => 100.0,
+            Forgery::SyncBurst => 1.0,
+        }
+    }
+
+    fn index(self) -> usize {
+        match self {
+            Forgery::WrongCycleCommands => 0,
+            Forgery::FutureLumped => 1,
+            Forgery::SyncBurst => 2,
+        }
+    }
+}
+
+impl std::str::FromStr for Forgery {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        Forgery::ALL
+            .iter()
+            .copied()
+            .find(|f| f.name() == s)
+            .ok_or_else(|| {
+                format!(
+                    "unknown forgery '{s}': use {}",
+                    Forgery::ALL.map(Forgery::name).join(", ")
+                )
+            })
+    }
+}
+
+/// A link taken down for a while and brought up again.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Flap {
+    /// The link's sending node (0 = master, i = slave i); it ends at the next node.
+    pub from: usize,
+    /// When it goes down, from the run's start.
+    pub at: Duration,
+    /// How long it stays down.
+    pub down_for: Duration,
+}
+
+impl Flap {
+    /// Parses a link written `A-B` (A, B: `m` for the master or a slave number, B the node
+    /// after A on a ring of `n` slaves) into its sending node.
+    pub fn parse_link(s: &str, n: usize) -> Result<usize, String> {
+        let node = |t: &str| -> Result<usize, String> {
+            match t.trim() {
+                "m" | "master" => Ok(0),
+                v => v
+                    .parse::<usize>()
+                    .ok()
+                    .filter(|i| (1..=n).contains(i))
+                    .ok_or_else(|| format!("'{v}' is not a node: use m or 1..={n}")),
+            }
+        };
+        let (a, b) = s
+            .split_once('-')
+            .ok_or_else(|| format!("link '{s}' is not A-B, e.g. 2-3, m-1 or {n}-m"))?;
+        let (a, b) = (node(a)?, node(b)?);
+        if b != (a + 1) % (n + 1) {
+            return Err(format!(
+                "'{s}' is not a link of the ring: node {a}'s link goes to {}",
+                if a == n {
+                    "m".to_string()
+                } else {
+                    (a + 1).to_string()
+                }
+            ));
+        }
+        Ok(a)
+    }
+
+    /// The link's name, e.g. `slave 2 → slave 3`.
+    pub fn name(&self, n: usize) -> String {
+        let node = |i: usize| {
+            if i == 0 {
+                "master".to_string()
+            } else {
+                format!("slave {i}")
+            }
+        };
+        format!("{} → {}", node(self.from), node((self.from + 1) % (n + 1)))
+    }
+}
+
+/// Frames injected so far, per kind.
+#[derive(Debug, Default)]
+pub struct Injected {
+    /// Garbage and bad-CRC frames.
+    pub garbage: AtomicU64,
+    /// Forged frames per [`Forgery`] (index in [`Forgery::ALL`]).
+    pub forged: [AtomicU64; 3],
+}
+
+impl Injected {
+    /// Forged frames of kind `f` injected.
+    pub fn forged(&self, f: Forgery) -> u64 {
+        self.forged[f.index()].load(Ordering::SeqCst)
+    }
+}
+
+/// What the injector thread needs to know of the ring.
+pub struct InjectorPlan {
+    /// Garbage frames a second (0: none).
+    pub garbage_rate: f64,
+    /// Forgeries to send.
+    pub forgeries: Vec<Forgery>,
+    /// Slaves n.
+    pub slaves: usize,
+    /// Cycle time [ns].
+    pub t_cyc: i64,
+    /// Seed of the injector's draws.
+    pub seed: u64,
+    /// CLOCK_MONOTONIC at the run's true time 0 [ns] (0 until the run starts).
+    pub t0: Arc<AtomicI64>,
+}
+
+/// One sender onto each link: `senders[i]` puts frames on the link into node i + 1 (the
+/// link out of node i), for veth; for UDP straight to node (i + 1)'s socket.
+pub fn senders(
+    veth: &Option<Arc<VethRing>>,
+    udp_targets: &[std::net::SocketAddr],
+) -> io::Result<Vec<Box<dyn Port>>> {
+    match veth {
+        Some(v) => (0..v.nodes())
+            .map(|i| {
+                VethPort::injector(v, i).map(|fd| Box::new(RawSender::new(fd, i)) as Box<dyn Port>)
+            })
+            .collect(),
+        None => {
+            let nodes = udp_targets.len();
+            (0..nodes)
+                .map(|i| {
+                    UdpSender::new(udp_targets[(i + 1) % nodes])
+                        .map(|p| Box::new(p) as Box<dyn Port>)
+                })
+                .collect()
+        }
+    }
+}
+
+/// Starts the injector: it runs until `stop` rises and counts what it sent in `counts`.
+pub fn spawn(
+    mut senders: Vec<Box<dyn Port>>,
+    plan: InjectorPlan,
+    counts: Arc<Injected>,
+    stop: Arc<AtomicBool>,
+) -> JoinHandle<()> {
+    std::thread::spawn(move || {
+        sys::set_normal();
+        let mut rng = Rng::stream(plan.seed, 0x6A7B);
+        let start = sys::now_ns();
+        // Next send of garbage (index 3) and of each forgery.
+        let mut next = [i64::MAX; 4];
+        for f in &plan.forgeries {
+            next[f.index()] = start + (rng.unit() / f.rate() * 1e9) as i64;
+        }
+        if plan.garbage_rate > 0.0 {
+            next[3] = start + (rng.unit() / plan.garbage_rate * 1e9) as i64;
+        }
+        while !stop.load(Ordering::SeqCst) {
+            let (which, at) = next
+                .iter()
+                .copied()
+                .enumerate()
+                .min_by_key(|(_, t)| *t)
+                .unwrap_or((0, i64::MAX));
+            if at == i64::MAX {
+                return;
+            }
+            // Sleep in slices so that a stop is seen within 10 ms.
+            if sys::now_ns() < at {
+                sys::sleep_until(at.min(sys::now_ns() + 10_000_000));
+                continue;
+            }
+            let t0 = plan.t0.load(Ordering::SeqCst);
+            let cycle = if t0 > 0 {
+                (sys::now_ns() - t0).max(0) / plan.t_cyc.max(1)
+            } else {
+                0
+            };
+            if which == 3 {
+                let link = (rng.next_u64() % senders.len() as u64) as usize;
+                if senders[link].send(&garbage(&mut rng, plan.slaves)).is_ok() {
+                    counts.garbage.fetch_add(1, Ordering::SeqCst);
+                }
+                next[3] += (2.0 * rng.unit() / plan.garbage_rate * 1e9) as i64;
+                continue;
+            }
+            let f = Forgery::ALL[which];
+            for (link, frame) in forged(f, &mut rng, cycle, plan.t_cyc, plan.slaves) {
+                if senders[link].send(&frame).is_ok() {
+                    counts.forged[which].fetch_add(1, Ordering::SeqCst);
+                }
+            }
+            next[which] += (1e9 / f.rate()) as i64;
+        }
+    })
+}
+
+/// A random frame: half plain random bytes, half a well-formed command with a wrong CRC.
+fn garbage(rng: &mut Rng, slaves: usize) -> Vec<u8> {
+    if rng.next_u64().is_multiple_of(2) {
+        let len = 1 + (rng.next_u64() % 100) as usize;
+        (0..len).map(|_| rng.next_u64() as u8).collect()
+    } else {
+        let mut b = command(
+            rng.next_u64() as u32,
+            1 + (rng.next_u64() % slaves.max(1) as u64) as u16,
+            10.0,
+            0,
+        );
+        let last = b.len() - 1;
+        b[last] ^= 0x5A;
+        b
+    }
+}
+
+fn command(cycle: u32, target: u16, v: f32, sample_time_ns: u64) -> Vec<u8> {
+    let cmd = CommandRepr {
+        common: Common {
+            cycle,
+            ..Common::default()
+        },
+        target,
+        command_v: v,
+        sample_time_ns,
+    };
+    let mut b = vec![0u8; cmd.buffer_len()];
+    let _ = cmd.emit(&mut b);
+    b
+}
+
+fn lumped(cycle: u32, stamp: u64, slots: usize) -> Vec<u8> {
+    let repr = LumpedRepr {
+        common: Common {
+            cycle,
+            ..Common::default()
+        },
+        master_time_ns: stamp,
+        first_slot: 0,
+        slots: vec![FeedbackSlot::default(); slots.min(73)],
+    };
+    let mut b = vec![0u8; repr.buffer_len()];
+    let _ = repr.emit(&mut b);
+    b
+}
+
+/// The frames of one forgery at the ring's cycle `cycle`, each with the link to put it on.
+fn forged(f: Forgery, rng: &mut Rng, cycle: i64, t_cyc: i64, n: usize) -> Vec<(usize, Vec<u8>)> {
+    match f {
+        Forgery::WrongCycleCommands => {
+            let target = 1 + (rng.next_u64() % n.max(1) as u64) as usize;
+            let off = 2 + (rng.next_u64() % 999) as i64;
+            let c = if rng.next_u64().is_multiple_of(2) {
+                cycle + off
+            } else {
+                (cycle - off).max(0)
+            };
+            let v = if rng.next_u64().is_multiple_of(2) {
+                10.0
+            } else {
+                -10.0
+            };
+            let at = (cycle * t_cyc).max(0) as u64;
+            vec![(target - 1, command(c as u32, target as u16, v, at))]
+        }
+        Forgery::FutureLumped => {
+            let c = cycle + 1_000;
+            vec![(0, lumped(c as u32, (c * t_cyc) as u64, n))]
+        }
+        Forgery::SyncBurst => {
+            let stamp = ((cycle + 10_000) * t_cyc) as u64;
+            (0..30)
+                .map(|_| (0, lumped(rng.next_u64() as u32, stamp, n)))
+                .collect()
+        }
+    }
+}
+
+/// Takes the link out of node `flap.from` down at `flap.at` from the run's start and up
+/// again `flap.down_for` later (veth: both ends, with `ip`); returns how long it was
+/// really down [ns] (the `ip` calls take milliseconds).
+pub fn spawn_flap(
+    veth: Arc<VethRing>,
+    flap: Flap,
+    t0: Arc<AtomicI64>,
+    stop: Arc<AtomicBool>,
+) -> JoinHandle<Option<i64>> {
+    std::thread::spawn(move || {
+        sys::set_normal();
+        loop {
+            if stop.load(Ordering::SeqCst) {
+                return None;
+            }
+            let t = t0.load(Ordering::SeqCst);
+            if t > 0 && sys::now_ns() >= t + flap.at.as_ns() {
+                break;
+            }
+            sys::sleep_until(sys::now_ns() + 200_000);
+        }
+        let from = flap.from;
+        veth.set_link(from, false).ok()?;
+        let down = sys::now_ns();
+        sys::sleep_until(down + flap.down_for.as_ns());
+        veth.set_link(from, true).ok()?;
+        Some(sys::now_ns() - down)
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn links_parse_as_adjacent_nodes() {
+        assert_eq!(Flap::parse_link("2-3", 4), Ok(2));
+        assert_eq!(Flap::parse_link("m-1", 4), Ok(0));
+        assert_eq!(Flap::parse_link("4-m", 4), Ok(4));
+        assert!(
+            Flap::parse_link("2-4", 4)
+                .expect_err("an error")
+                .contains("goes to 3")
+        );
+        assert!(
+            Flap::parse_link("5-m", 4)
+                .expect_err("an error")
+                .contains("1..=4")
+        );
+        assert!(
+            Flap::parse_link("23", 4)
+                .expect_err("an error")
+                .contains("A-B")
+        );
+        let f = Flap {
+            from: 4,
+            at: Duration::ZERO,
+            down_for: Duration::ZERO,
+        };
+        assert_eq!(f.name(4), "slave 4 → master");
+    }
+
+    #[test]
+    fn forged_frames_carry_a_valid_crc_and_the_promised_lie() {
+        let mut rng = Rng::stream(1, 2);
+        for f in Forgery::ALL {
+            for (link, b) in forged(f, &mut rng, 500, 1_000_000, 4) {
+                let pdu = ringsync_wire::Pdu::parse(&b).expect("valid CRC and layout");
+                match pdu {
+                    ringsync_wire::Pdu::Command(c) => {
+                        let off = (i64::from(c.common.cycle) - 500).abs();
+                        assert!((2..=1000).contains(&off), "{off}");
+                        assert_eq!(link + 1, usize::from(c.target));
+                    }
+                    ringsync_wire::Pdu::Lumped(l) => {
+                        assert_eq!(link, 0);
+                        assert!(l.master_time_ns >= 1_500 * 1_000_000);
+                    }
+                    other => panic!("{other:?}"),
+                }
+            }
+        }
+        assert_eq!("sync-burst".parse::<Forgery>(), Ok(Forgery::SyncBurst));
+        assert!(
+            "x".parse::<Forgery>()
+                .expect_err("an error")
+                .contains("wrong-cycle-commands")
+        );
+    }
+}
