@@ -226,12 +226,13 @@ pub fn spawn(
                 sys::sleep_until(at.min(sys::now_ns() + 10_000_000));
                 continue;
             }
+            // Forgeries are aimed at the running ring: none before it starts.
             let t0 = plan.t0.load(Ordering::SeqCst);
-            let cycle = if t0 > 0 {
-                (sys::now_ns() - t0).max(0) / plan.t_cyc.max(1)
-            } else {
-                0
-            };
+            if which < 3 && (t0 == 0 || sys::now_ns() < t0) {
+                next[which] += (1e9 / Forgery::ALL[which].rate()) as i64;
+                continue;
+            }
+            let cycle = (sys::now_ns() - t0).max(0) / plan.t_cyc.max(1);
             if which == 3 {
                 let link = (rng.next_u64() % senders.len() as u64) as usize;
                 if senders[link].send(&garbage(&mut rng, plan.slaves)).is_ok() {
@@ -305,10 +306,11 @@ fn forged(f: Forgery, rng: &mut Rng, cycle: i64, t_cyc: i64, n: usize) -> Vec<(u
         Forgery::WrongCycleCommands => {
             let target = 1 + (rng.next_u64() % n.max(1) as u64) as usize;
             let off = 2 + (rng.next_u64() % 999) as i64;
-            let c = if rng.next_u64().is_multiple_of(2) {
-                cycle + off
+            // Always another cycle: behind only when there is a cycle that far behind.
+            let c = if cycle >= off && rng.next_u64().is_multiple_of(2) {
+                cycle - off
             } else {
-                (cycle - off).max(0)
+                cycle + off
             };
             let v = if rng.next_u64().is_multiple_of(2) {
                 10.0
@@ -393,6 +395,24 @@ mod tests {
         assert_eq!(f.name(4), "slave 4 → master");
     }
 
+    /// At the ring's first cycles a forged command is still of another cycle (it once was
+    /// clamped to cycle 0 and, in cycle 0, applied).
+    #[test]
+    fn forged_commands_are_never_of_the_cycle_in_progress() {
+        let mut rng = Rng::stream(3, 4);
+        for cycle in [0, 1, 5, 999, 1000, 4000] {
+            for _ in 0..200 {
+                for (_, b) in forged(Forgery::WrongCycleCommands, &mut rng, cycle, 1_000_000, 4) {
+                    let Ok(ringsync_wire::Pdu::Command(c)) = ringsync_wire::Pdu::parse(&b) else {
+                        panic!("not a command");
+                    };
+                    let off = (i64::from(c.common.cycle) - cycle).abs();
+                    assert!((2..=1000).contains(&off), "cycle {cycle}: {off}");
+                }
+            }
+        }
+    }
+
     #[test]
     fn forged_frames_carry_a_valid_crc_and_the_promised_lie() {
         let mut rng = Rng::stream(1, 2);
@@ -403,6 +423,7 @@ mod tests {
                     ringsync_wire::Pdu::Command(c) => {
                         let off = (i64::from(c.common.cycle) - 500).abs();
                         assert!((2..=1000).contains(&off), "{off}");
+                        assert_ne!(c.common.cycle, 500);
                         assert_eq!(link + 1, usize::from(c.target));
                     }
                     ringsync_wire::Pdu::Lumped(l) => {
