@@ -174,11 +174,18 @@ fn rt_checks_out_before_the_run_and_exits_3_on_a_group_stop() {
     // A slave taken out stops the group: results written, status 3.
     let dir = std::env::temp_dir().join(format!("ringsync-rt-stop-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
-    let o = ringsync(&[
-        "rt",
-        "paper-2015",
-        "--transport",
-        "udp",
+    let dir_arg = dir.to_str().expect("utf-8 path");
+    let udp = |extra: &[&str]| {
+        let base = [
+            "rt",
+            "paper-2015",
+            "--transport",
+            "udp",
+            "--no-sim-prediction",
+        ];
+        ringsync(&[&base[..], extra, &["--out", dir_arg]].concat())
+    };
+    let o = udp(&[
         "--duration",
         "1s",
         "--watchdog-cycles",
@@ -187,9 +194,6 @@ fn rt_checks_out_before_the_run_and_exits_3_on_a_group_stop() {
         "2",
         "--kill-at",
         "300ms",
-        "--no-sim-prediction",
-        "--out",
-        dir.to_str().expect("utf-8 path"),
     ]);
     let stdout = String::from_utf8_lossy(&o.stdout);
     assert_eq!(
@@ -203,19 +207,7 @@ fn rt_checks_out_before_the_run_and_exits_3_on_a_group_stop() {
     assert!(summary.contains("\"group_stop\": {"), "{summary}");
     // A run that fails while writing (its pcap cannot be written) leaves the previous
     // results as they were, not half of its own.
-    let o = ringsync(&[
-        "rt",
-        "paper-2015",
-        "--transport",
-        "udp",
-        "--duration",
-        "200ms",
-        "--no-sim-prediction",
-        "--pcap",
-        "/nonexistent-dir/x.pcapng",
-        "--out",
-        dir.to_str().expect("utf-8 path"),
-    ]);
+    let o = udp(&["--duration", "200ms", "--pcap", "/nonexistent-dir/x.pcapng"]);
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(1), "{err}");
     assert!(

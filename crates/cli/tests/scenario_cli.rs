@@ -12,6 +12,20 @@ fn temp_file(name: &str, text: &str) -> std::path::PathBuf {
     p
 }
 
+/// `ringsync check FILE --json --points 401` on a scenario file `name` holding `text`.
+fn check_json(name: &str, text: &str) -> (std::process::Output, serde_json::Value) {
+    let p = temp_file(name, text);
+    let o = ringsync(&[
+        "check",
+        p.to_str().expect("path"),
+        "--json",
+        "--points",
+        "401",
+    ]);
+    let v = serde_json::from_slice(&o.stdout).expect("json");
+    (o, v)
+}
+
 #[test]
 fn show_prints_a_file_that_loads_back() {
     let o = ringsync(&["scenario", "show", "paper-2015"]);
@@ -80,15 +94,7 @@ fn check_reports_the_reference_as_stable() {
     );
     assert_eq!(v["conditions"]["cond1_holds"], true);
     assert_eq!(v["conditions"]["cond2_holds"], false);
-    let p = temp_file("unstable.toml", "[control]\nkd = 159.1\n");
-    let o = ringsync(&[
-        "check",
-        p.to_str().expect("path"),
-        "--json",
-        "--points",
-        "11",
-    ]);
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+    let (o, v) = check_json("unstable.toml", "[control]\nkd = 159.1\n");
     assert_eq!(v["discrete"]["stable"], false);
     assert_eq!(v["verdict"], "unstable");
     assert_eq!(o.status.code(), Some(3), "an unstable loop exits 3");
@@ -210,18 +216,11 @@ fn check_exits_3_unless_it_can_vouch_for_the_loop() {
         assert_eq!(o.status.code(), Some(status), "{name}: {text}");
         assert!(text.contains(verdict), "{name}: {text}");
     }
-    let p = temp_file(
+    let (o, v) = check_json(
         "thin-json.toml",
         "[control]\ndelta_c = 1.0\nboundary_layer = 0.01\n",
     );
-    let o = ringsync(&[
-        "check",
-        p.to_str().expect("path"),
-        "--json",
-        "--points",
-        "401",
-    ]);
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+    assert_eq!(o.status.code(), Some(3));
     assert_eq!(v["verdict"], "unstable");
     let extra = v["robust_term"]["extra_kd"].as_f64().expect("extra_kd");
     assert!((extra - 3024.0).abs() < 1e-6, "{extra}");
