@@ -599,7 +599,7 @@ impl Scenario {
                 None => msg.into_owned(),
             };
             ScenarioError::Syntax {
-                origin: origin.to_string(),
+                origin: clip(origin, ECHO_CHARS).into_owned(),
                 message,
             }
         })?;
