@@ -9,7 +9,7 @@ use ringsync_rt::host::{HostError, HostOptions, probe};
 use serde_json::json;
 
 use crate::rt_cmd::{RealtimeArgs, duration, pct};
-use crate::{CliError, out};
+use crate::{CliError, Outcome, out};
 
 /// Options of `ringsync latency`.
 #[derive(Args, Debug)]
@@ -31,7 +31,7 @@ pub struct LatencyArgs {
     json: Option<PathBuf>,
 }
 
-pub(crate) fn latency(args: &LatencyArgs) -> Result<(), CliError> {
+pub(crate) fn latency(args: &LatencyArgs) -> Result<Outcome, CliError> {
     let opts = HostOptions {
         cycle: args.cycle,
         duration: args.duration,
@@ -62,8 +62,7 @@ pub(crate) fn latency(args: &LatencyArgs) -> Result<(), CliError> {
             "interrupted": r.interrupted,
         });
         let text = serde_json::to_string_pretty(&v).context("cannot format JSON")?;
-        std::fs::write(path, format!("{text}\n"))
-            .with_context(|| format!("cannot write {}", path.display()))?;
+        crate::output::write_file(path, format!("{text}\n"))?;
     }
     let mut text = format!(
         "host latency over {} cycles of {:.0} µs{}\n  cycle-start lateness p50 {:.1} µs, p99 {:.1} µs, p99.9 {:.1} µs, max {:.1} µs\n  stalls per cycle p50 {:.1} µs, p99 {:.1} µs, p99.9 {:.1} µs, max {:.1} µs\n  cycles with a stall of at least:",

@@ -2,6 +2,7 @@
 //! (Huang et al. 2015). Thin: parse, call the library crates, print.
 
 mod latency_cmd;
+mod output;
 mod plan_cmd;
 mod rt_cmd;
 mod scenario_cmd;
@@ -15,6 +16,41 @@ use clap::{Parser, Subcommand};
 const EXIT_USAGE: u8 = 2;
 /// Exit status for a failure while doing the work (I/O and the like).
 const EXIT_FAILURE: u8 = 1;
+/// Exit status for work that finished, results written, with a bad outcome.
+const EXIT_FLAGGED: u8 = 3;
+
+/// Longest line of an error message [characters]: echoed values are cut in the middle.
+const ERROR_LINE_CHARS: usize = 400;
+
+/// The exit statuses, for `ringsync --help` (README.md says the same).
+const EXIT_STATUSES: &str = "\
+Exit status:
+  0  success
+  1  a runtime or I/O error; also an interrupted `rt` run (its partial results are written)
+  2  bad usage or input: options, scenario files, an --out that is not a results directory
+  3  the work finished and its results are written, but `sim`, `reproduce`, `sweep` (any
+     case) or `rt` ended in a group stop, or `check` could not show the loop stable
+     (spectral radius >= 1, or a loop it does not model: verdict `not shown`)
+
+--out DIR is replaced as a whole when a run succeeds (or ends in status 3): the results are
+written beside it first, so DIR holds one run's complete results or the previous ones.";
+
+/// How a command that did its work ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Outcome {
+    /// All well: exit status 0.
+    Done,
+    /// Finished and results written, but the run ended in a group stop or the check could
+    /// not show the loop stable: exit status 3.
+    Flagged,
+}
+
+impl Outcome {
+    /// `Flagged` when `bad`, else `Done`.
+    pub(crate) fn flagged_if(bad: bool) -> Self {
+        if bad { Outcome::Flagged } else { Outcome::Done }
+    }
+}
 
 /// What went wrong, and so which exit status.
 #[derive(Debug)]
@@ -37,7 +73,8 @@ impl From<anyhow::Error> for CliError {
     version,
     about = "Plan, simulate and run a networked CNC ring with position synchronisation (Huang et al. 2015)",
     long_about = None,
-    propagate_version = true
+    propagate_version = true,
+    after_help = EXIT_STATUSES
 )]
 struct Cli {
     #[command(subcommand)]
@@ -68,19 +105,27 @@ enum Command {
 
 /// Writes `text` to standard output. A closed pipe (`ringsync plan | head`) ends the output
 /// quietly instead of failing.
-pub(crate) fn out(text: &str) -> Result<(), CliError> {
+pub(crate) fn out(text: &str) -> Result<Outcome, CliError> {
     use std::io::Write as _;
     let mut stdout = std::io::stdout().lock();
     match stdout
         .write_all(text.as_bytes())
         .and_then(|()| stdout.flush())
     {
-        Ok(()) => Ok(()),
-        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
+        Ok(()) => Ok(Outcome::Done),
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(Outcome::Done),
         Err(e) => Err(CliError::Failure(
             anyhow::Error::new(e).context("cannot write to standard output"),
         )),
     }
+}
+
+/// `text` with every line cut to a readable length.
+fn readable(text: &str) -> String {
+    text.lines()
+        .map(|l| ringsync_sim::scenario::clip_middle(l, ERROR_LINE_CHARS))
+        .collect::<Vec<_>>()
+        .join("\n")
 }
 
 fn main() -> ExitCode {
@@ -93,12 +138,9 @@ fn main() -> ExitCode {
                 | ErrorKind::DisplayVersion
                 | ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand => e.exit(),
                 _ => {
-                    // clap's message is several lines; its first line names the option and
-                    // the problem. Keep that one and point to --help.
-                    let text = e.to_string();
-                    let first = text.lines().next().unwrap_or("invalid arguments");
-                    let first = first.strip_prefix("error: ").unwrap_or(first);
-                    eprintln!("ringsync: error: {first} (see ringsync --help)");
+                    // clap's whole message: the problem, what it suggests or accepts, the
+                    // usage line and the pointer to --help.
+                    eprintln!("{}", readable(e.render().to_string().trim_end()));
                     return ExitCode::from(EXIT_USAGE);
                 }
             }
@@ -115,13 +157,14 @@ fn main() -> ExitCode {
         Command::Latency(args) => latency_cmd::latency(&args),
     };
     match result {
-        Ok(()) => ExitCode::SUCCESS,
+        Ok(Outcome::Done) => ExitCode::SUCCESS,
+        Ok(Outcome::Flagged) => ExitCode::from(EXIT_FLAGGED),
         Err(CliError::Usage(msg)) => {
-            eprintln!("ringsync: error: {msg}");
+            eprintln!("ringsync: error: {}", readable(&msg));
             ExitCode::from(EXIT_USAGE)
         }
         Err(CliError::Failure(e)) => {
-            eprintln!("ringsync: error: {e:#}");
+            eprintln!("ringsync: error: {}", readable(&format!("{e:#}")));
             ExitCode::from(EXIT_FAILURE)
         }
     }

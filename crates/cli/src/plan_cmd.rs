@@ -7,7 +7,7 @@ use clap::Args;
 use ringsync_proto::plan::parse_bit_rate;
 use ringsync_proto::{CyclePlan, Duration, PlanError, PlanKind, RingParams};
 
-use crate::CliError;
+use crate::{CliError, Outcome};
 
 fn duration(s: &str) -> Result<Duration, String> {
     s.parse::<Duration>().map_err(|e| e.to_string())
@@ -149,7 +149,7 @@ impl PlanArgs {
 }
 
 /// Runs `ringsync plan`.
-pub(crate) fn run(args: &PlanArgs) -> Result<(), CliError> {
+pub(crate) fn run(args: &PlanArgs) -> Result<Outcome, CliError> {
     let params = args.params()?;
     let plan = CyclePlan::new(&params).map_err(usage)?;
     plan.check_fits_for(args.plan).map_err(usage)?;
@@ -161,7 +161,7 @@ pub(crate) fn run(args: &PlanArgs) -> Result<(), CliError> {
                 params.slaves
             ))
         })?;
-        std::fs::write(path, svg).with_context(|| format!("cannot write {}", path.display()))?;
+        crate::output::write_file(path, svg)?;
     }
     if args.json {
         let v = ringsync_report::plan_json(&plan, args.plan, args.events);
@@ -180,5 +180,5 @@ pub(crate) fn run(args: &PlanArgs) -> Result<(), CliError> {
         }
         crate::out(&text)?;
     }
-    Ok(())
+    Ok(Outcome::Done)
 }

@@ -15,7 +15,8 @@ use ringsync_sim::scenario::Scenario;
 use serde_json::{Value, json};
 
 use crate::scenario_cmd::usage;
-use crate::{CliError, out};
+use crate::sim_cmd::out_dir;
+use crate::{CliError, Outcome, out};
 
 /// Which transport carries the frames.
 #[derive(Debug, Clone, Copy, ValueEnum)]
@@ -42,7 +43,8 @@ pub struct RtArgs {
     /// How the frames travel.
     #[arg(long, value_enum)]
     transport: Transport,
-    /// Directory for summary.json and trace.csv (created if missing).
+    /// Directory for summary.json and trace.csv; checked before the run, replaced as a whole
+    /// when it ends (created if missing).
     #[arg(long, value_name = "DIR")]
     out: PathBuf,
     /// Run this long instead of the scenario's duration (e.g. 60s).
@@ -247,7 +249,9 @@ fn rt_summary(
     v
 }
 
-pub(crate) fn rt(args: &RtArgs) -> Result<(), CliError> {
+/// Runs `ringsync rt`: exit status 3 when the run ends in a group stop, 1 when it is
+/// interrupted (its partial results written all the same).
+pub(crate) fn rt(args: &RtArgs) -> Result<Outcome, CliError> {
     let (s, hash): (Scenario, u64) = Scenario::load_with_hash(&args.scenario).map_err(usage)?;
     if !(args.inject_garbage >= 0.0 && args.inject_garbage <= 100_000.0) {
         return Err(CliError::Usage(format!(
@@ -265,8 +269,8 @@ pub(crate) fn rt(args: &RtArgs) -> Result<(), CliError> {
         }),
         _ => None,
     };
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("cannot create {}", args.out.display()))?;
+    // Before the ring runs: an --out that cannot be written fails now, not after the run.
+    let mut dir = out_dir(&args.out, &args.scenario)?;
     let transport = match args.transport {
         Transport::Udp => TransportKind::Udp,
         Transport::Veth => TransportKind::Veth,
@@ -300,20 +304,15 @@ pub(crate) fn rt(args: &RtArgs) -> Result<(), CliError> {
     };
     let summary = rt_summary(&r, hash, transport.name(), prediction);
     let text = serde_json::to_string_pretty(&summary).context("cannot format JSON")?;
-    let write = |name: &str, text: &str| -> Result<(), CliError> {
-        let p = args.out.join(name);
-        std::fs::write(&p, text).with_context(|| format!("cannot write {}", p.display()))?;
-        Ok(())
-    };
-    write("summary.json", &format!("{text}\n"))?;
-    write("trace.csv", &trace_csv(&r.run))?;
+    dir.write("summary.json", format!("{text}\n"))?;
+    dir.write("trace.csv", trace_csv(&r.run))?;
     if let Some(p) = &args.pcap {
-        std::fs::write(
+        dir.write_file(
             p,
             ringsync_report::pcap::pcapng(&r.run.captured, r.scenario.axes_count()),
-        )
-        .with_context(|| format!("cannot write {}", p.display()))?;
+        )?;
     }
+    dir.commit()?;
     let t = &r.timing;
     let m = &r.run.summary;
     let mut text = format!(
@@ -390,5 +389,5 @@ pub(crate) fn rt(args: &RtArgs) -> Result<(), CliError> {
             "interrupted; partial results written, namespaces and links removed"
         )));
     }
-    Ok(())
+    Ok(Outcome::flagged_if(r.run.group_stop.is_some()))
 }

@@ -3,7 +3,7 @@
 use clap::{Args, Subcommand};
 use ringsync_sim::{Scenario, ScenarioError, builtin, builtin_names};
 
-use crate::{CliError, out};
+use crate::{CliError, Outcome, out};
 
 /// `ringsync scenario …`
 #[derive(Subcommand, Debug)]
@@ -26,7 +26,7 @@ pub(crate) fn usage(e: ScenarioError) -> CliError {
     CliError::Usage(e.to_string())
 }
 
-pub(crate) fn run(cmd: &ScenarioCmd) -> Result<(), CliError> {
+pub(crate) fn run(cmd: &ScenarioCmd) -> Result<Outcome, CliError> {
     match cmd {
         ScenarioCmd::List => {
             let mut text = String::new();
@@ -67,7 +67,8 @@ pub struct CheckArgs {
     json: bool,
 }
 
-pub(crate) fn check(args: &CheckArgs) -> Result<(), CliError> {
+/// Runs `ringsync check`: exit status 3 unless the verdict is stable.
+pub(crate) fn check(args: &CheckArgs) -> Result<Outcome, CliError> {
     let s = Scenario::load(&args.scenario).map_err(usage)?;
     let r = ringsync_sim::check::check(&s, args.points as usize).map_err(|e| match e {
         ringsync_sim::check::CheckError::Scenario(e) => usage(e),
@@ -76,8 +77,11 @@ pub(crate) fn check(args: &CheckArgs) -> Result<(), CliError> {
     if args.json {
         let text = serde_json::to_string_pretty(&ringsync_report::check_json(&r))
             .map_err(|e| CliError::Failure(e.into()))?;
-        out(&format!("{text}\n"))
+        out(&format!("{text}\n"))?;
     } else {
-        out(&ringsync_report::check_text(&r))
+        out(&ringsync_report::check_text(&r))?;
     }
+    Ok(Outcome::flagged_if(
+        r.verdict() != ringsync_sim::check::Verdict::Stable,
+    ))
 }

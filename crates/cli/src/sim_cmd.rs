@@ -11,15 +11,17 @@ use ringsync_report::sim::{
 use ringsync_sim::run::{RunError, RunOptions, run};
 use ringsync_sim::scenario::{LawKind, Scenario};
 
+use crate::output::OutDir;
 use crate::scenario_cmd::usage;
-use crate::{CliError, out};
+use crate::{CliError, Outcome, out};
 
 /// Options of `ringsync sim`.
 #[derive(Args, Debug)]
 pub struct SimArgs {
     /// Scenario file or built-in name (see `ringsync scenario list`).
     scenario: String,
-    /// Directory for summary.json and trace.csv (created if missing).
+    /// Directory for summary.json, trace.csv, report.html and the figures; replaced as a
+    /// whole when the run ends (created if missing).
     #[arg(long, value_name = "DIR")]
     out: PathBuf,
     /// Seed for every random draw, instead of the scenario's.
@@ -37,23 +39,22 @@ fn run_error(e: RunError) -> CliError {
     }
 }
 
-fn write(dir: &Path, name: &str, text: &str) -> Result<(), CliError> {
-    let p = dir.join(name);
-    std::fs::write(&p, text).with_context(|| format!("cannot write {}", p.display()))?;
-    Ok(())
+/// The results directory for `--out`, which must not hold the scenario file: it is replaced.
+pub(crate) fn out_dir(out: &Path, scenario: &str) -> Result<OutDir, CliError> {
+    let dir = OutDir::create("--out", out)?;
+    if ringsync_sim::builtin(scenario).is_none() {
+        dir.keep_out(Path::new(scenario))?;
+    }
+    Ok(dir)
 }
 
-fn create(dir: &Path) -> Result<(), CliError> {
-    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
-    Ok(())
-}
-
-pub(crate) fn sim(args: &SimArgs) -> Result<(), CliError> {
+/// Runs `ringsync sim`: exit status 3 when the run ends in a group stop.
+pub(crate) fn sim(args: &SimArgs) -> Result<Outcome, CliError> {
     let (mut s, hash) = Scenario::load_with_hash(&args.scenario).map_err(usage)?;
     if let Some(seed) = args.seed {
         s.seed = seed;
     }
-    create(&args.out)?;
+    let mut dir = out_dir(&args.out, &args.scenario)?;
     let wall = WallClock::now();
     let opts = RunOptions {
         trace: true,
@@ -84,16 +85,15 @@ pub(crate) fn sim(args: &SimArgs) -> Result<(), CliError> {
     }
     let elapsed = wall.elapsed();
     if let Some(p) = &args.pcap {
-        std::fs::write(
+        dir.write_file(
             p,
             ringsync_report::pcap::pcapng(&r.captured, s.axes_count()),
-        )
-        .with_context(|| format!("cannot write {}", p.display()))?;
+        )?;
     }
     let summary = summary_json(&s, hash, &r);
     let text = serde_json::to_string_pretty(&summary).context("cannot format JSON")?;
-    write(&args.out, "summary.json", &format!("{text}\n"))?;
-    write(&args.out, "trace.csv", &trace_csv(&r))?;
+    dir.write("summary.json", format!("{text}\n"))?;
+    dir.write("trace.csv", trace_csv(&r))?;
     let timing = match s.ring.plan {
         ringsync_proto::PlanKind::P2pLumped => ringsync_proto::CyclePlan::new(&s.ring_params())
             .ok()
@@ -102,19 +102,19 @@ pub(crate) fn sim(args: &SimArgs) -> Result<(), CliError> {
     };
     let figures = ringsync_report::sim::run_figures(timing, &r);
     for (name, svg) in &figures {
-        write(&args.out, name, svg)?;
+        dir.write(name, svg)?;
     }
-    write(
-        &args.out,
+    dir.write(
         "report.html",
-        &ringsync_report::sim::run_html(&s, hash, &r, &figures),
+        ringsync_report::sim::run_html(&s, hash, &r, &figures),
     )?;
+    dir.commit()?;
     out(&format!(
         "{}: {} cycles of {} axes, {} controller, estimator {}\n  Track-RMSE {:.6} rad, Sync-RMSE {:.7} rad\n  frames: {} sent by the master, {} lost, {} retried; clock error ≤ {:.0} ns\n  {}\n  wrote {}/summary.json, trace.csv, report.html and the figures (*.svg) in {:.1} ms\n",
         s.name,
         r.cycles,
         s.axes_count(),
-        s.control.law.name(),
+        s.law_name(),
         s.control.estimator.name(),
         r.summary.track_rmse,
         r.summary.sync_rmse,
@@ -128,13 +128,15 @@ pub(crate) fn sim(args: &SimArgs) -> Result<(), CliError> {
         },
         args.out.display(),
         elapsed.as_secs_f64() * 1e3
-    ))
+    ))?;
+    Ok(Outcome::flagged_if(r.group_stop.is_some()))
 }
 
 /// Options of `ringsync reproduce`.
 #[derive(Args, Debug)]
 pub struct ReproduceArgs {
-    /// Directory for summary.json and table.md (created if missing).
+    /// Directory for summary.json, table.md, report.html and the figures; replaced as a
+    /// whole when the run ends (created if missing).
     #[arg(long, value_name = "DIR", default_value = "out/reproduce")]
     out: PathBuf,
     /// Scenario to reproduce (default: the built-in paper-2015).
@@ -142,9 +144,10 @@ pub struct ReproduceArgs {
     scenario: String,
 }
 
-pub(crate) fn reproduce(args: &ReproduceArgs) -> Result<(), CliError> {
+/// Runs `ringsync reproduce`: exit status 3 when any case ends in a group stop.
+pub(crate) fn reproduce(args: &ReproduceArgs) -> Result<Outcome, CliError> {
     let base = Scenario::load(&args.scenario).map_err(usage)?;
-    create(&args.out)?;
+    let dir = out_dir(&args.out, &args.scenario)?;
     let wall = WallClock::now();
     let laws = [LawKind::Pd, LawKind::Sync, LawKind::RingCoupled];
     let plans = [
@@ -203,23 +206,24 @@ pub(crate) fn reproduce(args: &ReproduceArgs) -> Result<(), CliError> {
     let timing = plan.as_ref().and_then(ringsync_report::timing_svg);
     let figures = repro_figures(timing, &done[0].1, &done[1].1);
     for (name, svg) in &figures {
-        write(&args.out, name, svg)?;
+        dir.write(name, svg)?;
     }
-    write(
-        &args.out,
-        "report.html",
-        &repro_html(&base, &rows, &figures),
-    )?;
+    dir.write("report.html", repro_html(&base, &rows, &figures))?;
     let json = serde_json::to_string_pretty(&repro_json(&rows)).context("cannot format JSON")?;
-    write(&args.out, "summary.json", &format!("{json}\n"))?;
-    write(
-        &args.out,
+    dir.write("summary.json", format!("{json}\n"))?;
+    dir.write(
         "table.md",
-        &format!(
+        format!(
             "# Table 1 of Huang et al. (2015) beside ringsync's `{}`\n\n{table}",
             base.name
         ),
     )?;
+    dir.commit()?;
+    let stopped: Vec<String> = done
+        .iter()
+        .filter(|(_, r)| r.group_stop.is_some())
+        .map(|(row, _)| format!("{} on {}", row.controller, row.plan))
+        .collect();
     out(&format!(
         "Scenario {} ({} axes, {} s, estimator {}), Table 1 [rad]:\n\n{table}\nAssumptions of the scenario: scenarios/{}.toml; of the simulator: summary.json of `ringsync sim`.\nWrote {}/summary.json, table.md, report.html and the figures (fig*.svg) in {:.1} ms.\n",
         base.name,
@@ -229,7 +233,11 @@ pub(crate) fn reproduce(args: &ReproduceArgs) -> Result<(), CliError> {
         base.name,
         args.out.display(),
         wall.elapsed().as_secs_f64() * 1e3
-    ))
+    ))?;
+    if !stopped.is_empty() {
+        out(&format!("GROUP STOP in {}\n", stopped.join(", ")))?;
+    }
+    Ok(Outcome::flagged_if(!stopped.is_empty()))
 }
 
 /// The (key, value) pairs that name one case of a sweep.
@@ -249,7 +257,8 @@ pub struct SweepArgs {
     /// Give each case whose cycle is too short for its ring the shortest cycle that holds it (+10 %).
     #[arg(long)]
     auto_cycle: bool,
-    /// Directory for sweep.csv, means.csv and sweep.svg.
+    /// Directory for sweep.csv, means.csv and sweep.svg; replaced as a whole when the sweep
+    /// ends (created if missing).
     #[arg(long, value_name = "DIR")]
     out: PathBuf,
     /// Parallel simulations (default: the number of CPUs).
@@ -257,7 +266,8 @@ pub struct SweepArgs {
     jobs: Option<usize>,
 }
 
-pub(crate) fn sweep(args: &SweepArgs) -> Result<(), CliError> {
+/// Runs `ringsync sweep`: exit status 3 when any case ends in a group stop.
+pub(crate) fn sweep(args: &SweepArgs) -> Result<Outcome, CliError> {
     use std::fmt::Write as _;
     use std::io::IsTerminal as _;
     let text = Scenario::text(&args.scenario).map_err(usage)?;
@@ -269,7 +279,7 @@ pub(crate) fn sweep(args: &SweepArgs) -> Result<(), CliError> {
         args.auto_cycle,
     )
     .map_err(usage)?;
-    create(&args.out)?;
+    let dir = out_dir(&args.out, &args.scenario)?;
     let jobs = args
         .jobs
         .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
@@ -310,7 +320,7 @@ pub(crate) fn sweep(args: &SweepArgs) -> Result<(), CliError> {
             Err(e) => return Err(CliError::Usage(format!("case {}: {e}", vals.join(" ")))),
         }
     }
-    write(&args.out, "sweep.csv", &csv)?;
+    dir.write("sweep.csv", &csv)?;
     // Means over seeds, per combination, in order.
     let mut means: Vec<(Labels, Vec<(f64, f64)>)> = Vec::new();
     for (c, r) in cases.iter().zip(&results) {
@@ -360,7 +370,7 @@ pub(crate) fn sweep(args: &SweepArgs) -> Result<(), CliError> {
             sd
         );
     }
-    write(&args.out, "means.csv", &mcsv)?;
+    dir.write("means.csv", &mcsv)?;
     // Figure: mean Sync-RMSE against the first key, one line per value of the others.
     let mut groups: Vec<(String, Vec<(f64, f64)>)> = Vec::new();
     for (k, (labels, v)) in means.iter().enumerate() {
@@ -401,11 +411,22 @@ pub(crate) fn sweep(args: &SweepArgs) -> Result<(), CliError> {
         "Sync-RMSE [rad]",
         &series,
     );
-    write(&args.out, "sweep.svg", &svg)?;
+    dir.write("sweep.svg", &svg)?;
+    dir.commit()?;
+    let stopped = results
+        .iter()
+        .filter(|r| r.as_ref().is_ok_and(|r| r.group_stop.is_some()))
+        .count();
     out(&format!(
-        "{table}\n{} runs on {jobs} threads in {:.2} s; wrote {}/sweep.csv, means.csv and sweep.svg\n",
+        "{table}\n{} runs on {jobs} threads in {:.2} s; wrote {}/sweep.csv, means.csv and sweep.svg\n{}",
         cases.len(),
         wall.elapsed().as_secs_f64(),
-        args.out.display()
-    ))
+        args.out.display(),
+        if stopped > 0 {
+            format!("GROUP STOP in {stopped} of the runs (group_stop_s in sweep.csv)\n")
+        } else {
+            String::new()
+        }
+    ))?;
+    Ok(Outcome::flagged_if(stopped > 0))
 }

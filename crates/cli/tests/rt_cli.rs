@@ -153,3 +153,70 @@ fn bad_rt_options_give_one_line_and_exit_2() {
         );
     }
 }
+
+#[test]
+fn rt_checks_out_before_the_run_and_exits_3_on_a_group_stop() {
+    // An --out that cannot be created fails before the ring is built.
+    let t = Instant::now();
+    let o = ringsync(&[
+        "rt",
+        "paper-2015",
+        "--transport",
+        "udp",
+        "--out",
+        "/proc/ringsync/x",
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(err.contains("cannot create"), "{err}");
+    assert!(t.elapsed() < Duration::from_secs(5), "{:?}", t.elapsed());
+    // A slave taken out stops the group: results written, status 3.
+    let dir = std::env::temp_dir().join(format!("ringsync-rt-stop-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let dir_arg = dir.to_str().expect("utf-8 path");
+    let udp = |extra: &[&str]| {
+        let base = [
+            "rt",
+            "paper-2015",
+            "--transport",
+            "udp",
+            "--no-sim-prediction",
+        ];
+        ringsync(&[&base[..], extra, &["--out", dir_arg]].concat())
+    };
+    let o = udp(&[
+        "--duration",
+        "1s",
+        "--watchdog-cycles",
+        "20",
+        "--kill-slave",
+        "2",
+        "--kill-at",
+        "300ms",
+    ]);
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert_eq!(
+        o.status.code(),
+        Some(3),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert!(stdout.contains("GROUP STOP"), "{stdout}");
+    let summary = std::fs::read_to_string(dir.join("summary.json")).expect("summary written");
+    assert!(summary.contains("\"group_stop\": {"), "{summary}");
+    // A run that fails while writing (its pcap cannot be written) leaves the previous
+    // results as they were, not half of its own.
+    let o = udp(&["--duration", "200ms", "--pcap", "/nonexistent-dir/x.pcapng"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("cannot write /nonexistent-dir/x.pcapng"),
+        "{err}"
+    );
+    assert_eq!(
+        std::fs::read_to_string(dir.join("summary.json")).expect("summary kept"),
+        summary
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}

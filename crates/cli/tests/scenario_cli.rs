@@ -12,6 +12,20 @@ fn temp_file(name: &str, text: &str) -> std::path::PathBuf {
     p
 }
 
+/// `ringsync check FILE --json --points 401` on a scenario file `name` holding `text`.
+fn check_json(name: &str, text: &str) -> (std::process::Output, serde_json::Value) {
+    let p = temp_file(name, text);
+    let o = ringsync(&[
+        "check",
+        p.to_str().expect("path"),
+        "--json",
+        "--points",
+        "401",
+    ]);
+    let v = serde_json::from_slice(&o.stdout).expect("json");
+    (o, v)
+}
+
 #[test]
 fn show_prints_a_file_that_loads_back() {
     let o = ringsync(&["scenario", "show", "paper-2015"]);
@@ -80,14 +94,135 @@ fn check_reports_the_reference_as_stable() {
     );
     assert_eq!(v["conditions"]["cond1_holds"], true);
     assert_eq!(v["conditions"]["cond2_holds"], false);
-    let p = temp_file("unstable.toml", "[control]\nkd = 159.1\n");
-    let o = ringsync(&[
-        "check",
-        p.to_str().expect("path"),
-        "--json",
-        "--points",
-        "11",
-    ]);
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+    let (o, v) = check_json("unstable.toml", "[control]\nkd = 159.1\n");
     assert_eq!(v["discrete"]["stable"], false);
+    assert_eq!(v["verdict"], "unstable");
+    assert_eq!(o.status.code(), Some(3), "an unstable loop exits 3");
+}
+
+/// Every command that takes a scenario: (arguments before the scenario, after it).
+fn every_command(out: &str) -> Vec<(Vec<&str>, Vec<&str>)> {
+    vec![
+        (vec!["scenario", "validate"], vec![]),
+        (vec!["check"], vec![]),
+        (vec!["sim"], vec!["--out", out]),
+        (vec!["sweep"], vec!["--set", "faults.loss=0", "--out", out]),
+        (
+            vec!["rt"],
+            vec!["--transport", "udp", "--no-sim-prediction", "--out", out],
+        ),
+        (vec!["reproduce", "--out", out, "--scenario"], vec![]),
+    ]
+}
+
+#[test]
+fn every_command_rejects_what_validate_rejects_with_the_same_line() {
+    let out = std::env::temp_dir().join(format!("ringsync-never-{}", std::process::id()));
+    let out_arg = out.to_str().expect("path");
+    for (name, text, says) in [
+        (
+            "no-axes.toml",
+            "axis = []\n",
+            "axis = [] is out of range: allowed at least one [[axis]] table",
+        ),
+        (
+            "one-bit.toml",
+            "[[axis]]\nencoder_bits = 1\n",
+            "axis[0].encoder_bits = 1 is out of range: allowed 2 ..= 28",
+        ),
+        (
+            "thirty-bits.toml",
+            "[[axis]]\nencoder_bits = 30\n",
+            "axis[0].encoder_bits = 30 is out of range: allowed 2 ..= 28 for this trajectory: velocities up to 30.2 rad/s (2 × the peak speed",
+        ),
+        (
+            "lumped-60.toml",
+            "[ring]\nplan = \"lumped-only\"\nslaves = 60\ncycle = \"2ms\"\n",
+            "ring.slaves = 60 is out of range: allowed 1 ..= 46",
+        ),
+    ] {
+        let p = temp_file(name, text);
+        let p = p.to_str().expect("path");
+        for (before, after) in every_command(out_arg) {
+            let args = [&before[..], &[p], &after[..]].concat();
+            let o = ringsync(&args);
+            let err = String::from_utf8_lossy(&o.stderr);
+            assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+            assert_eq!(err.lines().count(), 1, "{args:?}: {err}");
+            assert!(err.contains(says), "{args:?}: {err}");
+            assert!(!out.exists(), "{args:?} created --out");
+        }
+    }
+}
+
+#[test]
+fn huge_and_endless_files_are_refused_fast_and_errors_stay_short() {
+    let big = temp_file("big.toml", &format!("# {}\n", "x".repeat(2 << 20)));
+    for path in ["/dev/zero", big.to_str().expect("path")] {
+        let t = std::time::Instant::now();
+        let o = ringsync(&["scenario", "validate", path]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{path}: {err}");
+        assert!(
+            err.trim_end()
+                .ends_with("larger than 1 MiB (1048576 bytes), the limit for a scenario file"),
+            "{path}: {err}"
+        );
+        assert!(t.elapsed() < std::time::Duration::from_secs(5));
+    }
+    // A syntax error on a 1 MB line echoes a cut line.
+    let long = temp_file(
+        "long.toml",
+        &format!("[ring]\nslaves = \"{}\"\n", "a".repeat(1_000_000)),
+    );
+    let o = ringsync(&["sim", long.to_str().expect("path"), "--out", "/tmp/never"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert_eq!(err.lines().count(), 1);
+    assert!(
+        err.len() < 1_000 && err.contains('…'),
+        "{} bytes: {err}",
+        err.len()
+    );
+    assert!(err.trim_end().ends_with("expected u32"), "{err}");
+}
+
+#[test]
+fn check_exits_3_unless_it_can_vouch_for_the_loop() {
+    for (name, text, status, verdict) in [
+        ("reference.toml", "", 0, "Verdict: stable"),
+        (
+            "thin-layer.toml",
+            "[control]\ndelta_c = 1.0\nboundary_layer = 0.01\n",
+            3,
+            "Verdict: UNSTABLE",
+        ),
+        (
+            "exact-sign.toml",
+            "[control]\ndelta_c = 0.1\nboundary_layer = 0.0\n",
+            3,
+            "Verdict: NOT SHOWN: the check cannot vouch for stability with K_N != 0",
+        ),
+        (
+            "lumped-only.toml",
+            "[ring]\nplan = \"lumped-only\"\n",
+            3,
+            "Verdict: NOT SHOWN: the discrete-time check does not model the lumped-only plan",
+        ),
+    ] {
+        let p = temp_file(name, text);
+        let o = ringsync(&["check", p.to_str().expect("path"), "--points", "401"]);
+        let text = String::from_utf8_lossy(&o.stdout);
+        assert_eq!(o.status.code(), Some(status), "{name}: {text}");
+        assert!(text.contains(verdict), "{name}: {text}");
+    }
+    let (o, v) = check_json(
+        "thin-json.toml",
+        "[control]\ndelta_c = 1.0\nboundary_layer = 0.01\n",
+    );
+    assert_eq!(o.status.code(), Some(3));
+    assert_eq!(v["verdict"], "unstable");
+    let extra = v["robust_term"]["extra_kd"].as_f64().expect("extra_kd");
+    assert!((extra - 3024.0).abs() < 1e-6, "{extra}");
+    assert!(v["discrete"]["spectral_radius"].as_f64().expect("rho") > 1.0);
 }

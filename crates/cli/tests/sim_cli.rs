@@ -196,9 +196,10 @@ fn sweep_writes_rows_means_and_a_figure() {
 #[test]
 fn pcap_holds_every_frame_sent() {
     let d = dir("pcap");
-    std::fs::create_dir_all(&d).expect("dir");
-    let sc = d.join("five.toml");
+    let sc = dir("pcap-scenario").join("five.toml");
+    std::fs::create_dir_all(sc.parent().expect("dir")).expect("dir");
     std::fs::write(&sc, "duration = \"5ms\"\n").expect("write");
+    // Inside --out: written with the results, kept when --out is replaced.
     let pcap = d.join("run.pcapng");
     let o = ringsync(&[
         "sim",
@@ -226,4 +227,175 @@ fn pcap_holds_every_frame_sent() {
     }
     assert_eq!(at, b.len());
     assert_eq!(packets, 5 * 13);
+}
+
+fn files(d: &std::path::Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(d)
+        .expect("read dir")
+        .flatten()
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .collect();
+    v.sort();
+    v
+}
+
+#[test]
+fn out_is_replaced_as_a_whole_or_left_untouched() {
+    let base = dir("atomic");
+    let out = base.join("run");
+    std::fs::create_dir_all(&out).expect("dir");
+    std::fs::write(out.join("summary.json"), "old summary").expect("old");
+    std::fs::write(out.join("old-figure.svg"), "old figure").expect("old");
+    let sc = short_scenario();
+    let (sc, out_arg) = (sc.to_str().expect("p"), out.to_str().expect("p"));
+    // A run that fails after simulating (its pcap cannot be written) leaves the old results.
+    let o = ringsync(&[
+        "sim",
+        sc,
+        "--out",
+        out_arg,
+        "--pcap",
+        "/nonexistent-dir/x.pcapng",
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("cannot write /nonexistent-dir/x.pcapng"),
+        "{err}"
+    );
+    assert_eq!(files(&out), ["old-figure.svg", "summary.json"]);
+    assert_eq!(
+        std::fs::read_to_string(out.join("summary.json")).expect("read"),
+        "old summary"
+    );
+    assert_eq!(
+        files(&base),
+        ["run"],
+        "no temporary directory left beside --out"
+    );
+    // So does a bad scenario.
+    let o = ringsync(&["sim", "no-such-scenario", "--out", out_arg]);
+    assert_eq!(o.status.code(), Some(2));
+    assert_eq!(files(&out), ["old-figure.svg", "summary.json"]);
+    // A run that succeeds replaces the directory: the old figure is gone.
+    let o = ringsync(&["sim", sc, "--out", out_arg]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let now = files(&out);
+    assert!(!now.contains(&"old-figure.svg".to_string()), "{now:?}");
+    assert!(now.contains(&"trace.csv".to_string()), "{now:?}");
+    assert_ne!(
+        std::fs::read_to_string(out.join("summary.json")).expect("read"),
+        "old summary"
+    );
+    assert_eq!(files(&base), ["run"]);
+    // A directory that holds something else is not replaced, nor is the scenario's own.
+    let mine = base.join("mine");
+    std::fs::create_dir_all(&mine).expect("dir");
+    std::fs::write(mine.join("notes.txt"), "mine").expect("write");
+    let o = ringsync(&["sim", sc, "--out", mine.to_str().expect("p")]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("holds no ringsync results"), "{err}");
+    assert_eq!(files(&mine), ["notes.txt"]);
+    let inside = out.join("my.toml");
+    std::fs::copy(sc, &inside).expect("copy");
+    let o = ringsync(&["sim", inside.to_str().expect("p"), "--out", out_arg]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("is inside the results directory"), "{err}");
+    assert!(inside.exists());
+    // An --out that cannot be created fails at once, with one line.
+    let o = ringsync(&[
+        "sweep",
+        sc,
+        "--set",
+        "faults.loss=0",
+        "--out",
+        "/proc/ringsync/x",
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert_eq!(err.lines().count(), 1, "{err}");
+    let _ = std::fs::remove_dir_all(&base);
+}
+
+#[test]
+fn a_group_stop_exits_3_with_its_results_written() {
+    let d = dir("stop");
+    std::fs::create_dir_all(&d).expect("dir");
+    let sc = d.join("stop.toml");
+    std::fs::write(
+        &sc,
+        "duration = \"300ms\"\n[faults]\nfollowing_error_limit = 0.001\n",
+    )
+    .expect("write");
+    let sc = sc.to_str().expect("p");
+    let out = d.join("sim");
+    let o = ringsync(&["sim", sc, "--out", out.to_str().expect("p")]);
+    assert_eq!(
+        o.status.code(),
+        Some(3),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert!(String::from_utf8_lossy(&o.stdout).contains("GROUP STOP at"));
+    let v: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("summary.json")).expect("written"))
+            .expect("json");
+    assert!(!v["faults"]["group_stop"].is_null());
+    // A sweep exits 3 when any case stopped, and only then.
+    let sw = d.join("sweep");
+    for (limits, status) in [("0.001,1.0", 3), ("1.0", 0)] {
+        let set = format!("faults.following_error_limit={limits}");
+        let o = ringsync(&["sweep", sc, "--set", &set, "--out", sw.to_str().expect("p")]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(status), "{limits}: {err}");
+        assert!(sw.join("sweep.csv").exists());
+    }
+    let o = ringsync(&[
+        "reproduce",
+        "--scenario",
+        sc,
+        "--out",
+        d.join("repro").to_str().expect("p"),
+    ]);
+    assert_eq!(
+        o.status.code(),
+        Some(3),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert!(d.join("repro").join("table.md").exists());
+    let _ = std::fs::remove_dir_all(&d);
+}
+
+#[test]
+fn pd_with_feed_forward_is_named_pd_ff() {
+    let d = dir("pdff");
+    std::fs::create_dir_all(&d).expect("dir");
+    for (text, name) in [
+        ("[control]\nlaw = \"pd\"\n", "pd"),
+        ("[control]\nlaw = \"pd\"\nkc = 0.05\n", "pd+ff"),
+    ] {
+        let sc = d.join("pd.toml");
+        std::fs::write(&sc, format!("duration = \"50ms\"\n{text}")).expect("write");
+        let out = d.join("out");
+        let o = ringsync(&[
+            "sim",
+            sc.to_str().expect("p"),
+            "--out",
+            out.to_str().expect("p"),
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let stdout = String::from_utf8_lossy(&o.stdout);
+        assert!(
+            stdout.contains(&format!(", {name} controller,")),
+            "{stdout}"
+        );
+        let v: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(out.join("summary.json")).expect("read"))
+                .expect("json");
+        assert_eq!(v["controller"], name);
+    }
+    let _ = std::fs::remove_dir_all(&d);
 }

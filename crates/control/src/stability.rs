@@ -13,7 +13,8 @@
 //! **The discrete-time check**: the spectral radius of the sampled closed loop of linear
 //! axes (ẍ = g·u − a·ẋ; Coulomb friction and saturation left out) with each axis's
 //! sample-to-actuation delay, regulating to a final position (x^d = 0, ẋ^d = 0, so K_N = 0
-//! and the loop is linear). The state per axis is x, ẋ, the command still held, and the three
+//! and the loop is linear; a caller models a boundary layer's robust term, linear inside the
+//! layer with slope K_N/φ on Ė, by adding K_N/φ to K_D). The state per axis is x, ẋ, the command still held, and the three
 //! previous samples of e and ė that the estimators read: 9n states. The loop matrix is built
 //! column by column by running the law's own `compute` on unit states, so what is checked is
 //! exactly the code that runs. Velocity feedback is the reported (exact) velocity.

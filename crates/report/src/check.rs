@@ -2,7 +2,7 @@
 
 use std::fmt::Write as _;
 
-use ringsync_sim::check::{ASSUMPTIONS, CheckReport};
+use ringsync_sim::check::{ASSUMPTIONS, CheckReport, RobustTerm, Verdict};
 use serde_json::{Value, json};
 
 /// A readable report of `ringsync check`.
@@ -39,6 +39,23 @@ pub fn check_text(r: &CheckReport) -> String {
             );
         }
     }
+    match r.robust {
+        RobustTerm::Off => {}
+        RobustTerm::BoundaryLayer { kn_max, phi } => {
+            let _ = writeln!(
+                o,
+                "Robust term: K_N up to {kn_max:.4} V along the trajectory, boundary layer φ = {phi} rad/s: checked as K_D + K_N,max/φ = K_D + {:.4} V·s/rad",
+                r.robust.extra_kd()
+            );
+        }
+        RobustTerm::ExactSign { kn_max } => {
+            let _ = writeln!(
+                o,
+                "Robust term: K_N up to {kn_max:.4} V with the exact sign (boundary_layer = 0): the sign term cannot be linearised; the spectral radius above leaves it out"
+            );
+        }
+    }
+    let _ = writeln!(o, "Verdict: {}", verdict_text(r));
     match &r.continuous {
         Some(c) => {
             let _ = writeln!(
@@ -88,6 +105,20 @@ pub fn check_text(r: &CheckReport) -> String {
     o
 }
 
+/// What the check concludes, in one sentence.
+pub fn verdict_text(r: &CheckReport) -> &'static str {
+    match (r.verdict(), r.discrete.is_some()) {
+        (Verdict::Stable, _) => "stable: the linearised sampled loop has spectral radius < 1",
+        (Verdict::Unstable, _) => "UNSTABLE: the linearised sampled loop has spectral radius >= 1",
+        (Verdict::NotShown, false) => {
+            "NOT SHOWN: the discrete-time check does not model the lumped-only plan"
+        }
+        (Verdict::NotShown, true) => {
+            "NOT SHOWN: the check cannot vouch for stability with K_N != 0 and the exact sign; set control.boundary_layer > 0 to have it modelled"
+        }
+    }
+}
+
 /// The same as one JSON object (delays in ns, rounded).
 pub fn check_json(r: &CheckReport) -> Value {
     json!({
@@ -100,6 +131,21 @@ pub fn check_json(r: &CheckReport) -> Value {
             "states": d.states,
             "stable": d.is_stable(),
         })),
+        "robust_term": match r.robust {
+            RobustTerm::Off => Value::Null,
+            RobustTerm::BoundaryLayer { kn_max, phi } => json!({
+                "kn_max": kn_max, "boundary_layer": phi, "extra_kd": r.robust.extra_kd(), "modelled": true,
+            }),
+            RobustTerm::ExactSign { kn_max } => json!({
+                "kn_max": kn_max, "boundary_layer": 0.0, "modelled": false,
+            }),
+        },
+        "verdict": match r.verdict() {
+            Verdict::Stable => "stable",
+            Verdict::Unstable => "unstable",
+            Verdict::NotShown => "not shown",
+        },
+        "verdict_text": verdict_text(r),
         "conditions": r.continuous.map(|c| json!({
             "points": r.points,
             "lambda_min_ke": c.lambda_min_ke,

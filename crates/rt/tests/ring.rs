@@ -62,14 +62,16 @@ fn run_undisturbed(opts: RtOptions) -> RtResult {
         if t.longest_outage < w && unstarted < w {
             return None;
         }
-        // Only the host's doing if the host held the loop for a cycle or more: an outage
-        // without such a stall is the ring's own failure, and fails the test at once.
+        // Only the host's doing if the host held the loop for a cycle or more, or stalled
+        // as many of the lost cycles as the outage is long: an outage without such stalls
+        // is the ring's own failure, and fails the test at once.
         let t_cyc = r.scenario.ring.cycle.0.as_ns();
         assert!(
-            t.stalls.max >= t_cyc,
-            "an outage of {} cycles without a host stall of a cycle (longest {} µs): the ring failed, not the host; stop {:?}, rejected {}",
+            t.stalls.max >= t_cyc || t.overruns_stalled >= t.longest_outage,
+            "an outage of {} cycles without a host stall of a cycle (longest {} µs, {} stalled overruns): the ring failed, not the host; stop {:?}, rejected {}",
             t.longest_outage,
             t.stalls.max / 1_000,
+            t.overruns_stalled,
             r.run.group_stop,
             ringsync_rt::run::rejected_summary(&r.run)
         );
@@ -124,7 +126,21 @@ fn stopped_before(r: &RtResult, t: f64) -> Option<String> {
 }
 
 /// See [`run_undisturbed`].
-const ATTEMPTS: usize = 3;
+const ATTEMPTS: usize = 4;
+
+/// W of the measured runs: docs/runtime.md's advice for a virtual machine, whose host now
+/// and then holds the loop for several ms (with the reference W = 5 such a freeze is a
+/// group stop, and the run measures stopping axes).
+const VM_W: u32 = 20;
+
+/// The options of a measured run of the reference motion on `transport`.
+fn measured(transport: TransportKind) -> RtOptions {
+    RtOptions {
+        transport,
+        watchdog_cycles: Some(VM_W),
+        ..RtOptions::default()
+    }
+}
 
 /// The reference motion (4 s) against the simulator's mean over 8 seeds: Sync-RMSE within
 /// 20 % (the tolerance; one simulated run alone moves by about ±10 % with the seed),
@@ -137,9 +153,10 @@ fn matches_simulator(r: &RtResult) {
         *PREDICTION.get_or_init(|| sim_prediction(&r.scenario, 8).expect("simulates"))
     };
     // The reference as the runtime runs it: the default scenario with the runtime's
-    // sampling lead.
+    // sampling lead and the W of a virtual machine.
     let mut reference = Scenario::default();
     reference.clock.sample_lead.0 = ringsync_rt::run::SAMPLE_LEAD;
+    reference.faults.watchdog_cycles = VM_W;
     assert_eq!(r.scenario, reference, "the prediction is for the reference");
     let m = &r.run.summary;
     let dev = (m.sync_rmse - p.sync_rmse).abs() / p.sync_rmse;
@@ -225,20 +242,14 @@ fn refuses_only_late_frames(r: &RtResult) {
 
 #[test]
 fn udp_ring_runs_the_reference_motion_like_the_simulator() {
-    let r = run_undisturbed(RtOptions {
-        transport: TransportKind::Udp,
-        ..RtOptions::default()
-    });
+    let r = run_undisturbed(measured(TransportKind::Udp));
     matches_simulator(&r);
     refuses_only_late_frames(&r);
 }
 
 #[test]
 fn veth_ring_runs_the_reference_motion_like_the_simulator() {
-    let r = run_undisturbed(RtOptions {
-        transport: TransportKind::Veth,
-        ..RtOptions::default()
-    });
+    let r = run_undisturbed(measured(TransportKind::Veth));
     matches_simulator(&r);
     refuses_only_late_frames(&r);
 }
@@ -297,9 +308,8 @@ fn a_slave_taken_out_is_named_and_the_group_stops_within_w_cycles() {
 fn forged_frames_are_refused_and_change_nothing() {
     for transport in [TransportKind::Udp, TransportKind::Veth] {
         let r = run_undisturbed(RtOptions {
-            transport,
             forge: Forgery::ALL.to_vec(),
-            ..RtOptions::default()
+            ..measured(transport)
         });
         let name = transport.name();
         let inj = |f: Forgery| {
@@ -425,9 +435,8 @@ fn a_link_down_longer_than_w_is_named() {
 #[test]
 fn garbage_and_bad_crc_frames_are_counted_and_ignored() {
     let r = run_undisturbed(RtOptions {
-        transport: TransportKind::Udp,
         garbage_rate: 500.0,
-        ..RtOptions::default()
+        ..measured(TransportKind::Udp)
     });
     let (injected, counted) = (r.injected.garbage, r.injected.counted_malformed);
     assert!(injected > 1500, "{injected} injected");

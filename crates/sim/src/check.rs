@@ -1,10 +1,10 @@
 //! `ringsync check`: the stability analysis of the control library (SYSTEM.md section 3.4)
 //! applied to a scenario, with the sample-to-actuation delays taken from the cycle plan.
 
-use ringsync_control::ControlError;
 use ringsync_control::stability::{
     ContinuousReport, DiscreteReport, continuous_conditions, discrete_check,
 };
+use ringsync_control::{ControlError, ControlLaw, Sign, SyncController, SyncParams, Trajectory};
 use ringsync_plant::IndependentAxes;
 use ringsync_proto::plan::{FrameRef, Node};
 use ringsync_proto::{CyclePlan, PlanKind};
@@ -14,9 +14,53 @@ use crate::scenario::{LawKind, Scenario, ScenarioError};
 /// Assumptions of the check that the paper does not make; printed with every result.
 pub const ASSUMPTIONS: &[&str] = &[
     "all slaves sample at the synchronised cycle start; a command takes effect when its last bit reaches its slave (event-level cycle plan, loss-free)",
-    "the discrete-time check linearises: Coulomb friction and drive saturation are left out, the axes regulate to a final position (x^d = 0, so K_N = 0)",
+    "the discrete-time check linearises: Coulomb friction and drive saturation are left out, the axes regulate to a final position (x^d = 0)",
+    "the robust term K_N·sat(Ė/φ) of the sync controller is linear inside its boundary layer with slope K_N/φ: the discrete-time check adds K_N,max/φ to K_D, with K_N,max the largest K_N = Δ_H‖ẍ^d‖ + Δ_C‖ẋ^d‖ at the evaluated points (a frozen worst case; outside the layer the term is bounded); with the exact sign (boundary_layer = 0) and K_N ≠ 0 the loop cannot be linearised and the check cannot vouch for it",
     "the paper's conditions are evaluated along the desired trajectory (x = x^d, ẋ = ẋ^d) at evenly spaced points",
 ];
+
+/// How the sync controller's robust term K_N·sgn(Ė) (SYSTEM.md 3.2) enters the
+/// discrete-time check.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum RobustTerm {
+    /// K_N = 0 along the trajectory (Δ_H = Δ_C = 0), or a law without the term.
+    Off,
+    /// Boundary layer φ > 0: inside it the term is K_N/φ·Ė, modelled as an extra derivative
+    /// gain K_N,max/φ on Ė.
+    BoundaryLayer {
+        /// The largest K_N along the trajectory [V].
+        kn_max: f64,
+        /// φ [rad/s].
+        phi: f64,
+    },
+    /// The exact sign with K_N ≠ 0: not linearisable; the loop was checked without it.
+    ExactSign {
+        /// The largest K_N along the trajectory [V].
+        kn_max: f64,
+    },
+}
+
+impl RobustTerm {
+    /// The derivative gain the check adds to K_D [V·s/rad] (0 unless a boundary layer).
+    pub fn extra_kd(&self) -> f64 {
+        match *self {
+            RobustTerm::BoundaryLayer { kn_max, phi } => kn_max / phi,
+            _ => 0.0,
+        }
+    }
+}
+
+/// What the check says about the loop as a whole.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Verdict {
+    /// The linearised sampled loop has spectral radius < 1.
+    Stable,
+    /// Spectral radius ≥ 1.
+    Unstable,
+    /// The check cannot vouch for stability: the lumped-only plan is not modelled, or the
+    /// exact sign with K_N ≠ 0 cannot be linearised.
+    NotShown,
+}
 
 /// The result of checking a scenario.
 #[derive(Debug, Clone, PartialEq)]
@@ -31,10 +75,25 @@ pub struct CheckReport {
     pub delays: Vec<f64>,
     /// The discrete-time check; `None` for the lumped-only plan (not modelled yet).
     pub discrete: Option<DiscreteReport>,
+    /// How the robust term entered the discrete-time check.
+    pub robust: RobustTerm,
     /// The paper's conditions; `None` unless the law is the sync controller.
     pub continuous: Option<ContinuousReport>,
     /// Points of the trajectory evaluated.
     pub points: usize,
+}
+
+impl CheckReport {
+    /// Stable only when the discrete-time check ran, modelled every term, and found a
+    /// spectral radius below 1.
+    pub fn verdict(&self) -> Verdict {
+        match self.discrete {
+            Some(d) if !d.is_stable() => Verdict::Unstable,
+            Some(_) if matches!(self.robust, RobustTerm::ExactSign { .. }) => Verdict::NotShown,
+            Some(_) => Verdict::Stable,
+            None => Verdict::NotShown,
+        }
+    }
 }
 
 /// What can go wrong in a check.
@@ -79,7 +138,24 @@ pub fn check(s: &Scenario, points: usize) -> Result<CheckReport, CheckError> {
             value: "?".into(),
             allowed: e.to_string(),
         })?;
-    let law = s.law()?;
+    let robust = robust_term(s, points)?;
+    let law: Box<dyn ControlLaw> = match robust {
+        // Inside the layer K_N·sat(Ė/φ) = (K_N/φ)·Ė: one more derivative gain on the Ė
+        // the law already forms.
+        RobustTerm::BoundaryLayer { .. } | RobustTerm::ExactSign { .. } => {
+            let mut g = s.gains();
+            for kd in &mut g.kd {
+                *kd += robust.extra_kd();
+            }
+            let p = SyncParams {
+                delta_h: 0.0,
+                delta_c: 0.0,
+                ..s.sync_params()
+            };
+            Box::new(SyncController::new(g, p)?)
+        }
+        RobustTerm::Off => s.law()?,
+    };
     let (delays, discrete) = match s.ring.plan {
         PlanKind::P2pLumped => {
             let delays = command_delays(&plan);
@@ -105,12 +181,41 @@ pub fn check(s: &Scenario, points: usize) -> Result<CheckReport, CheckError> {
     };
     Ok(CheckReport {
         scenario: s.name.clone(),
-        law: s.control.law.name(),
+        law: s.law_name(),
         estimator: s.control.estimator.name(),
         delays,
         discrete,
+        robust,
         continuous,
         points,
+    })
+}
+
+/// The robust term of the scenario's law: K_N,max = the largest Δ_H‖ẍ^d‖ + Δ_C‖ẋ^d‖ (norms
+/// over all axes, as the sync controller forms it) at `points` evenly spaced instants of the
+/// scenario's duration.
+pub fn robust_term(s: &Scenario, points: usize) -> Result<RobustTerm, CheckError> {
+    let c = &s.control;
+    if s.control.law != LawKind::Sync || (c.delta_h == 0.0 && c.delta_c == 0.0) {
+        return Ok(RobustTerm::Off);
+    }
+    let trajectories = s.trajectories()?;
+    let points = points.max(2);
+    let t_end = s.duration.secs();
+    let kn_max = (0..points)
+        .map(|p| {
+            let t = t_end * p as f64 / (points - 1) as f64;
+            let (a2, v2) = trajectories.iter().fold((0.0, 0.0), |(a2, v2), tr| {
+                let d = tr.at(t);
+                (a2 + d.a * d.a, v2 + d.v * d.v)
+            });
+            c.delta_h * a2.sqrt() + c.delta_c * v2.sqrt()
+        })
+        .fold(0.0, f64::max);
+    Ok(match s.sync_params().sign {
+        _ if kn_max == 0.0 => RobustTerm::Off,
+        Sign::BoundaryLayer(phi) => RobustTerm::BoundaryLayer { kn_max, phi },
+        Sign::Exact => RobustTerm::ExactSign { kn_max },
     })
 }
 
@@ -141,6 +246,42 @@ mod tests {
     }
 
     #[test]
+    fn a_thin_boundary_layer_with_a_large_robust_gain_is_unstable() {
+        // K_N up to Δ_C·‖ẋ^d‖ = 1 × 2 × 15.12 V: inside φ = 0.01 rad/s its slope, 3024
+        // V·s/rad on Ė, swamps K_D. Checked with K_N = 0 this was called stable (ρ 0.9986).
+        let s = Scenario::from_toml("[control]\ndelta_c = 1.0\nboundary_layer = 0.01\n", "thin")
+            .expect("valid");
+        let r = check(&s, 4001).expect("check");
+        match r.robust {
+            RobustTerm::BoundaryLayer { kn_max, phi } => {
+                assert!((kn_max - 30.24).abs() < 1e-9, "{kn_max}");
+                assert_eq!(phi, 0.01);
+            }
+            other => panic!("{other:?}"),
+        }
+        assert!(r.discrete.expect("p2p").spectral_radius > 1.0);
+        assert_eq!(r.verdict(), Verdict::Unstable);
+        // A small robust gain in the same layer stays stable, and the reference has none.
+        let s = Scenario::from_toml("[control]\ndelta_c = 1e-4\n", "small").expect("valid");
+        assert_eq!(check(&s, 401).expect("check").verdict(), Verdict::Stable);
+        let r = check(&Scenario::default(), 401).expect("check");
+        assert_eq!((r.robust, r.verdict()), (RobustTerm::Off, Verdict::Stable));
+    }
+
+    #[test]
+    fn the_exact_sign_with_a_robust_gain_is_not_vouched_for() {
+        let s = Scenario::from_toml("[control]\ndelta_h = 0.01\nboundary_layer = 0.0\n", "sgn")
+            .expect("valid");
+        let r = check(&s, 401).expect("check");
+        assert!(matches!(r.robust, RobustTerm::ExactSign { kn_max } if kn_max > 0.0));
+        assert!(r.discrete.expect("p2p").is_stable());
+        assert_eq!(r.verdict(), Verdict::NotShown);
+        // The exact sign alone, with K_N = 0, is nothing to linearise.
+        let s = Scenario::from_toml("[control]\nboundary_layer = 0.0\n", "k0").expect("valid");
+        assert_eq!(check(&s, 11).expect("check").verdict(), Verdict::Stable);
+    }
+
+    #[test]
     fn pd_has_no_paper_conditions_and_lumped_only_no_discrete_check() {
         let s = Scenario::from_toml(
             "[control]\nlaw = \"pd\"\n[ring]\nplan = \"lumped-only\"\n",
@@ -149,5 +290,6 @@ mod tests {
         .expect("valid");
         let r = check(&s, 11).expect("check");
         assert!(r.continuous.is_none() && r.discrete.is_none());
+        assert_eq!(r.verdict(), Verdict::NotShown);
     }
 }

@@ -80,6 +80,65 @@ fn out_of_range(
     }
 }
 
+/// Fewest encoder bits: the plant's encoder needs at least 4 counts per revolution.
+pub const MIN_ENCODER_BITS: u32 = 2;
+
+/// Velocities on the wire must hold this multiple of the trajectory's peak speed (room for
+/// overshoot and the stop ramp) when the encoder resolution is checked.
+pub const VELOCITY_MARGIN: f64 = 2.0;
+
+/// The encoder resolutions a scenario's trajectory allows, and why not more.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct EncoderBits {
+    /// Allowed `encoder_bits` (empty when the motion is too large for any resolution).
+    pub range: std::ops::RangeInclusive<u32>,
+    /// The wire limit that bounds it from above, in words.
+    pub reason: String,
+}
+
+impl EncoderBits {
+    /// The allowed range in words, for an error about `value`.
+    pub fn allowed(&self, value: u32) -> String {
+        let (lo, hi) = (self.range.start(), self.range.end());
+        if self.range.is_empty() {
+            format!("none for this trajectory: {}", self.reason)
+        } else if value < *lo {
+            format!("{lo} ..= {hi}: an encoder needs at least 4 counts per revolution ({lo} bits)")
+        } else {
+            format!("{lo} ..= {hi} for this trajectory: {}", self.reason)
+        }
+    }
+}
+
+/// `text` cut to at most `max_chars` characters, with an ellipsis where it was cut: values
+/// and source lines echoed in error messages stay readable.
+pub fn clip(text: &str, max_chars: usize) -> std::borrow::Cow<'_, str> {
+    match text.char_indices().nth(max_chars) {
+        None => text.into(),
+        Some((at, _)) => format!("{}…", &text[..at]).into(),
+    }
+}
+
+/// `text` cut in the middle to at most about `max_chars` characters: the start and the last
+/// 60 characters stay, so a message that echoes a long value still ends with what was
+/// expected.
+pub fn clip_middle(text: &str, max_chars: usize) -> std::borrow::Cow<'_, str> {
+    const TAIL: usize = 60;
+    let n = text.chars().count();
+    if n <= max_chars {
+        return text.into();
+    }
+    let head: String = text.chars().take(max_chars.saturating_sub(TAIL)).collect();
+    let tail: String = text.chars().skip(n - TAIL.min(max_chars)).collect();
+    format!("{head}…{tail}").into()
+}
+
+/// Longest echo of a source line or value in a [`ScenarioError`] [characters].
+pub const ECHO_CHARS: usize = 120;
+
+/// Largest scenario file read [bytes]: 1 MiB.
+pub const MAX_SCENARIO_BYTES: u64 = 1 << 20;
+
 /// A duration written with a unit, e.g. `"1ms"`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Dur(pub Duration);
@@ -542,16 +601,17 @@ impl Scenario {
     pub fn from_toml(text: &str, origin: &str) -> Result<Self, ScenarioError> {
         let s: Scenario = toml::from_str(text).map_err(|e| {
             let msg = e.message().trim().replace('\n', " ");
+            let msg = clip_middle(&msg, 2 * ECHO_CHARS);
             let message = match e.span() {
                 Some(span) => {
                     let (l, c) = line_col(text, span.start);
                     let src = text.lines().nth(l - 1).unwrap_or("").trim();
-                    format!("line {l}, column {c} ({src}): {msg}")
+                    format!("line {l}, column {c} ({}): {msg}", clip(src, ECHO_CHARS))
                 }
-                None => msg,
+                None => msg.into_owned(),
             };
             ScenarioError::Syntax {
-                origin: origin.to_string(),
+                origin: clip(origin, ECHO_CHARS).into_owned(),
                 message,
             }
         })?;
@@ -577,17 +637,32 @@ impl Scenario {
         if let Some(text) = builtin(name_or_path) {
             return Ok(text.to_string());
         }
+        use std::io::Read as _;
         let path = std::path::Path::new(name_or_path);
+        let shown = clip(name_or_path, ECHO_CHARS).into_owned();
         if !path.exists() {
             let names: Vec<&str> = builtin_names().collect();
-            return Err(ScenarioError::Unknown(
-                name_or_path.to_string(),
-                names.join(", "),
-            ));
+            return Err(ScenarioError::Unknown(shown, names.join(", ")));
         }
-        std::fs::read_to_string(path).map_err(|e| ScenarioError::Io {
-            path: name_or_path.to_string(),
-            reason: e.to_string(),
+        let io = |reason: String| ScenarioError::Io {
+            path: shown.clone(),
+            reason,
+        };
+        // At most 1 MiB + 1 byte: /dev/zero or an endless pipe ends here, not in memory.
+        let mut bytes = Vec::new();
+        std::fs::File::open(path)
+            .and_then(|f| f.take(MAX_SCENARIO_BYTES + 1).read_to_end(&mut bytes))
+            .map_err(|e| io(e.to_string()))?;
+        if bytes.len() as u64 > MAX_SCENARIO_BYTES {
+            return Err(io(format!(
+                "larger than 1 MiB ({MAX_SCENARIO_BYTES} bytes), the limit for a scenario file"
+            )));
+        }
+        String::from_utf8(bytes).map_err(|e| {
+            io(format!(
+                "not UTF-8 text (invalid byte at offset {})",
+                e.utf8_error().valid_up_to()
+            ))
         })
     }
 
@@ -702,6 +777,18 @@ impl Scenario {
             ));
         }
         let n = self.axes_count();
+        let cap = ringsync_wire::lumped::slot_capacity(
+            <ringsync_wire::LumpedOnlySlot as ringsync_wire::SlotCodec>::LEN,
+        );
+        if self.ring.plan == PlanKind::LumpedOnly && n > cap {
+            return Err(out_of_range(
+                "ring.slaves",
+                n,
+                format!(
+                    "1 ..= {cap} with ring.plan = \"lumped-only\": one lumped frame carries at most {cap} slaves"
+                ),
+            ));
+        }
         if self.control.law != LawKind::Pd && n < 2 {
             return Err(out_of_range(
                 "ring.slaves",
@@ -723,18 +810,12 @@ impl Scenario {
                 return Err(out_of_range(key, "[]", "a number or a non-empty list"));
             }
         }
-        self.law().map_err(|e| control_error(&e))?;
+        // Before anything that uses the axes in turn (i % axis.len()).
         if self.axis.is_empty() {
             return Err(out_of_range("axis", "[]", "at least one [[axis]] table"));
         }
+        self.law().map_err(|e| control_error(&e))?;
         for (i, a) in self.axis.iter().enumerate() {
-            if !(1..=31).contains(&a.encoder_bits) {
-                return Err(out_of_range(
-                    format!("axis[{i}].encoder_bits"),
-                    a.encoder_bits,
-                    "1 ..= 31",
-                ));
-            }
             if ns(a.velocity_window) <= 0 || a.velocity_window.0 > self.ring.cycle.0 {
                 return Err(out_of_range(
                     format!("axis[{i}].velocity_window"),
@@ -746,24 +827,58 @@ impl Scenario {
         self.axis_models().map_err(|(i, e)| plant_error(i, &e))?;
         self.trajectories()
             .map_err(|e| control_error(&e).prefixed("trajectory"))?;
-        // Positions travel as i32 encoder counts (docs/wire.md): the motion must fit.
-        let reach = self.trajectory_reach() + 1.0;
+        let bits = self.encoder_bits_range();
         for (i, a) in self.axis.iter().enumerate() {
-            let counts = reach / std::f64::consts::TAU * f64::from(1u32 << a.encoder_bits);
-            if counts >= f64::from(i32::MAX) {
-                let max_bits = (f64::from(i32::MAX) * std::f64::consts::TAU / reach)
-                    .log2()
-                    .floor() as i64;
+            if !bits.range.contains(&a.encoder_bits) {
                 return Err(out_of_range(
                     format!("axis[{i}].encoder_bits"),
                     a.encoder_bits,
-                    format!(
-                        "1 ..= {max_bits} for this trajectory: positions up to {reach:.1} rad must fit the wire's i32 counts"
-                    ),
+                    bits.allowed(a.encoder_bits),
                 ));
             }
         }
         Ok(())
+    }
+
+    /// The encoder resolutions this scenario's trajectory allows. The plant's encoder needs
+    /// at least 4 counts per revolution (2 bits). Positions travel as i32 counts and
+    /// velocities as i32 counts/s (docs/wire.md): the trajectory's reach plus 1 rad, and
+    /// [`VELOCITY_MARGIN`] × its peak speed (room for overshoot and the stop ramp), must fit.
+    pub fn encoder_bits_range(&self) -> EncoderBits {
+        let reach = self.trajectory_reach() + 1.0;
+        let speed = VELOCITY_MARGIN * self.trajectory_peak_speed();
+        let limit = f64::from(i32::MAX);
+        let counts = |x: f64, bits: u32| x / std::f64::consts::TAU * f64::from(1u32 << bits);
+        let fits_x = |b: u32| counts(reach, b) < limit;
+        let fits_v = |b: u32| counts(speed, b) < limit;
+        let max = (MIN_ENCODER_BITS..=31)
+            .rev()
+            .find(|&b| fits_x(b) && fits_v(b));
+        let next = max.map_or(MIN_ENCODER_BITS, |m| m + 1);
+        // The constraint that the next resolution up breaks (velocity first: it binds first
+        // for any motion faster than about 1 rad/s).
+        let binding = if next <= 31 && fits_v(next) {
+            format!("positions up to {reach:.1} rad must fit the wire's i32 counts")
+        } else {
+            format!(
+                "velocities up to {speed:.1} rad/s ({VELOCITY_MARGIN} × the peak speed, room for overshoot and the stop) must fit the wire's i32 counts/s"
+            )
+        };
+        EncoderBits {
+            range: MIN_ENCODER_BITS..=max.unwrap_or(MIN_ENCODER_BITS - 1),
+            reason: binding,
+        }
+    }
+
+    /// The largest |ẋ^d| the trajectory reaches [rad/s]: the cosine's peak speed, the
+    /// profiles' v_max (an upper bound when a move is too short to reach it).
+    pub fn trajectory_peak_speed(&self) -> f64 {
+        match &self.trajectory {
+            TrajectorySpec::Cosine { peak_speed, .. } => peak_speed.abs(),
+            TrajectorySpec::Trapezoid { v_max, .. } | TrajectorySpec::Sequence { v_max, .. } => {
+                v_max.abs()
+            }
+        }
     }
 
     /// The largest |x^d| the trajectory reaches [rad].
@@ -789,9 +904,35 @@ impl Scenario {
             ke: c.ke.expand(n),
             kh: c.kh.expand(n),
             kc: c.kc.expand(n),
+            // NaN without [[axis]] tables: Gains::validate rejects it.
             u_max: (0..n)
-                .map(|i| self.axis[i % self.axis.len()].u_max)
+                .map(|i| self.axis_spec(i).map_or(f64::NAN, |a| a.u_max))
                 .collect(),
+        }
+    }
+
+    /// The `[[axis]]` table of axis `i` (0-based): the tables are used in turn; `None`
+    /// when there is none.
+    pub fn axis_spec(&self, i: usize) -> Option<&AxisSpec> {
+        self.axis.get(i % self.axis.len().max(1))
+    }
+
+    /// Whether standard PD adds the feed-forward K_H·ẍ^d + K_C·ẋ^d: when any K_H or K_C is
+    /// not zero.
+    pub fn pd_feed_forward(&self) -> bool {
+        let g = |p: &PerAxis| match p {
+            PerAxis::One(v) => *v != 0.0,
+            PerAxis::Each(v) => v.iter().any(|v| *v != 0.0),
+        };
+        g(&self.control.kh) || g(&self.control.kc)
+    }
+
+    /// The controller's name in outputs: the law's, `pd+ff` for standard PD with
+    /// feed-forward.
+    pub fn law_name(&self) -> &'static str {
+        match self.control.law {
+            LawKind::Pd if self.pd_feed_forward() => "pd+ff",
+            other => other.name(),
         }
     }
 
@@ -816,7 +957,7 @@ impl Scenario {
     pub fn law(&self) -> Result<Box<dyn ControlLaw>, ControlError> {
         let g = self.gains();
         Ok(match self.control.law {
-            LawKind::Pd => Box::new(Pd::new(g, false)?),
+            LawKind::Pd => Box::new(Pd::new(g, self.pd_feed_forward())?),
             LawKind::Sync => Box::new(SyncController::new(g, self.sync_params())?),
             LawKind::RingCoupled => Box::new(RingCoupled::new(
                 g,
@@ -838,8 +979,15 @@ impl Scenario {
     pub fn axis_models(&self) -> Result<Vec<AxisModel>, (usize, PlantError)> {
         (0..self.axes_count())
             .map(|i| {
-                let k = i % self.axis.len();
-                let a = &self.axis[k];
+                let k = i % self.axis.len().max(1);
+                let a = self.axis.get(k).ok_or((
+                    k,
+                    PlantError::InvalidParameter {
+                        name: "axis",
+                        value: 0.0,
+                        expected: "at least one [[axis]] table",
+                    },
+                ))?;
                 let model = match a.model {
                     AxisKind::Torque => {
                         let ka = a.rated_torque / a.u_max;
@@ -920,6 +1068,9 @@ fn plant_error(axis: usize, e: &PlantError) -> ScenarioError {
             value,
             expected,
         } => {
+            if *name == "axis" {
+                return out_of_range("axis", "[]", *expected);
+            }
             let key = match *name {
                 "inertia" | "torque_constant" => "j_over_ka, rated_torque or u_max",
                 "viscous_friction" => "viscous",

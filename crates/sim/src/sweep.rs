@@ -6,7 +6,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use serde::Deserialize;
 
 use crate::run::{RunOptions, RunResult, run};
-use crate::scenario::{Dur, Scenario, ScenarioError};
+use crate::scenario::{Dur, ECHO_CHARS, Scenario, ScenarioError, clip, clip_middle};
 
 /// One swept key and its values, from `key=v1,v2,…`.
 #[derive(Debug, Clone, PartialEq)]
@@ -96,8 +96,8 @@ pub fn cases(
     auto_cycle: bool,
 ) -> Result<Vec<Case>, ScenarioError> {
     let base: toml::Table = toml::from_str(base_text).map_err(|e| ScenarioError::Syntax {
-        origin: origin.to_string(),
-        message: e.message().to_string(),
+        origin: clip(origin, ECHO_CHARS).into_owned(),
+        message: clip_middle(e.message().trim(), 2 * ECHO_CHARS).replace('\n', " "),
     })?;
     let mut combos: Vec<Vec<(String, String)>> = vec![Vec::new()];
     for a in axes {
@@ -120,15 +120,19 @@ pub fn cases(
         }
         let mut s =
             Scenario::deserialize(toml::Value::Table(t)).map_err(|e| ScenarioError::Syntax {
-                origin: format!(
-                    "{origin} with {}",
-                    labels
-                        .iter()
-                        .map(|(k, v)| format!("{k}={v}"))
-                        .collect::<Vec<_>>()
-                        .join(" ")
-                ),
-                message: e.message().to_string(),
+                origin: clip(
+                    &format!(
+                        "{origin} with {}",
+                        labels
+                            .iter()
+                            .map(|(k, v)| format!("{k}={v}"))
+                            .collect::<Vec<_>>()
+                            .join(" ")
+                    ),
+                    2 * ECHO_CHARS,
+                )
+                .into_owned(),
+                message: clip_middle(e.message().trim(), 2 * ECHO_CHARS).replace('\n', " "),
             })?;
         if auto_cycle {
             let mut p = s.ring_params();
@@ -149,7 +153,7 @@ pub fn cases(
         s.validate()?;
         for k in 0..u64::from(seeds.max(1)) {
             let mut sc = s.clone();
-            sc.seed = s.seed + k;
+            sc.seed = s.seed.wrapping_add(k);
             out.push(Case {
                 labels: labels.clone(),
                 seed: sc.seed,

@@ -24,8 +24,9 @@ impl Pd {
 }
 
 impl ControlLaw for Pd {
+    /// `pd`, or `pd+ff` with the feed-forward on.
     fn name(&self) -> &'static str {
-        "pd"
+        if self.feed_forward { "pd+ff" } else { "pd" }
     }
     fn axes(&self) -> usize {
         self.gains.axes()

@@ -100,13 +100,155 @@ fn out_of_range_values_name_key_value_and_range() {
 
 #[test]
 fn encoder_counts_must_fit_the_wire() {
-    // The cosine reaches 9.6 rad: 2^31 counts per revolution would overflow the i32 field.
+    // The cosine reaches 9.6 rad and 15.12 rad/s: velocities travel as i32 counts/s, so with
+    // the 2× margin 2^28 counts per revolution is the most (2^29 would clamp at 25 rad/s).
+    assert_eq!(
+        err("[[axis]]\nencoder_bits = 30\n"),
+        "axis[0].encoder_bits = 30 is out of range: allowed 2 ..= 28 for this trajectory: velocities up to 30.2 rad/s (2 × the peak speed, room for overshoot and the stop) must fit the wire's i32 counts/s"
+    );
     let e = err("[[axis]]\nencoder_bits = 31\n");
+    assert!(e.starts_with("axis[0].encoder_bits = 31"), "{e}");
+    // The plant's encoder needs 4 counts per revolution.
+    assert_eq!(
+        err("[[axis]]\nencoder_bits = 1\n"),
+        "axis[0].encoder_bits = 1 is out of range: allowed 2 ..= 28: an encoder needs at least 4 counts per revolution (2 bits)"
+    );
+    // The second table is checked too, and a faster profile allows fewer bits.
+    let e = err(
+        "[trajectory]\nkind = \"trapezoid\"\ndistance = 3.0\nv_max = 1000.0\na_max = 100.0\n[[axis]]\n[[axis]]\nencoder_bits = 24\n",
+    );
     assert!(
-        e.starts_with("axis[0].encoder_bits = 31 is out of range: allowed 1 ..= 30"),
+        e.starts_with("axis[1].encoder_bits = 24 is out of range: allowed 2 ..= 22")
+            && e.contains("velocities up to 2000.0 rad/s"),
         "{e}"
     );
-    Scenario::from_toml("[[axis]]\nencoder_bits = 24\n", "ok").expect("valid");
+    // A slow, long move is bounded by its positions instead.
+    let s = Scenario::from_toml(
+        "[trajectory]\nkind = \"trapezoid\"\ndistance = 5000.0\nv_max = 0.5\na_max = 1.0\n",
+        "slow",
+    )
+    .expect("valid");
+    let b = s.encoder_bits_range();
+    assert_eq!(b.range, 2..=21);
+    assert!(b.reason.contains("positions up to 5001.0 rad"), "{b:?}");
+    for bits in [2, 20, 28] {
+        Scenario::from_toml(&format!("[[axis]]\nencoder_bits = {bits}\n"), "ok").expect("valid");
+    }
+}
+
+#[test]
+fn every_accepted_encoder_runs_in_the_plant() {
+    // What validate accepts, the simulator's encoder accepts (it wants >= 4 counts/rev).
+    let s = Scenario::from_toml("[[axis]]\nencoder_bits = 2\n", "two").expect("valid");
+    for a in &s.axis {
+        ringsync_plant::Encoder::new(1u32 << a.encoder_bits).expect("plant accepts");
+    }
+}
+
+#[test]
+fn an_empty_axis_list_is_an_error_not_a_panic() {
+    for law in ["sync", "pd", "ring-coupled"] {
+        assert_eq!(
+            err(&format!("axis = []\n[control]\nlaw = \"{law}\"\n")),
+            "axis = [] is out of range: allowed at least one [[axis]] table"
+        );
+    }
+    // The helpers that use the axes in turn do not divide by zero either.
+    let s = Scenario {
+        axis: Vec::new(),
+        ..Scenario::default()
+    };
+    assert!(s.axis_spec(0).is_none());
+    assert!(s.gains().u_max.iter().all(|u| u.is_nan()));
+    assert!(s.law().is_err());
+    assert_eq!(
+        s.axis_models()
+            .map_err(|(i, e)| plant_error(i, &e).to_string())
+            .expect_err("no axes"),
+        "axis = [] is out of range: allowed at least one [[axis]] table"
+    );
+}
+
+#[test]
+fn the_lumped_only_plan_is_bounded_by_its_one_frame() {
+    let e = err("[ring]\nplan = \"lumped-only\"\nslaves = 60\ncycle = \"2ms\"\n");
+    assert!(
+        e.starts_with("ring.slaves = 60 is out of range: allowed 1 ..= 46")
+            && e.contains("at most 46 slaves"),
+        "{e}"
+    );
+}
+
+#[test]
+fn pd_honours_its_feed_forward_gains() {
+    use ringsync_control::{ControlInput, ControlOutput, ErrorHistory};
+    let pd = Scenario::from_toml("[control]\nlaw = \"pd\"\n", "pd").expect("valid");
+    assert_eq!(pd.law_name(), "pd");
+    assert_eq!(pd.law().expect("law").name(), "pd");
+    let ff = Scenario::from_toml(
+        "[control]\nlaw = \"pd\"\nkh = [0.0, 0.02]\nkc = 0.1\n",
+        "ff",
+    )
+    .expect("valid");
+    assert_eq!(ff.law_name(), "pd+ff");
+    let law = ff.law().expect("law");
+    assert_eq!(law.name(), "pd+ff");
+    // Zero errors: the command is the feed-forward K_H·ẍ^d + K_C·ẋ^d alone.
+    let n = ff.axes_count();
+    let mut input = ControlInput::new(n, 1e-3);
+    for d in &mut input.desired {
+        d.v = 2.0;
+        d.a = 50.0;
+    }
+    let mut out = ControlOutput::new(n);
+    law.compute(&ErrorHistory::new(n), &input, &mut out)
+        .expect("compute");
+    assert_eq!(out.u_raw[0], 0.1 * 2.0);
+    assert!((out.u_raw[1] - (0.02 * 50.0 + 0.1 * 2.0)).abs() < 1e-12);
+    // The sync controller's name does not change.
+    let sync = Scenario::from_toml("[control]\nkh = 0.01\n", "sync").expect("valid");
+    assert_eq!(sync.law_name(), "sync");
+}
+
+#[test]
+fn long_lines_and_values_are_cut_in_errors() {
+    let long = "a".repeat(100_000);
+    let e = err(&format!("[ring]\nslaves = \"{long}\"\n"));
+    assert!(e.chars().count() < 500, "{} chars", e.chars().count());
+    assert!(e.contains("…") && e.ends_with("expected u32"), "{e}");
+    assert!(
+        e.starts_with("test.toml: line 2, column 10 (slaves = \"aaa"),
+        "{e}"
+    );
+    assert_eq!(clip("abcdef", 3), "abc…");
+    assert_eq!(clip("abc", 3), "abc");
+    assert_eq!(clip_middle("abc", 3), "abc");
+}
+
+#[test]
+fn files_over_one_mib_are_refused_unread() {
+    let dir = std::env::temp_dir().join(format!("ringsync-scenario-unit-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("dir");
+    let big = dir.join("big.toml");
+    let mut text = "#".repeat(MAX_SCENARIO_BYTES as usize);
+    text.push('\n');
+    std::fs::write(&big, &text).expect("write");
+    let e = Scenario::load(big.to_str().expect("path"))
+        .expect_err("too big")
+        .to_string();
+    assert!(
+        e.ends_with("larger than 1 MiB (1048576 bytes), the limit for a scenario file"),
+        "{e}"
+    );
+    // One byte less loads (a comment-only file is the reference).
+    std::fs::write(&big, &text[1..]).expect("write");
+    Scenario::load(big.to_str().expect("path")).expect("1 MiB is allowed");
+    // A device that never ends stops at the limit.
+    let e = Scenario::load("/dev/zero")
+        .expect_err("endless")
+        .to_string();
+    assert!(e.contains("larger than 1 MiB"), "{e}");
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]

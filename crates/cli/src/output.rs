@@ -1,0 +1,342 @@
+//! Results written atomically. A command writes every file into a temporary directory beside
+//! `--out DIR` (same parent, `.DIR.tmp-<pid>`); [`OutDir::commit`] then replaces DIR as a
+//! whole: the old DIR is renamed aside (`.DIR.old-<pid>`), the new one renamed in, the old
+//! one removed. So DIR holds one run's complete results, or the previous run's untouched; a
+//! run that fails (or is dropped before `commit`) removes its temporary directory. A file
+//! outside DIR (`--pcap FILE`) is written to `.FILE.tmp-<pid>` beside it and renamed after
+//! DIR; inside DIR it goes into the new directory with the rest.
+//!
+//! An existing DIR is replaced only when it is empty or holds a result of ringsync (a
+//! `summary.json` or `sweep.csv`), so that `--out .` or `--out ~` cannot remove anything else.
+//! Temporary directories left by a killed run (whose process is gone) are removed by the
+//! next run into the same DIR.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::Context as _;
+
+use crate::CliError;
+
+/// Files at the top of a directory that mark it as ringsync's results, safe to replace.
+const RESULT_MARKERS: &[&str] = &["summary.json", "sweep.csv"];
+
+/// A results directory being written; see the module documentation.
+#[derive(Debug)]
+pub(crate) struct OutDir {
+    /// Where the results go (absolute, symbolic links resolved).
+    path: PathBuf,
+    /// Where they are written until [`OutDir::commit`].
+    tmp: PathBuf,
+    /// Files outside `path`, written beside their places: (temporary, final).
+    beside: Vec<(PathBuf, PathBuf)>,
+    /// Whether `tmp` has become `path`.
+    committed: bool,
+}
+
+/// `.{name}.{what}-{pid}` beside `path`.
+fn sibling(path: &Path, what: &str, pid: u32) -> PathBuf {
+    let name = path.file_name().unwrap_or_default().to_string_lossy();
+    path.with_file_name(format!(".{name}.{what}-{pid}"))
+}
+
+fn failure(e: std::io::Error, what: String) -> CliError {
+    CliError::Failure(anyhow::Error::new(e).context(what))
+}
+
+/// `path` made absolute with its longest existing ancestor's symbolic links resolved, so
+/// that two spellings of one place compare equal.
+fn resolved(path: &Path) -> Result<PathBuf, CliError> {
+    let abs =
+        std::path::absolute(path).with_context(|| format!("cannot resolve {}", path.display()))?;
+    let mut rest = Vec::new();
+    let mut at = abs.as_path();
+    loop {
+        if let Ok(real) = at.canonicalize() {
+            return Ok(rest.into_iter().rev().fold(real, |p, c| p.join(c)));
+        }
+        match (at.parent(), at.file_name()) {
+            (Some(parent), Some(name)) => {
+                rest.push(name.to_os_string());
+                at = parent;
+            }
+            _ => return Ok(abs),
+        }
+    }
+}
+
+/// Removes `.{name}.tmp-<pid>` and `.{name}.old-<pid>` beside `path` whose process is gone.
+fn remove_stale(path: &Path) {
+    let (Some(parent), Some(name)) = (path.parent(), path.file_name()) else {
+        return;
+    };
+    let Ok(entries) = std::fs::read_dir(parent) else {
+        return;
+    };
+    let name = name.to_string_lossy();
+    for entry in entries.flatten() {
+        let file = entry.file_name();
+        let file = file.to_string_lossy();
+        let pid = [".tmp-", ".old-"].iter().find_map(|w| {
+            file.strip_prefix(&format!(".{name}{w}"))
+                .and_then(|p| p.parse::<u32>().ok())
+        });
+        if let Some(pid) = pid
+            && pid != std::process::id()
+            && !Path::new(&format!("/proc/{pid}")).exists()
+        {
+            let _ = std::fs::remove_dir_all(entry.path());
+        }
+    }
+}
+
+/// Whether an existing directory may be replaced: empty, or a ringsync result.
+fn replaceable(dir: &Path) -> Result<bool, CliError> {
+    let mut entries =
+        std::fs::read_dir(dir).map_err(|e| failure(e, format!("cannot read {}", dir.display())))?;
+    Ok(entries.next().is_none() || RESULT_MARKERS.iter().any(|m| dir.join(m).is_file()))
+}
+
+impl OutDir {
+    /// Checks `path` (`option` names it in errors) and creates the temporary directory
+    /// beside it, creating missing parents.
+    pub(crate) fn create(option: &str, path: &Path) -> Result<Self, CliError> {
+        let shown = path.display();
+        let path = resolved(path)?;
+        if path.file_name().is_none() {
+            return Err(CliError::Usage(format!(
+                "{option} {shown} names no directory that could be replaced"
+            )));
+        }
+        if path.exists() {
+            if !path.is_dir() {
+                return Err(CliError::Usage(format!(
+                    "{option} {shown} exists and is not a directory"
+                )));
+            }
+            if !replaceable(&path)? {
+                return Err(CliError::Usage(format!(
+                    "{option} {shown} is not empty and holds no ringsync results (summary.json or sweep.csv): the run replaces {option} as a whole, so choose a new or empty directory"
+                )));
+            }
+        } else if let Some(parent) = path.parent() {
+            std::fs::create_dir_all(parent)
+                .map_err(|e| failure(e, format!("cannot create {}", parent.display())))?;
+        }
+        remove_stale(&path);
+        let tmp = sibling(&path, "tmp", std::process::id());
+        let _ = std::fs::remove_dir_all(&tmp);
+        std::fs::create_dir(&tmp).map_err(|e| failure(e, format!("cannot create {shown}")))?;
+        Ok(OutDir {
+            path,
+            tmp,
+            beside: Vec::new(),
+            committed: false,
+        })
+    }
+
+    /// Writes `bytes` as the file `name` of the results.
+    pub(crate) fn write(&self, name: &str, bytes: impl AsRef<[u8]>) -> Result<(), CliError> {
+        let p = self.tmp.join(name);
+        if let Some(dir) = p.parent() {
+            std::fs::create_dir_all(dir)
+                .map_err(|e| failure(e, format!("cannot create {}", dir.display())))?;
+        }
+        std::fs::write(&p, bytes).map_err(|e| {
+            failure(
+                e,
+                format!("cannot write {}", self.path.join(name).display()),
+            )
+        })
+    }
+
+    /// Writes `bytes` to the file `path` given by an option (e.g. `--pcap`): inside the
+    /// results directory with the rest, elsewhere beside its place until [`OutDir::commit`].
+    pub(crate) fn write_file(
+        &mut self,
+        path: &Path,
+        bytes: impl AsRef<[u8]>,
+    ) -> Result<(), CliError> {
+        let full = resolved(path)?;
+        if full == self.path {
+            return Err(CliError::Usage(format!(
+                "{} is the results directory, not a file beside it",
+                path.display()
+            )));
+        }
+        if let Ok(inside) = full.strip_prefix(&self.path)
+            && !inside.as_os_str().is_empty()
+        {
+            return self.write(&inside.to_string_lossy(), bytes);
+        }
+        let tmp = sibling(path, "tmp", std::process::id());
+        std::fs::write(&tmp, bytes)
+            .map_err(|e| failure(e, format!("cannot write {}", path.display())))?;
+        self.beside.push((tmp, path.to_path_buf()));
+        Ok(())
+    }
+
+    /// Refuses an input file (the scenario) inside the results directory, which the run
+    /// would replace.
+    pub(crate) fn keep_out(&self, input: &Path) -> Result<(), CliError> {
+        if input.is_file() && resolved(input)?.starts_with(&self.path) {
+            return Err(CliError::Usage(format!(
+                "{} is inside the results directory, which the run replaces as a whole: move it out or choose another --out",
+                input.display()
+            )));
+        }
+        Ok(())
+    }
+
+    /// Replaces the results directory by the new one, then moves the files outside it into
+    /// place.
+    pub(crate) fn commit(mut self) -> Result<(), CliError> {
+        let old = sibling(&self.path, "old", std::process::id());
+        let had_old = self.path.exists();
+        if had_old {
+            std::fs::rename(&self.path, &old)
+                .map_err(|e| failure(e, format!("cannot replace {}", self.path.display())))?;
+        }
+        if let Err(e) = std::fs::rename(&self.tmp, &self.path) {
+            if had_old {
+                let _ = std::fs::rename(&old, &self.path);
+            }
+            return Err(failure(
+                e,
+                format!("cannot replace {}", self.path.display()),
+            ));
+        }
+        self.committed = true;
+        if had_old {
+            let _ = std::fs::remove_dir_all(&old);
+        }
+        while let Some((tmp, path)) = self.beside.pop() {
+            std::fs::rename(&tmp, &path)
+                .map_err(|e| failure(e, format!("cannot write {}", path.display())))?;
+        }
+        Ok(())
+    }
+}
+
+impl Drop for OutDir {
+    /// Removes what was not committed.
+    fn drop(&mut self) {
+        if !self.committed {
+            let _ = std::fs::remove_dir_all(&self.tmp);
+        }
+        for (tmp, _) in &self.beside {
+            let _ = std::fs::remove_file(tmp);
+        }
+    }
+}
+
+/// Writes one file atomically: to `.NAME.tmp-<pid>` beside it, then renamed into place.
+pub(crate) fn write_file(path: &Path, bytes: impl AsRef<[u8]>) -> Result<(), CliError> {
+    let tmp = sibling(path, "tmp", std::process::id());
+    let done = std::fs::write(&tmp, bytes).and_then(|()| std::fs::rename(&tmp, path));
+    if let Err(e) = done {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(failure(e, format!("cannot write {}", path.display())));
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn scratch(name: &str) -> PathBuf {
+        let d =
+            std::env::temp_dir().join(format!("ringsync-out-unit-{}-{name}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        std::fs::create_dir_all(&d).expect("scratch");
+        d
+    }
+
+    fn files(dir: &Path) -> Vec<String> {
+        let mut v: Vec<String> = std::fs::read_dir(dir)
+            .map(|r| {
+                r.flatten()
+                    .map(|e| e.file_name().to_string_lossy().into_owned())
+                    .collect()
+            })
+            .unwrap_or_default();
+        v.sort();
+        v
+    }
+
+    #[test]
+    fn commit_replaces_the_directory_as_a_whole() {
+        let base = scratch("commit");
+        let out = base.join("run");
+        std::fs::create_dir_all(&out).expect("dir");
+        std::fs::write(out.join("summary.json"), "old").expect("old");
+        std::fs::write(out.join("old-figure.svg"), "old").expect("old");
+        let d = OutDir::create("--out", &out).expect("create");
+        d.write("summary.json", "new").expect("write");
+        // Nothing visible changes before the commit.
+        assert_eq!(files(&out), ["old-figure.svg", "summary.json"]);
+        d.commit().expect("commit");
+        assert_eq!(files(&out), ["summary.json"]);
+        assert_eq!(
+            std::fs::read_to_string(out.join("summary.json")).expect("read"),
+            "new"
+        );
+        assert_eq!(files(&base), ["run"], "no temporary left beside it");
+        let _ = std::fs::remove_dir_all(&base);
+    }
+
+    #[test]
+    fn a_dropped_run_leaves_the_old_results_and_no_temporary() {
+        let base = scratch("drop");
+        let out = base.join("run");
+        std::fs::create_dir_all(&out).expect("dir");
+        std::fs::write(out.join("summary.json"), "old").expect("old");
+        let pcap = base.join("run.pcapng");
+        {
+            let mut d = OutDir::create("--out", &out).expect("create");
+            d.write("summary.json", "new").expect("write");
+            d.write_file(&pcap, "pcap").expect("pcap");
+        }
+        assert_eq!(files(&base), ["run"]);
+        assert_eq!(
+            std::fs::read_to_string(out.join("summary.json")).expect("read"),
+            "old"
+        );
+        let _ = std::fs::remove_dir_all(&base);
+    }
+
+    #[test]
+    fn a_file_inside_the_directory_goes_with_it() {
+        let base = scratch("inside");
+        let out = base.join("run");
+        let mut d = OutDir::create("--out", &out).expect("create");
+        d.write_file(&out.join("frames.pcapng"), "pcap")
+            .expect("pcap");
+        d.write_file(&base.join("beside.pcapng"), "pcap")
+            .expect("pcap");
+        d.commit().expect("commit");
+        assert_eq!(files(&out), ["frames.pcapng"]);
+        assert_eq!(files(&base), ["beside.pcapng", "run"]);
+        let _ = std::fs::remove_dir_all(&base);
+    }
+
+    #[test]
+    fn only_empty_or_result_directories_are_replaced() {
+        let base = scratch("guard");
+        std::fs::write(base.join("notes.txt"), "mine").expect("write");
+        let e = OutDir::create("--out", &base).expect_err("not a result");
+        assert!(matches!(e, CliError::Usage(m) if m.contains("holds no ringsync results")));
+        let e = OutDir::create("--out", &base.join("notes.txt")).expect_err("a file");
+        assert!(matches!(e, CliError::Usage(m) if m.contains("is not a directory")));
+        assert_eq!(files(&base), ["notes.txt"]);
+        // A temporary of a process that is gone is cleared by the next run.
+        let stale = base.join(".run.tmp-4294967295");
+        std::fs::create_dir_all(&stale).expect("stale");
+        OutDir::create("--out", &base.join("run"))
+            .expect("create")
+            .commit()
+            .expect("commit");
+        assert_eq!(files(&base), ["notes.txt", "run"]);
+        let _ = std::fs::remove_dir_all(&base);
+    }
+}
