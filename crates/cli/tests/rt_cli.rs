@@ -153,3 +153,69 @@ fn bad_rt_options_give_one_line_and_exit_2() {
         );
     }
 }
+
+/// Starts `ringsync ARGS` and reads its standard error until a line contains `until`:
+/// the child (its standard output piped) and the lines read.
+fn start_until(args: &[&str], until: &str) -> (std::process::Child, Vec<String>) {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_ringsync"))
+        .args(args)
+        .env("RUST_BACKTRACE", "0")
+        .stderr(Stdio::piped())
+        .stdout(Stdio::piped())
+        .spawn()
+        .expect("start ringsync");
+    let stderr = child.stderr.take().expect("stderr");
+    let mut lines = BufReader::new(stderr).lines();
+    let t = Instant::now();
+    let mut seen = Vec::new();
+    while !seen.last().is_some_and(|l: &String| l.contains(until)) {
+        let line = lines
+            .next()
+            .unwrap_or_else(|| panic!("ringsync ended before {until:?}: {seen:?}"))
+            .expect("read stderr");
+        seen.push(line);
+        assert!(t.elapsed() < Duration::from_secs(60), "{seen:?}");
+    }
+    // Keep draining, so that the child never blocks on a full pipe.
+    std::thread::spawn(move || lines.for_each(drop));
+    (child, seen)
+}
+
+#[test]
+fn sighup_ends_a_veth_run_cleanly_and_removes_its_namespaces() {
+    // SIGHUP is what a run gets when its terminal closes: it must end as on Ctrl-C.
+    let dir = std::env::temp_dir().join(format!("ringsync-rt-hup-{}", std::process::id()));
+    let out = dir.to_str().expect("utf-8 path");
+    let (mut child, seen) = start_until(
+        &[
+            "rt",
+            "paper-2015",
+            "--transport",
+            "veth",
+            "--duration",
+            "30s",
+            "--no-sim-prediction",
+            "--out",
+            out,
+        ],
+        "running paper-2015",
+    );
+    let pid = child.id();
+    assert_eq!(namespaces_of(pid).len(), 5, "{seen:?}");
+    std::thread::sleep(Duration::from_millis(500));
+    let sent = Command::new("kill")
+        .args(["-HUP", &pid.to_string()])
+        .status()
+        .expect("kill -HUP");
+    assert!(sent.success());
+    let status = child.wait().expect("wait");
+    assert_eq!(
+        status.code(),
+        Some(1),
+        "an interrupted run exits 1: {status}"
+    );
+    assert!(namespaces_of(pid).is_empty(), "{:?}", namespaces_of(pid));
+    let summary = std::fs::read_to_string(dir.join("summary.json")).expect("partial summary");
+    assert!(summary.contains("\"interrupted\": true"));
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -142,8 +142,9 @@ extern "C" fn on_signal(_: libc::c_int) {
     STOP.store(true, Ordering::SeqCst);
 }
 
-/// Installs SIGINT and SIGTERM handlers that only raise a flag, so that a run ends cleanly
-/// (and removes what it created) on Ctrl-C. Returns the flag.
+/// Installs SIGINT, SIGTERM and SIGHUP handlers that only raise a flag, so that a run ends
+/// cleanly (and removes what it created) on Ctrl-C, on `kill`, and when its terminal closes.
+/// Returns the flag.
 pub fn stop_flag() -> &'static AtomicBool {
     // SAFETY: the handler only stores to an atomic (async-signal-safe); `sa` is zeroed plain
     // data with the handler set; the old-action pointer may be null.
@@ -153,6 +154,7 @@ pub fn stop_flag() -> &'static AtomicBool {
         libc::sigemptyset(&mut sa.sa_mask);
         libc::sigaction(libc::SIGINT, &sa, std::ptr::null_mut());
         libc::sigaction(libc::SIGTERM, &sa, std::ptr::null_mut());
+        libc::sigaction(libc::SIGHUP, &sa, std::ptr::null_mut());
     }
     &STOP
 }
