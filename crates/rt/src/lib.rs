@@ -12,7 +12,7 @@ pub mod stats;
 mod sys;
 pub mod transport;
 
-pub use realtime::Realtime;
+pub use realtime::{Applied, CpuClaim, Pin, Realtime};
 pub use run::{Kill, RtError, RtOptions, RtResult, SimPrediction, Timing, run, sim_prediction};
 pub use transport::TransportKind;
 
