@@ -154,11 +154,17 @@ fn bad_rt_options_give_one_line_and_exit_2() {
     }
 }
 
-/// Starts `ringsync ARGS` and reads its standard error until a line contains `until`:
-/// the child (its standard output piped) and the lines read.
-fn start_until(args: &[&str], until: &str) -> (std::process::Child, Vec<String>) {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_ringsync"))
-        .args(args)
+/// `ringsync ARGS`, to start.
+fn ringsync_with(args: &[&str]) -> Command {
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_ringsync"));
+    cmd.args(args);
+    cmd
+}
+
+/// Starts `cmd` and reads its standard error until a line contains `until`: the child (its
+/// standard output piped) and the lines read.
+fn start_until(mut cmd: Command, until: &str) -> (std::process::Child, Vec<String>) {
+    let mut child = cmd
         .env("RUST_BACKTRACE", "0")
         .stderr(Stdio::piped())
         .stdout(Stdio::piped())
@@ -187,7 +193,7 @@ fn sighup_ends_a_veth_run_cleanly_and_removes_its_namespaces() {
     let dir = std::env::temp_dir().join(format!("ringsync-rt-hup-{}", std::process::id()));
     let out = dir.to_str().expect("utf-8 path");
     let (mut child, seen) = start_until(
-        &[
+        ringsync_with(&[
             "rt",
             "paper-2015",
             "--transport",
@@ -197,7 +203,7 @@ fn sighup_ends_a_veth_run_cleanly_and_removes_its_namespaces() {
             "--no-sim-prediction",
             "--out",
             out,
-        ],
+        ]),
         "running paper-2015",
     );
     let pid = child.id();
@@ -224,8 +230,9 @@ fn sighup_ends_a_veth_run_cleanly_and_removes_its_namespaces() {
 fn an_ordinary_users_limits_give_one_warning_each_and_the_run_completes() {
     // An ordinary user's limits: 8 MiB of lockable memory, no real-time priority. As root
     // the capabilities would override them, so they are dropped (CAP_IPC_LOCK,
-    // CAP_SYS_NICE). Before: mlockall succeeded, and an allocation past 8 MiB aborted the
-    // run ("memory allocation of … bytes failed").
+    // CAP_SYS_NICE). Before: in the release build mlockall succeeded, and an allocation
+    // past 8 MiB aborted the run ("memory allocation of … bytes failed"); the debug build,
+    // larger at start, warned "cannot lock memory (Cannot allocate memory)", naming no limit.
     let dir = std::env::temp_dir().join(format!("ringsync-rt-user-{}", std::process::id()));
     let mut cmd = Command::new("prlimit");
     cmd.args(["--memlock=8388608", "--rtprio=0"]);
@@ -248,7 +255,7 @@ fn an_ordinary_users_limits_give_one_warning_each_and_the_run_completes() {
             "udp",
             "--no-sim-prediction",
         ])
-        .args(["--spin", "500us", "--watchdog-cycles", "20", "--out"])
+        .args(["--watchdog-cycles", "20", "--out"])
         .arg(&dir)
         .env("RUST_BACKTRACE", "0")
         .output()
@@ -287,8 +294,8 @@ fn two_concurrent_runs_do_not_pin_the_same_cpu() {
         "0",
         "--no-mlock",
     ];
-    let (mut first, a) = start_until(&args, "busy-wait");
-    let (mut second, b) = start_until(&args, "busy-wait");
+    let (mut first, a) = start_until(ringsync_with(&args), "busy-wait");
+    let (mut second, b) = start_until(ringsync_with(&args), "busy-wait");
     let pinned = |lines: &[String]| {
         lines.iter().find_map(|l| {
             l.strip_prefix("ringsync latency: pinned to CPU ")?
@@ -316,4 +323,51 @@ fn two_concurrent_runs_do_not_pin_the_same_cpu() {
     }
     assert!(first.wait().expect("wait").success());
     assert!(second.wait().expect("wait").success());
+}
+
+#[test]
+fn a_run_started_with_nohup_keeps_running_through_sighup() {
+    // `nohup` starts a run with SIGHUP ignored, so that it outlives its terminal: the
+    // handler must not undo that. Ctrl-C still ends it.
+    let dir = std::env::temp_dir().join(format!("ringsync-rt-nohup-{}", std::process::id()));
+    let mut nohup = Command::new("nohup");
+    nohup
+        .arg(env!("CARGO_BIN_EXE_ringsync"))
+        .args([
+            "rt",
+            "paper-2015",
+            "--transport",
+            "udp",
+            "--duration",
+            "30s",
+        ])
+        .args([
+            "--no-sim-prediction",
+            "--no-pin",
+            "--priority",
+            "0",
+            "--out",
+        ])
+        .arg(&dir);
+    let (mut child, _) = start_until(nohup, "running paper-2015");
+    let pid = child.id().to_string();
+    let signal = |sig: &str| {
+        let sent = Command::new("kill")
+            .args([sig, &pid])
+            .status()
+            .expect("kill");
+        assert!(sent.success(), "kill {sig}");
+    };
+    signal("-HUP");
+    std::thread::sleep(Duration::from_millis(500));
+    assert!(
+        child.try_wait().expect("try_wait").is_none(),
+        "a run under nohup ended on SIGHUP"
+    );
+    signal("-INT");
+    let status = child.wait().expect("wait");
+    assert_eq!(status.code(), Some(1), "{status}");
+    let summary = std::fs::read_to_string(dir.join("summary.json")).expect("partial summary");
+    assert!(summary.contains("\"interrupted\": true"));
+    let _ = std::fs::remove_dir_all(&dir);
 }

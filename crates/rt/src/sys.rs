@@ -195,17 +195,21 @@ extern "C" fn on_signal(_: libc::c_int) {
 
 /// Installs SIGINT, SIGTERM and SIGHUP handlers that only raise a flag, so that a run ends
 /// cleanly (and removes what it created) on Ctrl-C, on `kill`, and when its terminal closes.
-/// Returns the flag.
+/// A SIGHUP the process was started ignoring (`nohup`) stays ignored. Returns the flag.
 pub fn stop_flag() -> &'static AtomicBool {
-    // SAFETY: the handler only stores to an atomic (async-signal-safe); `sa` is zeroed plain
-    // data with the handler set; the old-action pointer may be null.
+    // SAFETY: the handler only stores to an atomic (async-signal-safe); `sa` and `old` are
+    // zeroed plain data, `sa` with the handler set; a null new action only reads the old.
     unsafe {
         let mut sa: libc::sigaction = std::mem::zeroed();
         sa.sa_sigaction = on_signal as *const () as libc::sighandler_t;
         libc::sigemptyset(&mut sa.sa_mask);
         libc::sigaction(libc::SIGINT, &sa, std::ptr::null_mut());
         libc::sigaction(libc::SIGTERM, &sa, std::ptr::null_mut());
-        libc::sigaction(libc::SIGHUP, &sa, std::ptr::null_mut());
+        let mut old: libc::sigaction = std::mem::zeroed();
+        let read = libc::sigaction(libc::SIGHUP, std::ptr::null(), &mut old);
+        if read != 0 || old.sa_sigaction != libc::SIG_IGN {
+            libc::sigaction(libc::SIGHUP, &sa, std::ptr::null_mut());
+        }
     }
     &STOP
 }
