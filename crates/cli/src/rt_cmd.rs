@@ -9,7 +9,7 @@ use ringsync_report::sim::{summary_json, trace_csv};
 use ringsync_rt::run::ASSUMPTIONS;
 use ringsync_rt::stats::Percentiles;
 use ringsync_rt::{
-    Flap, Forgery, Kill, Realtime, RtError, RtOptions, RtResult, SimPrediction, TransportKind,
+    Flap, Forgery, Kill, Pin, Realtime, RtError, RtOptions, RtResult, SimPrediction, TransportKind,
 };
 use ringsync_sim::scenario::Scenario;
 use serde_json::{Value, json};
@@ -113,7 +113,8 @@ pub struct RealtimeArgs {
     /// SCHED_FIFO priority of the loop (1-99); 0 keeps the normal scheduler.
     #[arg(long, default_value_t = 80, value_parser = clap::value_parser!(i32).range(0..=99))]
     priority: i32,
-    /// CPU to pin the loop to (default: the last one).
+    /// CPU to pin the loop to (default: the last one no other ringsync run has claimed;
+    /// one another run holds is not shared: the loop then runs unpinned, with a warning).
     #[arg(long)]
     cpu: Option<usize>,
     /// Do not pin the loop to a CPU.
@@ -127,14 +128,13 @@ pub struct RealtimeArgs {
 impl RealtimeArgs {
     /// The settings these options ask for.
     pub fn settings(&self) -> Realtime {
-        let d = Realtime::default();
         Realtime {
             spin: self.spin,
             priority: self.priority,
-            cpu: if self.no_pin {
-                None
-            } else {
-                self.cpu.or(d.cpu)
+            cpu: match (self.no_pin, self.cpu) {
+                (true, _) => Pin::Off,
+                (false, Some(c)) => Pin::Cpu(c),
+                (false, None) => Pin::Auto,
             },
             lock_memory: !self.no_mlock,
         }

@@ -220,3 +220,221 @@ fn rt_checks_out_before_the_run_and_exits_3_on_a_group_stop() {
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `ringsync ARGS`, to start.
+fn ringsync_with(args: &[&str]) -> Command {
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_ringsync"));
+    cmd.args(args);
+    cmd
+}
+
+/// Starts `cmd` and reads its standard error until a line contains `until`: the child (its
+/// standard output piped) and the lines read.
+fn start_until(mut cmd: Command, until: &str) -> (std::process::Child, Vec<String>) {
+    let mut child = cmd
+        .env("RUST_BACKTRACE", "0")
+        .stderr(Stdio::piped())
+        .stdout(Stdio::piped())
+        .spawn()
+        .expect("start ringsync");
+    let stderr = child.stderr.take().expect("stderr");
+    let mut lines = BufReader::new(stderr).lines();
+    let t = Instant::now();
+    let mut seen = Vec::new();
+    while !seen.last().is_some_and(|l: &String| l.contains(until)) {
+        let line = lines
+            .next()
+            .unwrap_or_else(|| panic!("ringsync ended before {until:?}: {seen:?}"))
+            .expect("read stderr");
+        seen.push(line);
+        assert!(t.elapsed() < Duration::from_secs(60), "{seen:?}");
+    }
+    // Keep draining, so that the child never blocks on a full pipe.
+    std::thread::spawn(move || lines.for_each(drop));
+    (child, seen)
+}
+
+#[test]
+fn sighup_ends_a_veth_run_cleanly_and_removes_its_namespaces() {
+    // SIGHUP is what a run gets when its terminal closes: it must end as on Ctrl-C.
+    let dir = std::env::temp_dir().join(format!("ringsync-rt-hup-{}", std::process::id()));
+    let out = dir.to_str().expect("utf-8 path");
+    let (mut child, seen) = start_until(
+        ringsync_with(&[
+            "rt",
+            "paper-2015",
+            "--transport",
+            "veth",
+            "--duration",
+            "30s",
+            "--no-sim-prediction",
+            "--out",
+            out,
+        ]),
+        "running paper-2015",
+    );
+    let pid = child.id();
+    assert_eq!(namespaces_of(pid).len(), 5, "{seen:?}");
+    std::thread::sleep(Duration::from_millis(500));
+    let sent = Command::new("kill")
+        .args(["-HUP", &pid.to_string()])
+        .status()
+        .expect("kill -HUP");
+    assert!(sent.success());
+    let status = child.wait().expect("wait");
+    assert_eq!(
+        status.code(),
+        Some(1),
+        "an interrupted run exits 1: {status}"
+    );
+    assert!(namespaces_of(pid).is_empty(), "{:?}", namespaces_of(pid));
+    let summary = std::fs::read_to_string(dir.join("summary.json")).expect("partial summary");
+    assert!(summary.contains("\"interrupted\": true"));
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn an_ordinary_users_limits_give_one_warning_each_and_the_run_completes() {
+    // An ordinary user's limits: 8 MiB of lockable memory, no real-time priority. As root
+    // the capabilities would override them, so they are dropped (CAP_IPC_LOCK,
+    // CAP_SYS_NICE). Before: in the release build mlockall succeeded, and an allocation
+    // past 8 MiB aborted the run ("memory allocation of … bytes failed"); the debug build,
+    // larger at start, warned "cannot lock memory (Cannot allocate memory)", naming no limit.
+    let dir = std::env::temp_dir().join(format!("ringsync-rt-user-{}", std::process::id()));
+    let mut cmd = Command::new("prlimit");
+    cmd.args(["--memlock=8388608", "--rtprio=0"]);
+    let root = std::fs::read_to_string("/proc/self/status")
+        .is_ok_and(|s| s.lines().any(|l| l.starts_with("Uid:\t0\t")));
+    if root {
+        cmd.args([
+            "setpriv",
+            "--inh-caps=-all",
+            "--bounding-set=-ipc_lock,-sys_nice",
+        ]);
+    }
+    let out = cmd
+        .arg(env!("CARGO_BIN_EXE_ringsync"))
+        // The scenario's 4 s: its recorder alone outgrows 8 MiB.
+        .args([
+            "rt",
+            "paper-2015",
+            "--transport",
+            "udp",
+            "--no-sim-prediction",
+        ])
+        .args(["--watchdog-cycles", "20", "--out"])
+        .arg(&dir)
+        .env("RUST_BACKTRACE", "0")
+        .output()
+        .expect("run prlimit (util-linux)");
+    let err = String::from_utf8_lossy(&out.stderr);
+    // 0: done; 3: the host cut the run (a group stop), which is still a completed run.
+    assert!(
+        matches!(out.status.code(), Some(0 | 3)),
+        "{}: {err}",
+        out.status
+    );
+    let count = |what: &str| err.lines().filter(|l| l.contains(what)).count();
+    assert_eq!(
+        count("warning: not locking memory: RLIMIT_MEMLOCK is 8 MiB"),
+        1,
+        "{err}"
+    );
+    assert_eq!(count("warning: cannot use SCHED_FIFO"), 1, "{err}");
+    assert_eq!(count("memory locked"), 0, "{err}");
+    assert!(err.contains("ulimit -l unlimited"), "{err}");
+    let summary = std::fs::read_to_string(dir.join("summary.json")).expect("summary.json");
+    assert!(summary.contains("\"cycles\""), "{summary}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn two_concurrent_runs_do_not_pin_the_same_cpu() {
+    // Two probes at once (normal scheduler, nothing locked: the CPU claim is what is
+    // tested). Other engineers' runs may hold CPUs too; whatever they hold, the two never
+    // share one, and the second names the first when it cannot have a CPU of its own.
+    let args = [
+        "latency",
+        "--duration",
+        "3s",
+        "--priority",
+        "0",
+        "--no-mlock",
+    ];
+    let (mut first, a) = start_until(ringsync_with(&args), "busy-wait");
+    let (mut second, b) = start_until(ringsync_with(&args), "busy-wait");
+    let pinned = |lines: &[String]| {
+        lines.iter().find_map(|l| {
+            l.strip_prefix("ringsync latency: pinned to CPU ")?
+                .split(|c: char| !c.is_ascii_digit())
+                .next()?
+                .parse::<usize>()
+                .ok()
+        })
+    };
+    let (pa, pb) = (pinned(&a), pinned(&b));
+    assert!(pa.is_none() || pa != pb, "{a:?} {b:?}");
+    // Unpinned only when every CPU is held, and then the second names the first.
+    let all_taken = |lines: &[String]| {
+        lines
+            .iter()
+            .find(|l| l.contains("warning: every CPU is taken by another ringsync run"))
+            .cloned()
+    };
+    assert!(pa.is_some() || all_taken(&a).is_some(), "{a:?}");
+    if pb.is_none() {
+        let w = all_taken(&b).unwrap_or_else(|| panic!("{b:?}"));
+        if pa.is_some() {
+            assert!(w.contains(&format!("PID {}", first.id())), "{w}");
+        }
+    }
+    assert!(first.wait().expect("wait").success());
+    assert!(second.wait().expect("wait").success());
+}
+
+#[test]
+fn a_run_started_with_nohup_keeps_running_through_sighup() {
+    // `nohup` starts a run with SIGHUP ignored, so that it outlives its terminal: the
+    // handler must not undo that. Ctrl-C still ends it.
+    let dir = std::env::temp_dir().join(format!("ringsync-rt-nohup-{}", std::process::id()));
+    let mut nohup = Command::new("nohup");
+    nohup
+        .arg(env!("CARGO_BIN_EXE_ringsync"))
+        .args([
+            "rt",
+            "paper-2015",
+            "--transport",
+            "udp",
+            "--duration",
+            "30s",
+        ])
+        .args([
+            "--no-sim-prediction",
+            "--no-pin",
+            "--priority",
+            "0",
+            "--out",
+        ])
+        .arg(&dir);
+    let (mut child, _) = start_until(nohup, "running paper-2015");
+    let pid = child.id().to_string();
+    let signal = |sig: &str| {
+        let sent = Command::new("kill")
+            .args([sig, &pid])
+            .status()
+            .expect("kill");
+        assert!(sent.success(), "kill {sig}");
+    };
+    signal("-HUP");
+    std::thread::sleep(Duration::from_millis(500));
+    assert!(
+        child.try_wait().expect("try_wait").is_none(),
+        "a run under nohup ended on SIGHUP"
+    );
+    signal("-INT");
+    let status = child.wait().expect("wait");
+    assert_eq!(status.code(), Some(1), "{status}");
+    let summary = std::fs::read_to_string(dir.join("summary.json")).expect("partial summary");
+    assert!(summary.contains("\"interrupted\": true"));
+    let _ = std::fs::remove_dir_all(&dir);
+}

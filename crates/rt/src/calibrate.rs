@@ -55,16 +55,27 @@ fn pass(
         stalled: false,
     };
     let mut buf = vec![0u8; MAX_PDU];
+    // Every clock reading is checked against the one before, from the send on: a send or
+    // a read is where the kernel most often hands the CPU to another task, and a gap there
+    // that went unchecked (before the first reading after the send, or in the sweep that
+    // ends the pass) was kept as a slow ring (a normal-priority loop under load measured
+    // slices of 300-1100 µs and refused the 1 ms cycle).
     let t0 = now_ns();
+    let mut last = t0;
+    let mut tick = |stalled: &mut bool| {
+        let now = now_ns();
+        *stalled |= now - last >= STALL;
+        last = now;
+        now
+    };
     ports[from].send(first)?;
     let deadline = t0 + 20_000_000;
-    let mut last = now_ns();
     loop {
         let mut got = false;
         for (node, port) in ports.iter_mut().enumerate() {
             if let Some(len) = port.recv(&mut buf)? {
                 got = true;
-                out.seen[node] = Some(now_ns() - t0);
+                out.seen[node] = Some(tick(&mut out.stalled) - t0);
                 let mut bytes = buf[..len].to_vec();
                 if !visit(node, &mut bytes) {
                     return Ok(out);
@@ -73,9 +84,7 @@ fn pass(
             }
         }
         // The loop reads the clock at least once per sweep of the ports, a few µs apart.
-        let now = now_ns();
-        out.stalled |= now - last >= STALL;
-        last = now;
+        let now = tick(&mut out.stalled);
         if !got && now > deadline {
             return Ok(out);
         }
@@ -211,7 +220,90 @@ pub fn calibrate(ports: &mut [Box<dyn Port>], rounds: usize) -> io::Result<Calib
 
 #[cfg(test)]
 mod tests {
+    use std::collections::VecDeque;
+    use std::sync::{Arc, Mutex};
+
     use super::*;
+
+    /// A ring in memory: node i sends to node i + 1 (the last to node 0). A send or a read
+    /// at `slow` takes 200 µs, as when the kernel hands the CPU to another task there.
+    struct MemPort {
+        node: usize,
+        queues: Arc<Mutex<Vec<VecDeque<Vec<u8>>>>>,
+        slow: Option<(usize, bool)>,
+    }
+
+    impl MemPort {
+        fn ring(nodes: usize, slow: Option<(usize, bool)>) -> Vec<Box<dyn Port>> {
+            let queues = Arc::new(Mutex::new(vec![VecDeque::new(); nodes]));
+            (0..nodes)
+                .map(|node| {
+                    Box::new(MemPort {
+                        node,
+                        queues: queues.clone(),
+                        slow,
+                    }) as Box<dyn Port>
+                })
+                .collect()
+        }
+
+        fn maybe_slow(&self, send: bool) {
+            if self.slow == Some((self.node, send)) {
+                std::thread::sleep(std::time::Duration::from_micros(200));
+            }
+        }
+    }
+
+    impl Port for MemPort {
+        fn send(&mut self, pdu: &[u8]) -> io::Result<()> {
+            self.maybe_slow(true);
+            let mut q = self
+                .queues
+                .lock()
+                .map_err(|_| io::Error::other("poisoned"))?;
+            let next = (self.node + 1) % q.len();
+            q[next].push_back(pdu.to_vec());
+            Ok(())
+        }
+
+        fn recv(&mut self, buf: &mut [u8]) -> io::Result<Option<usize>> {
+            let got = self
+                .queues
+                .lock()
+                .map_err(|_| io::Error::other("poisoned"))?[self.node]
+                .pop_front();
+            Ok(got.map(|f| {
+                self.maybe_slow(false);
+                buf[..f.len()].copy_from_slice(&f);
+                f.len()
+            }))
+        }
+
+        fn rx_fd(&self) -> std::os::fd::RawFd {
+            -1
+        }
+    }
+
+    fn round(ports: &mut [Box<dyn Port>]) -> Pass {
+        pass(ports, 0, &[1, 2, 3], &mut |node, _| node != 0).expect("pass")
+    }
+
+    #[test]
+    fn a_host_stall_anywhere_in_a_pass_is_seen() {
+        // At the master's send (before the loop's first reading), at a slave's forwarding,
+        // at the master's final read (the sweep that ends the pass).
+        for slow in [(0, true), (2, true), (0, false)] {
+            let p = round(&mut MemPort::ring(5, Some(slow)));
+            assert!(p.seen.iter().all(Option::is_some), "{slow:?}");
+            assert!(p.stalled, "a 200 µs stall at {slow:?} went unseen");
+        }
+        // Without one, most passes are clean (this test's own thread may be preempted now
+        // and then on a busy machine).
+        let clean = (0..20)
+            .filter(|_| !round(&mut MemPort::ring(5, None)).stalled)
+            .count();
+        assert!(clean > 0);
+    }
 
     fn passes(stalled: &'static [bool]) -> impl FnMut() -> io::Result<Pass> {
         let mut k = 0;

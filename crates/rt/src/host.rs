@@ -16,7 +16,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use ringsync_proto::Duration;
 
-use crate::realtime::Realtime;
+use crate::realtime::{Applied, Realtime};
 use crate::run::STALL;
 use crate::stats::Percentiles;
 use crate::sys;
@@ -114,7 +114,11 @@ pub fn probe(opts: &HostOptions, stop: &AtomicBool) -> Result<HostLatency, HostE
         return Err(range("duration", opts.duration, "one cycle ..= 24 h"));
     }
     let cycles = (opts.duration.as_ns() / t_cyc) as usize;
-    let realtime = opts.realtime.apply();
+    // The CPU claim (`_cpu`) holds the loop's CPU against other runs until the probe ends.
+    let Applied {
+        lines: realtime,
+        cpu: _cpu,
+    } = opts.realtime.apply();
     if opts.verbose {
         for r in &realtime {
             eprintln!("ringsync latency: {r}");
@@ -191,6 +195,7 @@ pub fn probe(opts: &HostOptions, stop: &AtomicBool) -> Result<HostLatency, HostE
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::realtime::Pin;
 
     fn quiet(cycle_us: i64, cycles: i64) -> HostOptions {
         HostOptions {
@@ -201,7 +206,7 @@ mod tests {
             realtime: Realtime {
                 spin: Duration::from_us(cycle_us / 4),
                 priority: 0,
-                cpu: None,
+                cpu: Pin::Off,
                 lock_memory: false,
             },
             verbose: false,

@@ -14,12 +14,12 @@ mod sys;
 pub mod transport;
 
 pub use inject::{Flap, Forgery};
-pub use realtime::Realtime;
+pub use realtime::{Applied, CpuClaim, Pin, Realtime};
 pub use run::{Kill, RtError, RtOptions, RtResult, SimPrediction, Timing, run, sim_prediction};
 pub use transport::TransportKind;
 
-/// Installs the Ctrl-C (SIGINT, SIGTERM) handler: the returned flag rises on the signal and
-/// a run then ends cleanly, removing its namespaces and links.
+/// Installs the Ctrl-C (SIGINT), SIGTERM and SIGHUP (terminal closed) handler: the returned
+/// flag rises on the signal and a run then ends cleanly, removing its namespaces and links.
 pub fn stop_flag() -> &'static std::sync::atomic::AtomicBool {
     sys::stop_flag()
 }

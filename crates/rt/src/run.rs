@@ -32,7 +32,7 @@ use ringsync_wire::{FrameKind, Status};
 use crate::calibrate::{Calibration, calibrate};
 use crate::inject::{self, Flap, Forgery, Injected, InjectorPlan};
 use crate::netns::{NetnsError, VethRing};
-use crate::realtime::Realtime;
+use crate::realtime::{Applied, Realtime};
 use crate::stats::Percentiles;
 use crate::sys;
 use crate::transport::{MAX_PDU, Port, TransportKind, VethPort, udp_ring};
@@ -322,7 +322,11 @@ pub fn run(scenario: &Scenario, opts: &RtOptions, stop: &AtomicBool) -> Result<R
             .collect(),
     };
     // Real time, before calibrating so that the measurements see the same scheduling.
-    let mut realtime = opts.realtime.apply();
+    // The CPU claim (`_cpu`) holds the loop's CPU against other runs until the run ends.
+    let Applied {
+        lines: mut realtime,
+        cpu: _cpu,
+    } = opts.realtime.apply();
     realtime.push(format!(
         "encoders latch {:.0} µs before each cycle start",
         s.clock.sample_lead.0.as_ns() as f64 * 1e-3

@@ -102,13 +102,48 @@ pub fn set_normal() {
     }
 }
 
-/// Locks the process's current and future pages in memory (`mlockall`).
+/// Locks the process's current and future pages in memory (`mlockall`). On failure nothing
+/// stays locked and later allocations are not held to the limit (`munlockall`: a failed
+/// `mlockall` can leave `MCL_FUTURE` set).
 pub fn lock_memory() -> io::Result<()> {
-    // SAFETY: plain system call with flag arguments.
-    if unsafe { libc::mlockall(libc::MCL_CURRENT | libc::MCL_FUTURE) } != 0 {
-        return Err(io::Error::last_os_error());
+    // SAFETY: plain system calls with flag arguments.
+    unsafe {
+        if libc::mlockall(libc::MCL_CURRENT | libc::MCL_FUTURE) != 0 {
+            let e = io::Error::last_os_error();
+            libc::munlockall();
+            return Err(e);
+        }
     }
     Ok(())
+}
+
+/// The soft `RLIMIT_MEMLOCK` [bytes]: how much memory the process may lock without
+/// `CAP_IPC_LOCK`; `None` when unlimited.
+pub fn memlock_limit() -> io::Result<Option<u64>> {
+    let mut r = libc::rlimit {
+        rlim_cur: 0,
+        rlim_max: 0,
+    };
+    // SAFETY: `r` is a valid, writable rlimit.
+    if unsafe { libc::getrlimit(libc::RLIMIT_MEMLOCK, &mut r) } != 0 {
+        return Err(io::Error::last_os_error());
+    }
+    Ok((r.rlim_cur != libc::RLIM_INFINITY).then_some(r.rlim_cur))
+}
+
+/// Takes an exclusive `flock` on `file` without waiting: `Ok(false)` when another open
+/// file description holds it (another process, or another open of the same file). The lock
+/// goes with the descriptor: closing the file, or the process's end, releases it.
+pub fn try_lock_exclusive(file: &std::fs::File) -> io::Result<bool> {
+    // SAFETY: `file` is an open descriptor for the duration of the call.
+    if unsafe { libc::flock(file.as_raw_fd(), libc::LOCK_EX | libc::LOCK_NB) } != 0 {
+        let e = io::Error::last_os_error();
+        if e.kind() == io::ErrorKind::WouldBlock {
+            return Ok(false);
+        }
+        return Err(e);
+    }
+    Ok(true)
 }
 
 /// Pins the calling thread to CPU `cpu`.
@@ -136,23 +171,45 @@ pub fn cpus() -> usize {
     std::thread::available_parallelism().map_or(1, |n| n.get())
 }
 
+/// The CPUs the calling thread may run on, in increasing order (`sched_getaffinity`);
+/// `0..cpus()` when the mask cannot be read.
+pub fn allowed_cpus() -> Vec<usize> {
+    // SAFETY: cpu_set_t is plain data; zeroed is the empty set; the kernel writes at most
+    // its size; CPU_ISSET stays within CPU_SETSIZE.
+    unsafe {
+        let mut set: libc::cpu_set_t = std::mem::zeroed();
+        if libc::sched_getaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &mut set) != 0 {
+            return (0..cpus()).collect();
+        }
+        (0..libc::CPU_SETSIZE as usize)
+            .filter(|&c| libc::CPU_ISSET(c, &set))
+            .collect()
+    }
+}
+
 static STOP: AtomicBool = AtomicBool::new(false);
 
 extern "C" fn on_signal(_: libc::c_int) {
     STOP.store(true, Ordering::SeqCst);
 }
 
-/// Installs SIGINT and SIGTERM handlers that only raise a flag, so that a run ends cleanly
-/// (and removes what it created) on Ctrl-C. Returns the flag.
+/// Installs SIGINT, SIGTERM and SIGHUP handlers that only raise a flag, so that a run ends
+/// cleanly (and removes what it created) on Ctrl-C, on `kill`, and when its terminal closes.
+/// A SIGHUP the process was started ignoring (`nohup`) stays ignored. Returns the flag.
 pub fn stop_flag() -> &'static AtomicBool {
-    // SAFETY: the handler only stores to an atomic (async-signal-safe); `sa` is zeroed plain
-    // data with the handler set; the old-action pointer may be null.
+    // SAFETY: the handler only stores to an atomic (async-signal-safe); `sa` and `old` are
+    // zeroed plain data, `sa` with the handler set; a null new action only reads the old.
     unsafe {
         let mut sa: libc::sigaction = std::mem::zeroed();
         sa.sa_sigaction = on_signal as *const () as libc::sighandler_t;
         libc::sigemptyset(&mut sa.sa_mask);
         libc::sigaction(libc::SIGINT, &sa, std::ptr::null_mut());
         libc::sigaction(libc::SIGTERM, &sa, std::ptr::null_mut());
+        let mut old: libc::sigaction = std::mem::zeroed();
+        let read = libc::sigaction(libc::SIGHUP, std::ptr::null(), &mut old);
+        if read != 0 || old.sa_sigaction != libc::SIG_IGN {
+            libc::sigaction(libc::SIGHUP, &sa, std::ptr::null_mut());
+        }
     }
     &STOP
 }
