@@ -23,58 +23,57 @@ fn namespaces_of(pid: u32) -> Vec<String> {
         .collect()
 }
 
-#[test]
-fn ctrl_c_ends_a_veth_run_cleanly_and_removes_its_namespaces() {
-    let dir = std::env::temp_dir().join(format!("ringsync-rt-cli-{}", std::process::id()));
-    let mut child = Command::new(env!("CARGO_BIN_EXE_ringsync"))
-        .args([
+/// Sends `signal` to a veth run once it runs: the run ends cleanly, exit status 1, its
+/// namespaces and links removed, its partial results written and marked interrupted.
+fn a_signal_ends_a_veth_run_cleanly(signal: &str) {
+    let dir = std::env::temp_dir().join(format!(
+        "ringsync-rt-{}-{}",
+        signal.to_lowercase(),
+        std::process::id()
+    ));
+    let out = dir.to_str().expect("utf-8 path");
+    let (mut child, seen) = start_until(
+        ringsync_with(&[
             "rt",
             "paper-2015",
             "--transport",
             "veth",
             "--duration",
             "30s",
-        ])
-        .args(["--no-sim-prediction", "--out"])
-        .arg(&dir)
-        .stderr(Stdio::piped())
-        .stdout(Stdio::piped())
-        .spawn()
-        .expect("start ringsync rt");
+            "--no-sim-prediction",
+            "--out",
+            out,
+        ]),
+        "running paper-2015",
+    );
     let pid = child.id();
-    let stderr = child.stderr.take().expect("stderr");
-    let mut lines = BufReader::new(stderr).lines();
-    let t = Instant::now();
-    let mut seen = Vec::new();
-    loop {
-        let line = lines
-            .next()
-            .unwrap_or_else(|| panic!("ringsync rt ended before running: {seen:?}"))
-            .expect("read stderr");
-        seen.push(line.clone());
-        if line.contains("running paper-2015") {
-            break;
-        }
-        assert!(t.elapsed() < Duration::from_secs(60), "{seen:?}");
-    }
     assert_eq!(
         namespaces_of(pid).len(),
         5,
-        "the run has its 5 namespaces while it runs"
+        "the run has its 5 namespaces while it runs: {seen:?}"
     );
     std::thread::sleep(Duration::from_millis(500));
-    // SIGINT, as Ctrl-C sends it.
-    let killed = Command::new("sh")
-        .args(["-c", &format!("kill -INT {pid}")])
+    let sent = Command::new("kill")
+        .args([&format!("-{signal}"), &pid.to_string()])
         .status()
-        .expect("kill -INT");
-    assert!(killed.success());
+        .expect("kill");
+    assert!(sent.success());
     let status = child.wait().expect("wait");
-    assert_eq!(status.code(), Some(1), "an interrupted run exits 1");
+    assert_eq!(
+        status.code(),
+        Some(1),
+        "an interrupted run exits 1: {status}"
+    );
     assert!(namespaces_of(pid).is_empty(), "{:?}", namespaces_of(pid));
     let summary = std::fs::read_to_string(dir.join("summary.json")).expect("partial summary");
     assert!(summary.contains("\"interrupted\": true"));
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn ctrl_c_ends_a_veth_run_cleanly_and_removes_its_namespaces() {
+    // SIGINT, as Ctrl-C sends it.
+    a_signal_ends_a_veth_run_cleanly("INT");
 }
 
 #[test]
@@ -257,40 +256,7 @@ fn start_until(mut cmd: Command, until: &str) -> (std::process::Child, Vec<Strin
 #[test]
 fn sighup_ends_a_veth_run_cleanly_and_removes_its_namespaces() {
     // SIGHUP is what a run gets when its terminal closes: it must end as on Ctrl-C.
-    let dir = std::env::temp_dir().join(format!("ringsync-rt-hup-{}", std::process::id()));
-    let out = dir.to_str().expect("utf-8 path");
-    let (mut child, seen) = start_until(
-        ringsync_with(&[
-            "rt",
-            "paper-2015",
-            "--transport",
-            "veth",
-            "--duration",
-            "30s",
-            "--no-sim-prediction",
-            "--out",
-            out,
-        ]),
-        "running paper-2015",
-    );
-    let pid = child.id();
-    assert_eq!(namespaces_of(pid).len(), 5, "{seen:?}");
-    std::thread::sleep(Duration::from_millis(500));
-    let sent = Command::new("kill")
-        .args(["-HUP", &pid.to_string()])
-        .status()
-        .expect("kill -HUP");
-    assert!(sent.success());
-    let status = child.wait().expect("wait");
-    assert_eq!(
-        status.code(),
-        Some(1),
-        "an interrupted run exits 1: {status}"
-    );
-    assert!(namespaces_of(pid).is_empty(), "{:?}", namespaces_of(pid));
-    let summary = std::fs::read_to_string(dir.join("summary.json")).expect("partial summary");
-    assert!(summary.contains("\"interrupted\": true"));
-    let _ = std::fs::remove_dir_all(&dir);
+    a_signal_ends_a_veth_run_cleanly("HUP");
 }
 
 #[test]

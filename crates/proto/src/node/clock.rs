@@ -159,14 +159,7 @@ impl SyncClock {
     /// Starts acquisition afresh from one pair (the frames before it disagreed with it):
     /// the clock steps to the pair and is not locked until the next sync.
     pub fn restart(&mut self, local: Instant, master_at: Instant) {
-        if !self.enabled {
-            return;
-        }
-        let pair = (local.as_ns(), master_at.as_ns());
-        self.last = Some(pair);
-        self.raw = Some(pair);
-        self.skipped_run = 0;
-        self.syncs = 1;
+        self.step_to(local, master_at, 1);
     }
 
     /// Re-locks to a new time line: the master's clock really stepped (it restarted, or its
@@ -174,6 +167,11 @@ impl SyncClock {
     /// none of the old one (the slave decides: [`crate::node::Slave`]). The clock steps to
     /// the pair and measures its rate afresh; the estimated rate is kept.
     pub fn relock(&mut self, local: Instant, master_at: Instant) {
+        self.step_to(local, master_at, self.syncs.max(2));
+    }
+
+    /// Steps to the pair, measuring the rate afresh from it, with `syncs` taken.
+    fn step_to(&mut self, local: Instant, master_at: Instant, syncs: u64) {
         if !self.enabled {
             return;
         }
@@ -181,7 +179,7 @@ impl SyncClock {
         self.last = Some(pair);
         self.raw = Some(pair);
         self.skipped_run = 0;
-        self.syncs = self.syncs.max(2);
+        self.syncs = syncs;
     }
 
     /// Whether at least one sync has been taken (or the clock free-runs by design).
