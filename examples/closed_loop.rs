@@ -1,4 +1,4 @@
-//! Closes the loop on the reference scenario's four torque-mode axes (SYSTEM.md section 6)
+//! Closes the loop on the reference scenario's four torque-mode axes (docs/system.md, "The reference scenario")
 //! with standard PD and with the paper's sync controller, and prints Track-RMSE and
 //! Sync-RMSE (eq. 26-27) of both as one JSON object.
 //!

@@ -1,4 +1,4 @@
-//! The stability analysis of SYSTEM.md section 3.4 on the reference axes: the discrete-time
+//! The stability analysis of docs/system.md, "Stability", on the reference axes: the discrete-time
 //! spectral radius of each loop (PD, and the sync controller with each estimator) with the
 //! 130-175 µs sample-to-actuation delays, and the paper's two conditions along the cosine
 //! command.

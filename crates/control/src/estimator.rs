@@ -21,7 +21,7 @@ use crate::error::ControlError;
 /// Samples kept per axis.
 pub const DEPTH: usize = 4;
 
-/// Which estimator (SYSTEM.md section 3.3); every result names the one in use.
+/// Which estimator (docs/system.md, "The motion message estimator"); every result names the one in use.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum EstimatorKind {
     /// Hold the latest sample (no compensation).

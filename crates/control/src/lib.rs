@@ -1,4 +1,4 @@
-//! The science of the paper as a library (SYSTEM.md section 3): what turns feedback into
+//! The science of the paper as a library (docs/system.md, "Errors" to "Metrics"): what turns feedback into
 //! commands and how a run is judged.
 //!
 //! - [`trajectory`]: x^d, ẋ^d, ẍ^d (cosine, trapezoid, sequences);

@@ -1,4 +1,4 @@
-//! Stability analysis (SYSTEM.md section 3.4).
+//! Stability analysis (docs/system.md, "Stability").
 //!
 //! **Continuous-time conditions of the paper**, evaluated numerically along a trajectory
 //! (x = x^d, ẋ = ẋ^d) in the controller's units (H in V·s²/rad, C in V·s/rad):

@@ -1,4 +1,4 @@
-//! Desired motion x^d(t) with ẋ^d and ẍ^d (SYSTEM.md section 6): the cosine command, a
+//! Desired motion x^d(t) with ẋ^d and ẍ^d (docs/system.md, "The reference scenario"): the cosine command, a
 //! trapezoidal ("T-type") point-to-point profile and a sequence of such moves. Each axis has
 //! its own trajectory. Units: rad, rad/s, rad/s², s.
 

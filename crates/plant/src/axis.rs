@@ -10,7 +10,7 @@ pub enum SignModel {
     /// The discontinuous sign with stiction: an axis at rest stays at rest while the drive
     /// torque does not exceed T_c. Stepped exactly, piecewise between velocity zero-crossings.
     Exact,
-    /// tanh(ẋ / v_s) with v_s [rad/s] (SYSTEM.md section 6: v_s = 1 mrad/s); stepped by RK4.
+    /// tanh(ẋ / v_s) with v_s [rad/s] (docs/system.md, "The reference scenario": v_s = 1 mrad/s); stepped by RK4.
     Smooth {
         /// Velocity scale v_s [rad/s], > 0.
         v_s: f64,
@@ -39,7 +39,7 @@ impl Friction {
     }
 }
 
-/// A voltage-commanded torque-mode axis (SYSTEM.md section 6):
+/// A voltage-commanded torque-mode axis (docs/system.md, "The reference scenario"):
 /// J ẍ = K_a·sat_{±u_max}(u) − b·ẋ − T_c·sgn(ẋ).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TorqueAxis {
@@ -336,7 +336,7 @@ impl AxisModel {
             AxisModel::Velocity(a) => a.linear(),
         }
     }
-    /// H and C of this axis in the theory's units (SYSTEM.md 3.4): torque mode
+    /// H and C of this axis in the theory's units (docs/system.md, "Plant and controller"): torque mode
     /// H = J/K_a [V·s²/rad], C = b/K_a [V·s/rad]; velocity mode H = τ_v/k_v, C = 1/k_v.
     pub fn theory_h_c(&self) -> (f64, f64) {
         match self {

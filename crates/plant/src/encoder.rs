@@ -1,4 +1,4 @@
-//! Encoder quantisation and velocity by encoder difference (SYSTEM.md section 6).
+//! Encoder quantisation and velocity by encoder difference (docs/system.md, "The reference scenario").
 
 use std::f64::consts::TAU;
 

@@ -1,4 +1,4 @@
-//! Plants for ringsync: what the axes do with the commands (SYSTEM.md sections 3.2 and 6).
+//! Plants for ringsync: what the axes do with the commands (docs/system.md, "Plant and controller" and "The reference scenario").
 //!
 //! - [`TorqueAxis`]: a voltage-commanded torque-mode drive, J ẍ = K_a·sat(u) − b·ẋ − T_c·sgn(ẋ).
 //! - [`VelocityAxis`]: a drive that closes its own velocity loop (first-order lag).
@@ -37,7 +37,7 @@ pub trait Plant {
 }
 
 /// Dynamics in the theory's form H(x)ẍ + C(x, ẋ)ẋ = τ (eq. 8), in the controller's units
-/// (τ in V: H in V·s²/rad, C in V·s/rad; SYSTEM.md section 3.4), for the stability checks.
+/// (τ in V: H in V·s²/rad, C in V·s/rad; docs/system.md, "Plant and controller"), for the stability checks.
 pub trait Dynamics {
     /// Number of axes n.
     fn dof(&self) -> usize;

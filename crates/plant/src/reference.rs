@@ -1,4 +1,4 @@
-//! The reference scenario's axes (SYSTEM.md section 6, the project's reconstruction of the
+//! The reference scenario's axes (docs/system.md, "The reference scenario", the project's reconstruction of the
 //! paper's test bench): voltage-commanded torque-mode drives, ±10 V = ± rated torque, on
 //! Yaskawa SGM7J-01A, -02A, -04A, -08A motors with loads.
 
@@ -19,7 +19,7 @@ pub const U_MAX: f64 = 10.0;
 
 /// The four reference axes. With `coulomb` = `None` they have viscous friction only (the
 /// linear axes of the discrete-time stability check); otherwise Coulomb friction of 2 % of
-/// rated torque with the given sign model (SYSTEM.md: smoothed, tanh(ẋ / 1 mrad/s)).
+/// rated torque with the given sign model (docs/system.md, "The reference scenario": smoothed, tanh(ẋ / 1 mrad/s)).
 pub fn axes(coulomb: Option<SignModel>) -> Result<Vec<AxisModel>, PlantError> {
     (0..4)
         .map(|i| {
@@ -43,7 +43,7 @@ mod tests {
 
     #[test]
     fn inertias_match_the_spec() {
-        // SYSTEM.md: J ≈ (4.96, 10.26, 20.07, 39.20)·10⁻⁴ kg·m².
+        // docs/system.md, "The reference scenario": J ≈ (4.96, 10.26, 20.07, 39.20)·10⁻⁴ kg·m².
         let want = [4.96e-4, 10.26e-4, 20.07e-4, 39.20e-4];
         for (m, w) in axes(None).expect("axes").iter().zip(want) {
             let AxisModel::Torque(a) = m else {

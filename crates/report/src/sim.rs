@@ -400,7 +400,7 @@ on what the frame carries: this cycle's data of the slaves before them, last cyc
     }
     let _ = write!(
         o,
-        "<h2>What the paper does not report: the assumptions</h2>\n<p>The reference scenario fills the gaps as follows (SYSTEM.md section 6; <code>ringsync scenario show {}</code> prints every value):</p><ul>\n",
+        "<h2>What the paper does not report: the assumptions</h2>\n<p>The reference scenario fills the gaps as follows (docs/system.md, \"The reference scenario\"; <code>ringsync scenario show {}</code> prints every value):</p><ul>\n",
         esc(&s.name)
     );
     let axes: Vec<String> = s

@@ -1,6 +1,6 @@
 //! Start-up calibration of the ring's real delays. The paper's slaves synchronise from the
-//! master's send time and a path delay "measured once at configuration" (SYSTEM.md section
-//! 2); in software the delays are not the planner's wire figures, so the runtime measures
+//! master's send time and a path delay "measured once at configuration" (docs/system.md,
+//! "The cycle plan"); in software the delays are not the planner's wire figures, so the runtime measures
 //! them before the run: lumped frames round the ring (delay from the master's send to each
 //! slave, round trip) and one command/response exchange per slave (its time slice).
 

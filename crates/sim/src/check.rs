@@ -1,4 +1,4 @@
-//! `ringsync check`: the stability analysis of the control library (SYSTEM.md section 3.4)
+//! `ringsync check`: the stability analysis of the control library (docs/system.md, "Stability")
 //! applied to a scenario, with the sample-to-actuation delays taken from the cycle plan.
 
 use ringsync_control::stability::{
@@ -19,7 +19,7 @@ pub const ASSUMPTIONS: &[&str] = &[
     "the paper's conditions are evaluated along the desired trajectory (x = x^d, ẋ = ẋ^d) at evenly spaced points",
 ];
 
-/// How the sync controller's robust term K_N·sgn(Ė) (SYSTEM.md 3.2) enters the
+/// How the sync controller's robust term K_N·sgn(Ė) (docs/system.md, "Plant and controller") enters the
 /// discrete-time check.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum RobustTerm {

@@ -1,7 +1,7 @@
 //! Scenarios and the deterministic co-simulator of ringsync.
 //!
 //! A [`Scenario`] is a TOML file in which every parameter of the reference scenario
-//! (SYSTEM.md section 6) is a field; see `scenarios/paper-2015.toml`, the built-in one.
+//! (docs/system.md, "The reference scenario") is a field; see `scenarios/paper-2015.toml`, the built-in one.
 
 pub mod check;
 pub mod nodes;

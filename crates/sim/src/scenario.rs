@@ -566,7 +566,7 @@ pub struct Scenario {
 }
 
 impl Default for Scenario {
-    /// The reference scenario `paper-2015` (SYSTEM.md section 6).
+    /// The reference scenario `paper-2015` (docs/system.md, "The reference scenario").
     fn default() -> Self {
         let r = ringsync_plant::reference::RATED_TORQUE;
         let j = ringsync_plant::reference::J_OVER_KA;

@@ -48,7 +48,7 @@ pub enum FrameKind {
     /// Response frame, one slave → master.
     Response = 3,
     /// Lumped frame of the lumped-only plan of ref. [3]: feedback plus desired states and
-    /// commands (SYSTEM.md section 4).
+    /// commands (docs/system.md, "The lumped-only plan").
     LumpedOnly = 4,
 }
 

@@ -1,6 +1,6 @@
 //! Frame layouts of the ringsync ring protocol (`docs/wire.md` is the byte-by-byte spec).
 //!
-//! Three frames make one cycle of the proposed plan (SYSTEM.md section 2): the sync
+//! Three frames make one cycle of the proposed plan (docs/system.md, "The cycle plan"): the sync
 //! [lumped frame](lumped) (kind 1), a [command frame](command) per slave (kind 2) and its
 //! [response frame](response) (kind 3). The lumped-only plan of ref. [3] uses its own lumped
 //! kind (4) with larger slots. Every PDU is a 12-byte [header](header), a payload and a

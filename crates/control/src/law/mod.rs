@@ -1,4 +1,4 @@
-//! Control laws behind one trait (SYSTEM.md sections 3.2-3.3).
+//! Control laws behind one trait (docs/system.md, "Plant and controller" and "The motion message estimator").
 //!
 //! A law is a pure function of the error history and the cycle's inputs: it reads the
 //! latest samples (and their history, for its estimator), the desired states at the command

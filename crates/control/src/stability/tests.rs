@@ -8,7 +8,7 @@ use crate::trajectory::{Cosine, State};
 
 const DELAYS: [f64; 4] = [130e-6, 145e-6, 160e-6, 175e-6];
 
-/// The reference axes (SYSTEM.md section 6) without Coulomb friction.
+/// The reference axes (docs/system.md, "The reference scenario") without Coulomb friction.
 fn reference_axes() -> Vec<AxisModel> {
     ringsync_plant::reference::axes(None).expect("axes")
 }

@@ -1,4 +1,4 @@
-//! A slave's synchronised clock (SYSTEM.md section 2, IEEE 1588 style, one-way): the master
+//! A slave's synchronised clock (docs/system.md, "The cycle plan", IEEE 1588 style, one-way): the master
 //! stamps the lumped frame with its send time M; every residence and link delay is fixed and
 //! configured, so the master time at which the frame reaches slave i is M + D_i. Each sync
 //! gives one pair (local receive timestamp L_k, master time M_k + D_i).

@@ -1,4 +1,4 @@
-//! The master node of the proposed plan (SYSTEM.md section 2). Per cycle k, from its own
+//! The master node of the proposed plan (docs/system.md, "The cycle plan"). Per cycle k, from its own
 //! clock (the reference time):
 //!
 //! 1. at k·T_cyc it sends the sync lumped frame(s), stamped with the send time, slots empty;

@@ -1,4 +1,4 @@
-//! Wire-time arithmetic of one link (SYSTEM.md section 2, "wire facts"): how long bytes
+//! Wire-time arithmetic of one link (docs/system.md, "Wire facts"): how long bytes
 //! take at a bit rate, and the first-bit latency of one hop.
 
 use ringsync_wire::ethernet::{IFG_LEN, wire_len};

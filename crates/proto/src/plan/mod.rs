@@ -1,4 +1,4 @@
-//! The cycle plan (SYSTEM.md section 2, paper Fig. 1, eq. 1-2): where the time of one cycle
+//! The cycle plan (docs/system.md, "The cycle plan", paper Fig. 1, eq. 1-2): where the time of one cycle
 //! goes, by the paper's formula and by the event-level ring path side by side.
 //!
 //! Eq. 1 and 2:
@@ -148,7 +148,7 @@ impl core::str::FromStr for PlanKind {
     }
 }
 
-/// The cycle of the lumped-only plan of ref. [3] on the same ring (SYSTEM.md section 4):
+/// The cycle of the lumped-only plan of ref. [3] on the same ring (docs/system.md, "The lumped-only plan"):
 /// `T_cyc = T_lmf + D_ms(n) + D_snm + T_rest + T_idle`, the sync phase of eq. 2 with this
 /// plan's larger slots and no P2P phase.
 #[derive(Debug, Clone, PartialEq, Serialize)]

@@ -6,8 +6,8 @@ use serde::Serialize;
 use super::link::Link;
 use crate::time::Duration;
 
-/// Everything the cycle plan depends on (SYSTEM.md section 2). Defaults are the reference
-/// scenario `paper-2015` (SYSTEM.md section 6).
+/// Everything the cycle plan depends on (docs/system.md, "The cycle plan"). Defaults are the reference
+/// scenario `paper-2015` (docs/system.md, "The reference scenario").
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct RingParams {
     /// Number of slaves n on the ring (1..=65535).

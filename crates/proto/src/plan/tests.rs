@@ -7,7 +7,7 @@ fn ns(v: i64) -> Duration {
     Duration::from_ns(v)
 }
 
-/// Reference scenario, n = 4, every term computed by hand from SYSTEM.md section 2:
+/// Reference scenario, n = 4, every term computed by hand from docs/system.md, "The cycle plan":
 /// hop L = 60 + 2·5 + 240 = 310 ns; lumped PDU 12 + 12 + 4·20 + 4 = 108 B → frame 126 B →
 /// 134 B on the wire → 10.72 µs; command PDU 32 B → padded 64 B frame → 72 B → 5.76 µs.
 #[test]
@@ -74,7 +74,7 @@ fn a_long_ring_splits_the_lumped_frame() {
 /// EtherCAT's published figure (Beckhoff): 100 servo axes updated every 100 µs. The
 /// lumped-only plan is the EtherCAT-like one: one frame that every slave reads and writes on
 /// the fly. With 8 B of process data per axis, EtherCAT-like forwarding (cut-through, 1 µs
-/// residence, the coupler figure of SYSTEM.md) and no master computation in the cycle:
+/// residence, the coupler figure of docs/system.md, "Wire facts") and no master computation in the cycle:
 #[test]
 fn hundred_axes_match_ethercat_order_of_magnitude() {
     let params = RingParams {
