@@ -116,9 +116,16 @@ impl Instant {
     pub const fn since_origin(self) -> Duration {
         Duration(self.0)
     }
-    /// From a timestamp carried on the wire (unsigned ns); `None` beyond `i64::MAX` ns.
+    /// The end of the time line that timestamps from the wire may reach [ns, ≈ 73 years]:
+    /// a quarter of the i64 range, so that a node's arithmetic on times up to it (a cycle
+    /// index times the cycle, a sampling instant, a path delay added) cannot overflow.
+    pub const HORIZON: Instant = Instant(i64::MAX / 4);
+    /// From a timestamp carried on the wire (unsigned ns); `None` beyond [`Instant::HORIZON`].
     pub fn from_wire(ns: u64) -> Option<Self> {
-        i64::try_from(ns).ok().map(Instant)
+        i64::try_from(ns)
+            .ok()
+            .filter(|t| *t <= Self::HORIZON.0)
+            .map(Instant)
     }
     /// `self + d`, or `None` on overflow (for values that came from the wire).
     pub const fn checked_add(self, d: Duration) -> Option<Instant> {
@@ -300,6 +307,11 @@ mod tests {
         assert_eq!(Instant::from_wire(5), Some(Instant::from_ns(5)));
         assert_eq!(Instant::from_wire(u64::MAX), None);
         assert_eq!(Instant::from_wire(1 << 63), None);
+        assert_eq!(
+            Instant::from_wire((i64::MAX / 4) as u64),
+            Some(Instant::HORIZON)
+        );
+        assert_eq!(Instant::from_wire((i64::MAX / 4 + 1) as u64), None);
         let far = Instant::from_ns(i64::MAX - 1);
         assert_eq!(far.checked_add(Duration::from_ns(2)), None);
         assert_eq!(

@@ -19,6 +19,7 @@ fn stop_json(stop: &Option<(f64, StopReason)>) -> Value {
                 StopReason::AxisFault { axis } => ("axis-fault", axis, None),
                 StopReason::NoResponse { axis } => ("no-response", axis, None),
                 StopReason::NoFeedback { axis } => ("no-feedback", axis, None),
+                StopReason::CommandMismatch { axis, .. } => ("command-mismatch", axis, None),
             };
             json!({ "time_s": t, "reason": reason, "axis": axis + 1, "error_rad": error })
         }

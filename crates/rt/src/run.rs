@@ -381,11 +381,17 @@ pub fn run(scenario: &Scenario, opts: &RtOptions, stop: &AtomicBool) -> Result<R
                 Duration::from_ns(cal.path[i] + rc.plan.lumped_only.lumped.frame_time[0].as_ns());
         }
     }
+    // The clock window: software timestamps, and what free-running clocks drift apart
+    // when the scenario turns clock sync off (as the simulator allows for it).
+    let tolerance = RT_TIMESTAMP_TOLERANCE.max(ringsync_sim::nodes::timestamp_tolerance(&s));
     for i in 0..n {
         rc.slaves[i].path_delay = Duration::from_ns(cal.path[i]);
-        rc.slaves[i].clock_window = RT_TIMESTAMP_TOLERANCE;
+        rc.slaves[i].clock_window = tolerance;
+        if rc.master.plan == PlanKind::P2pLumped {
+            rc.slaves[i].p2p_start = rc.master.p2p_start;
+        }
     }
-    rc.master.timestamp_tolerance = RT_TIMESTAMP_TOLERANCE;
+    rc.master.timestamp_tolerance = tolerance;
     // Warm-up: the real nodes on the real loop for a few hundred cycles, to measure each
     // slave's path delay as the running loop sees it (the calibration's frames skip the
     // nodes' processing and the loop's timers).
@@ -696,6 +702,7 @@ const RT_CLOCK_FILTER: ClockFilter = ClockFilter {
     outlier_limit: Some(Duration::from_us(50)),
     max_skips: 20,
     rate_interval: Duration::from_ms(100),
+    max_rate_error: ringsync_proto::node::clock::MAX_RATE_ERROR,
 };
 
 impl Ring {
@@ -818,11 +825,10 @@ impl Ring {
                 MasterEvent::GroupStop { .. } => {
                     self.stop_cycle.get_or_insert(self.cycles_started);
                     // Where the ring broke, from what each node last took.
-                    let running = self.alive[1..].to_vec();
                     self.rec
-                        .ring_break(locate_break_of(&self.master, &self.slaves, &running));
+                        .ring_break(locate_break_of(&self.master, &self.slaves));
                 }
-                MasterEvent::TorqueOff { .. } => {}
+                MasterEvent::Order { .. } => {}
             }
             self.rec.master_event(ev, self.master.record());
         }

@@ -60,6 +60,10 @@ impl RingConfig {
         let t_cyc = s.ring.cycle.0;
         // A lumped frame may reach a slave up to (n + 1) hops of jitter late.
         let clock_window = tolerance + s.ring.jitter.0 * (n as i64 + 1);
+        let p2p_start = match s.ring.plan {
+            PlanKind::P2pLumped => master.p2p_start,
+            PlanKind::LumpedOnly => Duration::ZERO,
+        };
         let kd = s.control.kd.expand(n);
         let slaves = (0..n)
             .map(|i| {
@@ -73,6 +77,7 @@ impl RingConfig {
                     u_max: a.u_max,
                     resolution: resolution[i],
                     clock_window,
+                    p2p_start,
                     safe_state: s.faults.safe_state,
                     brake_gain: kd[i],
                     ..SlaveConfig::new((i + 1) as u16, t_cyc, plan.d_c[i])
@@ -270,6 +275,7 @@ impl ServoAxis {
                 rec.fault(ts, i + 1, FaultStep::TorqueOff(cause));
             }
             SlaveEvent::Relocked { step } => rec.fault(ts, i + 1, FaultStep::Relocked(step)),
+            SlaveEvent::Braking { ordered } => rec.fault(ts, i + 1, FaultStep::Braking { ordered }),
         }
     }
 }
@@ -355,10 +361,14 @@ pub fn locate_break(
     }
 }
 
-/// [`locate_break`] for a ring of nodes at the master's current cycle.
-pub fn locate_break_of(master: &Master, slaves: &[Slave], running: &[bool]) -> RingBreak {
+/// [`locate_break`] for a ring of nodes at the master's current cycle, each node's
+/// "running" told by its own heartbeat: a slave runs while its encoder latches keep up with
+/// the cycles (its sample counter is within two of the master's cycle).
+pub fn locate_break_of(master: &Master, slaves: &[Slave]) -> RingBreak {
+    let k = master.cycle();
     let seen: Vec<Option<i64>> = slaves.iter().map(|s| s.last_lumped_cycle()).collect();
-    locate_break(master.cycle(), &seen, master.last_lumped_cycle(), running)
+    let running: Vec<bool> = slaves.iter().map(|s| s.samples_taken() >= k - 1).collect();
+    locate_break(k, &seen, master.last_lumped_cycle(), &running)
 }
 
 #[cfg(test)]

@@ -6,8 +6,8 @@
 use ringsync_control::{Coupling, Metrics};
 use ringsync_proto::Duration;
 use ringsync_proto::node::{
-    CycleRecord, MasterCounters, MasterEvent, OffReason, SafeState, SlaveCounters, StopReason,
-    TorqueOffCause,
+    CycleRecord, MasterCounters, MasterEvent, OffReason, SafeState, SlaveCounters, StopOrder,
+    StopReason, TorqueOffCause,
 };
 
 use crate::run::{Captured, LinkCounters, PassageLog, RunResult, TraceRow};
@@ -32,10 +32,15 @@ pub struct AxisProbe {
 pub enum FaultStep {
     /// The master stopped the group (the axis is the one that caused it).
     GroupStop(StopReason),
-    /// During the stop, the master ordered the axis's torque off.
-    TorqueOffOrdered(OffReason),
+    /// During the stop, the master gave the axis an order (brake, or torque off).
+    Ordered(StopOrder, OffReason),
     /// The slave's watchdog expired (it lost the master) and it applied its safe state.
     Watchdog(SafeState),
+    /// The drive began to brake on its own (ordered by the master, or its safe state).
+    Braking {
+        /// Whether the master ordered it.
+        ordered: bool,
+    },
     /// The axis's drive cut its torque.
     TorqueOff(TorqueOffCause),
     /// The slave's clock re-locked to a new master time line, stepping by this much.
@@ -47,8 +52,10 @@ impl FaultStep {
     pub fn name(&self) -> &'static str {
         match self {
             FaultStep::GroupStop(_) => "group_stop",
-            FaultStep::TorqueOffOrdered(_) => "torque_off_ordered",
+            FaultStep::Ordered(StopOrder::Brake, _) => "brake_ordered",
+            FaultStep::Ordered(StopOrder::TorqueOff, _) => "torque_off_ordered",
             FaultStep::Watchdog(_) => "watchdog",
+            FaultStep::Braking { .. } => "braking",
             FaultStep::TorqueOff(_) => "torque_off",
             FaultStep::Relocked(_) => "clock_relock",
         }
@@ -60,15 +67,20 @@ impl FaultStep {
                 StopReason::FollowingError { error, .. } => {
                     format!("following error {error:.4} rad beyond the limit")
                 }
+                StopReason::CommandMismatch { sent, applied, .. } => {
+                    format!("the slave applied {applied} V where the master sent {sent} V")
+                }
                 other => other.name().to_string(),
             },
-            FaultStep::TorqueOffOrdered(w) => match w {
+            FaultStep::Ordered(_, w) => match w {
                 OffReason::FollowingError { error } => {
                     format!("could not follow the stop ramp: {error:.4} rad off it")
                 }
                 other => other.name().to_string(),
             },
             FaultStep::Watchdog(s) => format!("master lost; safe state {}", s.name()),
+            FaultStep::Braking { ordered: true } => "ordered by the master".into(),
+            FaultStep::Braking { ordered: false } => "the slave's safe state".into(),
             FaultStep::TorqueOff(c) => c.name().to_string(),
             FaultStep::Relocked(step) => format!("stepped by {step}"),
         }
@@ -243,10 +255,15 @@ impl Recorder {
                 self.group_stop(t, reason);
                 self.fault(t, reason.axis() + 1, FaultStep::GroupStop(reason));
             }
-            MasterEvent::TorqueOff { at, axis, why } => self.fault(
+            MasterEvent::Order {
+                at,
+                axis,
+                order,
+                why,
+            } => self.fault(
                 at.as_ns() as f64 * 1e-9,
                 axis + 1,
-                FaultStep::TorqueOffOrdered(why),
+                FaultStep::Ordered(order, why),
             ),
         }
     }

@@ -608,12 +608,9 @@ impl<'a> Sim<'a> {
             self.send(0, tx.at.as_ns(), tx.bytes);
         }
         while let Some(ev) = self.master.poll_event() {
-            if let ringsync_proto::node::MasterEvent::GroupStop { at, .. } = ev {
-                let running: Vec<bool> = (1..=self.n)
-                    .map(|i| !self.is_silent(i, at.as_ns()))
-                    .collect();
+            if let ringsync_proto::node::MasterEvent::GroupStop { .. } = ev {
                 self.rec
-                    .ring_break(locate_break_of(&self.master, &self.slaves, &running));
+                    .ring_break(locate_break_of(&self.master, &self.slaves));
             }
             self.rec.master_event(ev, self.master.record());
         }

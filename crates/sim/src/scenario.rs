@@ -837,6 +837,37 @@ impl Scenario {
                 ));
             }
         }
+        self.check_brake()?;
+        Ok(())
+    }
+
+    /// A slave that loses its master brakes with u = −K_D·v, updated once a cycle
+    /// (docs/safety.md): that loop must be stable for every axis. For a torque axis,
+    /// v ← v·(1 − T·K_D/(J/K_a)), so T·K_D/(J/K_a) < 2; for a velocity axis (time constant
+    /// τ, gain k_v), v ← v·(a − (1 − a)·k_v·K_D) with a = e^(−T/τ), so
+    /// (1 − a)·k_v·K_D < 1 + a.
+    fn check_brake(&self) -> Result<(), ScenarioError> {
+        let t = self.ring.cycle.secs();
+        let kd = self.control.kd.expand(self.axes_count());
+        for (i, k) in kd.iter().enumerate() {
+            let Some(a) = self.axis_spec(i) else { continue };
+            let (factor, bound) = match a.model {
+                AxisKind::Torque => (t * k / a.j_over_ka, 2.0),
+                AxisKind::Velocity => {
+                    let e = (-t / a.time_constant.secs()).exp();
+                    ((1.0 - e) * a.velocity_gain * k, 1.0 + e)
+                }
+            };
+            if factor >= bound {
+                return Err(out_of_range(
+                    format!("control.kd (axis {i})"),
+                    k,
+                    format!(
+                        "a gain the slave's brake (u = −K_D·v once a cycle) can use: its loop factor is {factor:.3}, it must stay under {bound:.3}"
+                    ),
+                ));
+            }
+        }
         Ok(())
     }
 

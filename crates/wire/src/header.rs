@@ -4,7 +4,7 @@
 //! offset size type  field
 //!      0    1 u8    version (= 1)
 //!      1    1 u8    kind (1 lumped, 2 command, 3 response, 4 lumped-only)
-//!      2    1 u8    flags (bit 0: STOP, bit 1: TORQUE_OFF; bits 2-7 reserved, 0)
+//!      2    1 u8    flags (bit 0: STOP, bit 1: TORQUE_OFF, bit 2: BRAKE; bits 3-7 reserved, 0)
 //!      3    1 u8    retry (0 = first attempt, k = k-th retry)
 //!      4    4 u32   cycle counter
 //!      8    2 u16   sequence number of the sender
@@ -91,8 +91,12 @@ impl Flags {
     /// The master orders the target axis's drive to cut torque (in a command frame): the
     /// axis could not follow its stop ramp, or the stop is complete. Latched by the slave.
     pub const TORQUE_OFF: Flags = Flags(0x02);
+    /// The master orders the target axis's drive to brake on its own (damp its measured
+    /// velocity to standstill, then cut torque): the master has no feedback to control it.
+    /// In a lumped-only frame: every slave brakes. Latched by the slave.
+    pub const BRAKE: Flags = Flags(0x04);
     /// Bits this version defines.
-    pub const DEFINED: u8 = 0x03;
+    pub const DEFINED: u8 = 0x07;
 
     /// No flag set.
     pub const fn empty() -> Self {

@@ -251,7 +251,7 @@ fn typed_errors_name_the_problem() {
     assert_eq!(at(0, 2, &COMMAND), Err(Error::BadVersion(2)));
     assert_eq!(at(1, 9, &COMMAND), Err(Error::BadKind(9)));
     assert_eq!(at(2, 0x80, &COMMAND), Err(Error::ReservedFlags(0x80)));
-    assert_eq!(at(2, 0x04, &COMMAND), Err(Error::ReservedFlags(0x04)));
+    assert_eq!(at(2, 0x08, &COMMAND), Err(Error::ReservedFlags(0x08)));
     assert_eq!(at(12, 0, &COMMAND), Err(Error::BadSlave(0)));
     assert_eq!(
         at(14, 1, &COMMAND),

@@ -42,7 +42,14 @@ pub struct ClockFilter {
     /// The rate is measured between accepted pairs at least this far apart in master time
     /// (zero: successive pairs).
     pub rate_interval: Duration,
+    /// A rate measurement further from 1 than this is not taken (oscillators are good to
+    /// ±100 ppm; two frames whose stamps lie about the time between them would otherwise
+    /// set any rate, and every later frame would fall outside the clock's window).
+    pub max_rate_error: f64,
 }
+
+/// [`ClockFilter::max_rate_error`] by default: 1000 ppm, ten times the worst oscillator.
+pub const MAX_RATE_ERROR: f64 = 1e-3;
 
 impl Default for ClockFilter {
     fn default() -> Self {
@@ -52,6 +59,7 @@ impl Default for ClockFilter {
             outlier_limit: None,
             max_skips: 3,
             rate_interval: Duration::ZERO,
+            max_rate_error: MAX_RATE_ERROR,
         }
     }
 }
@@ -71,6 +79,8 @@ pub struct SyncClock {
     /// Pairs skipped in a row, and in all.
     skipped_run: u32,
     skipped: u64,
+    /// Rate measurements refused as implausible.
+    rates_refused: u64,
 }
 
 impl SyncClock {
@@ -85,6 +95,7 @@ impl SyncClock {
             filter: ClockFilter::default(),
             skipped_run: 0,
             skipped: 0,
+            rates_refused: 0,
         }
     }
 
@@ -96,12 +107,19 @@ impl SyncClock {
             outlier_limit: f.outlier_limit,
             max_skips: f.max_skips,
             rate_interval: f.rate_interval.max(Duration::ZERO),
+            max_rate_error: f.max_rate_error.clamp(1e-6, 0.5),
         };
     }
 
     /// Sync pairs skipped as outliers.
     pub fn skipped(&self) -> u64 {
         self.skipped
+    }
+
+    /// Rate measurements refused as implausible (further from 1 than
+    /// [`ClockFilter::max_rate_error`]).
+    pub fn rates_refused(&self) -> u64 {
+        self.rates_refused
     }
 
     /// The estimated rate ρ̂ of the local oscillator [local ns per master ns].
@@ -144,6 +162,14 @@ impl SyncClock {
                 Some((l0, m0)) if m.saturating_sub(m0) >= self.filter.rate_interval.as_ns() => {
                     if m > m0 && l > l0 {
                         let measured = (l - l0) as f64 / (m - m0) as f64;
+                        if (measured - 1.0).abs() > self.filter.max_rate_error {
+                            // A pair that lies about the time between frames (or one too
+                            // noisy to measure a rate): no rate from it, and not a baseline.
+                            self.rates_refused += 1;
+                            self.last = Some((l, anchor));
+                            self.syncs += 1;
+                            return;
+                        }
                         self.rate += self.filter.rate_gain * (measured - self.rate);
                     }
                     self.raw = Some((l, m));
@@ -303,6 +329,7 @@ mod tests {
             outlier_limit: Some(Duration::from_us(50)),
             max_skips: 3,
             rate_interval: Duration::ZERO,
+            max_rate_error: MAX_RATE_ERROR,
         });
         // The same with the rate measured over 100 ms between accepted pairs.
         let (long, skipped_long, rate_long) = run(ClockFilter {
@@ -311,6 +338,7 @@ mod tests {
             outlier_limit: Some(Duration::from_us(50)),
             max_skips: 3,
             rate_interval: Duration::from_ms(100),
+            max_rate_error: MAX_RATE_ERROR,
         });
         assert!(long < 6_000, "long-baseline residual {long} ns");
         assert_eq!(skipped_long, skipped);
@@ -361,6 +389,7 @@ mod tests {
                 outlier_limit: limit,
                 max_skips: 3,
                 rate_interval: Duration::ZERO,
+                max_rate_error: MAX_RATE_ERROR,
             },
             ClockFilter {
                 offset_gain: 0.25,
@@ -368,6 +397,7 @@ mod tests {
                 outlier_limit: limit,
                 max_skips: 3,
                 rate_interval: Duration::from_ms(100),
+                max_rate_error: MAX_RATE_ERROR,
             },
         ] {
             let (skipped, worst) = run(filter);
@@ -387,6 +417,7 @@ mod tests {
                 outlier_limit: Some(Duration::from_us(50)),
                 max_skips,
                 rate_interval: Duration::from_ms(100),
+                max_rate_error: MAX_RATE_ERROR,
             };
             let late = |k: i64| if (700..706).contains(&k) { 300_000 } else { 0 };
             let mut worst = 0;
@@ -408,6 +439,20 @@ mod tests {
             "the 4th late frame moves the clock: {short} ns"
         );
         assert!(long < 100, "the clock stays: {long} ns");
+    }
+
+    /// Two pairs whose stamps lie about the time between them (20 µs of local time for
+    /// 1 ns of master time) set no rate: the clock keeps ρ̂ = 1.
+    #[test]
+    fn an_implausible_rate_is_not_taken() {
+        let mut c = SyncClock::new(true);
+        c.sync(Instant::from_ns(1_000_000), Instant::from_ns(1_000_000));
+        c.sync(Instant::from_ns(1_020_000), Instant::from_ns(1_000_001));
+        assert_eq!(c.rate(), 1.0);
+        assert_eq!(c.rates_refused(), 1);
+        // Honest pairs 1 ms apart, 50 ppm fast, are taken.
+        c.sync(Instant::from_ns(2_020_050), Instant::from_ns(2_000_001));
+        assert!((c.rate() - 1.0).abs() < 1e-4, "{}", c.rate());
     }
 
     /// Clock readings never overflow, whatever pair the clock holds.

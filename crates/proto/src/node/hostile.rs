@@ -257,9 +257,22 @@ fn duplicated_frames_are_taken_once() {
             "slave {}: {c:?}",
             i + 1
         );
-        let applied = r.applied.iter().filter(|a| a.1 == i + 1).count() as u64;
-        assert_eq!(applied, c.commands);
-        assert!(c.commands <= 500, "{c:?}");
+        // At most one command applied per cycle, though every one came twice.
+        let mut cycles: Vec<i64> = r
+            .applied
+            .iter()
+            .filter(|a| a.1 == i + 1)
+            .map(|a| a.0 / MS)
+            .collect();
+        let all = cycles.len();
+        cycles.dedup();
+        assert_eq!(
+            cycles.len(),
+            all,
+            "slave {} applied twice in a cycle",
+            i + 1
+        );
+        assert!(c.commands >= 495, "{c:?}");
     }
     assert!(stops(&r).is_empty());
     assert!(r.worst_error() < 0.1);
@@ -399,7 +412,12 @@ fn a_group_stop_ramps_down_then_cuts_torque() {
         .master_events
         .iter()
         .filter_map(|(t, e)| match e {
-            MasterEvent::TorqueOff { axis, why, .. } => Some((*t, *axis, *why)),
+            MasterEvent::Order {
+                axis,
+                order: StopOrder::TorqueOff,
+                why,
+                ..
+            } => Some((*t, *axis, *why)),
             _ => None,
         })
         .collect();
@@ -434,17 +452,16 @@ fn a_group_stop_ramps_down_then_cuts_torque() {
                     cause: TorqueOffCause::Commanded
                 }));
     }
-    // (The testbed's frictionless axes under PD settle slowly: near standstill, not at it.)
+    // The ramping axes were at standstill (below 0.2 rad/s) when their torque went off
+    // (the testbed's frictionless axes keep that speed after: they coast).
     for i in [0, 2, 3] {
         assert!(
-            r.axes[i].v.abs() < 0.5,
+            r.axes[i].v.abs() < 0.2,
             "axis {} at {} rad/s",
             i + 1,
             r.axes[i].v
         );
     }
-    // No command beyond the drive range; commands to an axis after its torque-off are 0.
-    assert!(r.applied.iter().all(|a| a.2.abs() <= 10.0));
 }
 
 /// The master is gone at full speed. With `brake`, each slave damps its own axis to
@@ -579,4 +596,169 @@ fn a_stray_frame_before_the_first_cannot_capture_a_slave() {
         assert_eq!(c.rejected.total(), 0, "slave {}: {c:?}", i + 1);
         assert!(clock_error(&r, i + 1).abs() < 100);
     }
+}
+
+/// A lumped frame stamped at the end of the time line reaches the slaves before the
+/// master's first: refused as an overflow. Before the fix it was taken on trust, the
+/// sampling instant k·T saturated, and every driver spun forever on the same latch.
+#[test]
+fn a_stamp_at_the_end_of_the_time_line_is_refused() {
+    let mut r = ring();
+    let stamp = (i64::MAX - 1_000) as u64;
+    r.inject(1, 0, lumped((stamp / MS as u64) as u32, stamp, 4));
+    let near = (Instant::HORIZON.as_ns() + 1) as u64;
+    r.inject(1, 10, lumped((near / MS as u64) as u32, near, 4));
+    r.run_until(200 * MS);
+    for s in &r.slaves {
+        assert_eq!(
+            s.counters().rejected.get(Reject::Overflow),
+            2,
+            "{:?}",
+            s.counters()
+        );
+        assert!(s.samples_taken() >= 200 && s.samples_taken() <= 202);
+    }
+    assert!(stops(&r).is_empty());
+}
+
+/// For ten cycles in a row every lumped frame comes back 50 µs after the P2P start (a
+/// link with jitter): its samples are taken late, after the law ran. The axes are not
+/// blind: no feedback stop. Before the fix the watchdog counted only samples taken before
+/// the law's run, and the ring stopped after W = 5 such cycles.
+#[test]
+fn samples_that_come_back_late_still_feed_the_watchdog() {
+    let mut r = ring();
+    let late = r.master.config().p2p_start.as_ns() + 50_000;
+    r.tap = Some(Box::new(move |hop: &Hop, b: &mut Vec<u8>| {
+        if hop.to == 0 && is_kind(b, FrameKind::Lumped) && (100..110).contains(&cycle_of(b)) {
+            return Fate::Delay { by: late };
+        }
+        Fate::Deliver
+    }));
+    r.run_until(300 * MS);
+    assert!(stops(&r).is_empty(), "{:?}", stops(&r));
+    assert_eq!(r.master.counters().lumped_lost, 10);
+    assert!(r.worst_error() < 0.1, "{}", r.worst_error());
+}
+
+/// The ring breaks at slave 3 at full speed. The master has no feedback from any axis; it
+/// can still reach slaves 1 and 2, and orders them to brake on their own; 3 and 4, which
+/// it cannot reach, brake after their watchdogs. Every axis ends at standstill, none coasts.
+/// Before the fix the master ordered torque off to the axes it could reach, and they coasted.
+#[test]
+fn a_broken_ring_brakes_every_axis_it_can_reach_and_the_rest_brake_alone() {
+    let mut r = ring();
+    r.run_until(500 * MS);
+    r.dead[3] = true;
+    r.run_until(1_500 * MS);
+    let s = stops(&r);
+    assert!(
+        matches!(s.first(), Some((_, StopReason::NoFeedback { .. }))),
+        "{s:?}"
+    );
+    for i in [1, 2] {
+        assert!(
+            r.slave_events
+                .iter()
+                .any(|(_, s, e)| *s == i && *e == SlaveEvent::Braking { ordered: true }),
+            "slave {i} was not ordered to brake"
+        );
+    }
+    assert!(
+        r.slave_events
+            .iter()
+            .any(|(_, s, e)| *s == 4 && *e == SlaveEvent::Braking { ordered: false })
+    );
+    for i in [1, 2, 4] {
+        let v = r.axes[i - 1].v;
+        assert!(v.abs() < 0.1, "axis {i} at {v} rad/s");
+        assert!(r.slaves[i - 1].torque_off(), "slave {i}");
+    }
+}
+
+/// The real lumped frame of cycle 300 to slave 1 is lost, and a forger sends two frames
+/// that lie about the time between them (1 ns of master time in 20 µs). Before the fix the
+/// clock took the rate 20000/1 from them: every later frame fell outside its window and
+/// the slave sampled once every 2.5 s. Now the rate stays within 1000 ppm of 1.
+#[test]
+fn two_lying_frames_cannot_set_a_clock_rate() {
+    let mut r = ring();
+    r.tap = Some(Box::new(|hop: &Hop, b: &mut Vec<u8>| {
+        if hop.to == 1 && is_kind(b, FrameKind::Lumped) && cycle_of(b) == 300 {
+            return Fate::Drop;
+        }
+        Fate::Deliver
+    }));
+    r.run_until(300 * MS + 500_000);
+    r.inject(1, 301 * MS - 29_000, lumped(300, 301 * MS as u64, 4));
+    r.inject(1, 301 * MS - 9_000, lumped(301, 301 * MS as u64 + 1, 4));
+    r.run_until(1_000 * MS);
+    for (i, s) in r.slaves.iter().enumerate() {
+        assert!(
+            (s.clock().rate() - 1.0).abs() < 1e-3,
+            "slave {}: {}",
+            i + 1,
+            s.clock().rate()
+        );
+        assert!(
+            s.samples_taken() >= 995,
+            "slave {}: {}",
+            i + 1,
+            s.samples_taken()
+        );
+    }
+    assert!(stops(&r).is_empty(), "{:?}", stops(&r));
+}
+
+/// Forged commands of the cycle in progress. One before the P2P phase (the master
+/// computes there, so none of its commands comes earlier) is refused. One during the P2P
+/// phase, ahead of the master's own, is taken by the slave (nothing in it can tell): but
+/// the slave's response says what it applied, the master sees that it is not what it sent,
+/// and stops the group. Before the fix the forged 10 V was applied every cycle unnoticed.
+#[test]
+fn a_forged_command_of_the_current_cycle_is_refused_or_caught() {
+    let mut r = ring();
+    r.run_until(100 * MS);
+    r.inject(2, 100 * MS + 20_000, command(100, 2, 10.0, 0, 0));
+    r.run_until(100 * MS + 25_000);
+    assert_eq!(r.slaves[1].counters().rejected.get(Reject::WrongCycle), 1);
+    assert!(r.applied.iter().all(|a| a.2 != 10.0));
+    // During the P2P phase, before the master's command to slave 2 (its slice is second).
+    let p2p = r.master.config().p2p_start.as_ns();
+    r.run_until(200 * MS);
+    r.inject(2, 200 * MS + p2p + 1_000, command(200, 2, 10.0, 0, 0));
+    r.run_until(210 * MS);
+    let s = stops(&r);
+    assert!(
+        matches!(
+            s.first(),
+            Some((_, StopReason::CommandMismatch { axis: 1, .. }))
+        ),
+        "{s:?}"
+    );
+    assert_eq!(r.master.counters().command_mismatches, 1);
+}
+
+/// The master really steps to a new time line, and a stray frame of a third time line
+/// comes every 50 ms. The stray frames do not hold off the re-lock (before the fix each
+/// one restarted the candidate, and the slave never re-locked).
+#[test]
+fn stray_frames_do_not_hold_off_a_relock() {
+    let t_cyc = Duration::from_ms(1);
+    let mut s = Slave::new(SlaveConfig::new(1, t_cyc, Duration::from_us(1)));
+    let feed = |s: &mut Slave, k: i64, master_k: i64| {
+        let rx = Instant::from_ns(k * MS + 1_000);
+        let mut b = lumped(master_k as u32, (master_k * MS) as u64, 1);
+        s.handle_frame(rx, rx, &mut b);
+    };
+    for k in 0..50 {
+        feed(&mut s, k, k);
+    }
+    for k in 50..400 {
+        feed(&mut s, k, k + 5_000);
+        if k % 50 == 25 {
+            feed(&mut s, k, k + 90_000);
+        }
+    }
+    assert_eq!(s.counters().relocks, 1, "{:?}", s.counters());
 }

@@ -90,6 +90,8 @@ pub struct MasterConfig {
     pub stop_hold: Duration,
     /// During a group stop, the longest any axis keeps its torque.
     pub stop_timeout: Duration,
+    /// During a group stop, an axis counts as standing still below this speed [rad/s].
+    pub stop_standstill: f64,
 }
 
 impl MasterConfig {
@@ -155,6 +157,7 @@ impl MasterConfig {
             timestamp_tolerance: Duration::from_us(50),
             stop_hold: Duration::from_ms(100),
             stop_timeout: Duration::from_ms(2_000),
+            stop_standstill: 0.2,
         }
     }
 
@@ -184,11 +187,21 @@ pub enum StopReason {
         /// Axis index.
         axis: usize,
     },
-    /// Axis `axis`'s newest feedback sample is more than W cycles old: the master can no
+    /// Axis `axis` brought no fresh feedback sample for W cycles: the master can no
     /// longer control it (its command is 0 V from then on).
     NoFeedback {
         /// Axis index.
         axis: usize,
+    },
+    /// Axis `axis`'s slave applied a command other than the one the master sent it (its
+    /// response's applied command disagrees): something else commands the axis.
+    CommandMismatch {
+        /// Axis index.
+        axis: usize,
+        /// What the master sent [V].
+        sent: f32,
+        /// What the slave says it applied [V].
+        applied: f32,
     },
 }
 
@@ -199,7 +212,8 @@ impl StopReason {
             StopReason::FollowingError { axis, .. }
             | StopReason::AxisFault { axis }
             | StopReason::NoResponse { axis }
-            | StopReason::NoFeedback { axis } => axis,
+            | StopReason::NoFeedback { axis }
+            | StopReason::CommandMismatch { axis, .. } => axis,
         }
     }
     /// A short name for outputs.
@@ -209,11 +223,32 @@ impl StopReason {
             StopReason::AxisFault { .. } => "axis fault",
             StopReason::NoResponse { .. } => "no response",
             StopReason::NoFeedback { .. } => "no feedback",
+            StopReason::CommandMismatch { .. } => "command mismatch",
         }
     }
 }
 
-/// Why the master ordered an axis's torque off during a group stop.
+/// What the master orders an axis's drive to do during a group stop.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum StopOrder {
+    /// Brake on its own (the `BRAKE` flag): damp its measured velocity to standstill, then
+    /// cut torque. For an axis the master can still reach but no longer sees.
+    Brake,
+    /// Cut torque (the `TORQUE_OFF` flag).
+    TorqueOff,
+}
+
+impl StopOrder {
+    /// A short name for outputs.
+    pub fn name(self) -> &'static str {
+        match self {
+            StopOrder::Brake => "brake",
+            StopOrder::TorqueOff => "torque off",
+        }
+    }
+}
+
+/// Why the master gave an axis a [`StopOrder`] during a group stop.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum OffReason {
     /// The axis could not follow its stop ramp: its error against the ramp [rad] exceeded
@@ -222,12 +257,16 @@ pub enum OffReason {
         /// The error against the ramp [rad].
         error: f64,
     },
-    /// The axis has no feedback (none fresh for W cycles): it cannot be controlled.
+    /// The axis has no feedback (none fresh for W cycles): the master cannot control it,
+    /// so it orders the drive to brake on its own.
     NoFeedback,
-    /// Its ramp has ended and it held still for the hold time.
+    /// Its ramp has ended and it has held still for the hold time.
     StopComplete,
     /// The stop has lasted its longest allowed time.
     StopTimeout,
+    /// The lumped-only plan: the master does not command the axes, so every drive brakes
+    /// on its own.
+    LumpedOnly,
 }
 
 impl OffReason {
@@ -238,6 +277,7 @@ impl OffReason {
             OffReason::NoFeedback => "no feedback",
             OffReason::StopComplete => "stop complete",
             OffReason::StopTimeout => "stop timed out",
+            OffReason::LumpedOnly => "lumped-only plan: the drives brake on their own",
         }
     }
 }
@@ -257,12 +297,14 @@ pub enum MasterEvent {
         /// Why.
         reason: StopReason,
     },
-    /// During the group stop, the master ordered axis `axis`'s torque off at `at`.
-    TorqueOff {
+    /// During the group stop, the master gave axis `axis` an order at `at`.
+    Order {
         /// When [master ns].
         at: Instant,
         /// The axis (0-based).
         axis: usize,
+        /// Brake or torque off.
+        order: StopOrder,
         /// Why.
         why: OffReason,
     },
@@ -291,6 +333,8 @@ pub struct MasterCounters {
     pub commands_lost: u64,
     /// Frames (and feedback slots) refused, per reason.
     pub rejected: Rejections,
+    /// Responses whose applied command was not the one the master sent.
+    pub command_mismatches: u64,
 }
 
 /// What the master computed in one cycle (for traces).
@@ -380,10 +424,16 @@ pub struct Master {
     missed: Vec<u32>,
     /// Axes without a fresh sample for W cycles or more: commanded 0 V.
     blind: Vec<bool>,
-    /// Consecutive law runs without a fresh sample, per axis (the feedback watchdog).
+    /// Consecutive law runs without a new sample, per axis (the feedback watchdog), and
+    /// whether a new sample was taken since the last law run (a sample that came back late
+    /// still counts: the frame was late, the axis not blind).
     since_fresh: Vec<u32>,
-    /// Axes whose torque the master ordered off (latched).
-    off: Vec<bool>,
+    fed: Vec<bool>,
+    /// The order given to each axis during a group stop (latched; a brake may still become
+    /// torque off).
+    orders: Vec<Option<StopOrder>>,
+    /// The command sent to each axis in this cycle [V], to check the responses' echo.
+    sent_u: Vec<f32>,
     /// Per lumped frame of this cycle: the sequence number and stamp it went out with,
     /// and whether it has come back.
     sent_lumped: Vec<SentLumped>,
@@ -432,7 +482,9 @@ impl Master {
             missed: vec![0; n],
             blind: vec![false; n],
             since_fresh: vec![0; n],
-            off: vec![false; n],
+            fed: vec![false; n],
+            orders: vec![None; n],
+            sent_u: vec![0.0; n],
             sent_lumped: vec![SentLumped::default(); cfg.lumped_offsets.len()],
             last_back: None,
             retry_queue: VecDeque::new(),
@@ -482,9 +534,9 @@ impl Master {
     pub fn last_lumped_cycle(&self) -> Option<i64> {
         self.last_back
     }
-    /// Whether the master ordered axis `i`'s (0-based) torque off.
-    pub fn torque_off(&self, i: usize) -> bool {
-        self.off.get(i).copied().unwrap_or(false)
+    /// The order the master gave axis `i` (0-based) during a group stop, if any.
+    pub fn order(&self, i: usize) -> Option<StopOrder> {
+        self.orders.get(i).copied().flatten()
     }
 
     /// Whether the master is waiting for frames: a lumped frame of this cycle not back yet,
@@ -548,6 +600,7 @@ impl Master {
                     self.counters.lumped_lost +=
                         (self.cfg.lumped_offsets.len() - self.lumped_back) as u64;
                 }
+                self.supervise_lumped_only(now);
                 self.k += 1;
                 self.next_lumped = 0;
                 self.lumped_back = 0;
@@ -571,6 +624,38 @@ impl Master {
         }
         if self.open_at.is_none() && self.deadline.is_none() && now >= c + self.cfg.cycle {
             self.end_cycle();
+        }
+    }
+
+    /// The lumped-only plan's supervision at the end of each cycle: the feedback watchdog,
+    /// and the group stop (a following error seen in a returned frame, or no fresh sample
+    /// for W cycles). The master cannot command the axes in this plan: from the stop on,
+    /// its lumped frames carry STOP and BRAKE, and every drive brakes on its own.
+    fn supervise_lumped_only(&mut self, now: Instant) {
+        let n = self.cfg.axes();
+        let mut reason = self.pending_stop.take();
+        for i in 0..n {
+            self.since_fresh[i] = if std::mem::take(&mut self.fed[i]) {
+                0
+            } else {
+                self.since_fresh[i].saturating_add(1)
+            };
+            self.blind[i] = self.since_fresh[i] >= self.cfg.watchdog_cycles;
+            if self.blind[i] && reason.is_none() {
+                reason = Some(StopReason::NoFeedback { axis: i });
+            }
+        }
+        if let (Some(r), None) = (reason, &self.stop) {
+            self.begin_stop(now, r);
+            for axis in 0..n {
+                self.orders[axis] = Some(StopOrder::Brake);
+                self.events.push_back(MasterEvent::Order {
+                    at: now,
+                    axis,
+                    order: StopOrder::Brake,
+                    why: OffReason::LumpedOnly,
+                });
+            }
         }
     }
 
@@ -631,8 +716,16 @@ impl Master {
     /// Sends a lumped frame of either layout, stamped with `now`, and gives the slots back.
     fn queue_lumped<S: SlotCodec>(&mut self, now: Instant, first: usize, slots: Vec<S>) -> Vec<S> {
         self.seq = self.seq.wrapping_add(1);
+        // In the lumped-only plan the lumped frame is the only way to the drives: once the
+        // group stops it tells them all to brake.
+        let flags = if self.stop.is_some() && self.cfg.plan == PlanKind::LumpedOnly {
+            Flags::STOP.with(Flags::BRAKE)
+        } else {
+            Flags::empty()
+        };
         let repr = LumpedRepr {
             common: Common {
+                flags,
                 cycle: self.k as u32,
                 seq: self.seq,
                 ..Common::default()
@@ -727,7 +820,7 @@ impl Master {
             // W cycles old drives the axis blind (with the ring broken behind it, the error
             // it sees never closes and the command winds up to saturation), whatever
             // timestamps the frames claim.
-            self.since_fresh[i] = if self.fresh[i] {
+            self.since_fresh[i] = if std::mem::take(&mut self.fed[i]) {
                 0
             } else {
                 self.since_fresh[i].saturating_add(1)
@@ -757,7 +850,7 @@ impl Master {
             self.output.u.fill(0.0);
         }
         for i in 0..n {
-            if self.blind[i] || self.off[i] {
+            if self.blind[i] || self.orders[i].is_some() {
                 self.output.u[i] = 0.0;
                 self.output.saturated[i] = false;
             }
@@ -783,12 +876,12 @@ impl Master {
         self.stop = Some(
             (0..n)
                 .map(|i| {
-                    let (x0, v0) = if self.latest[i].is_some() {
-                        let v = self.fb.velocity[i];
-                        (self.fb.position[i] + v * (t - self.fb.sample_time[i]), v)
-                    } else {
-                        let d = self.trajectories[i].at(t);
-                        (d.x, d.v)
+                    let (x0, v0) = match self.measured(i) {
+                        Some((x, v, ts)) => (x + v * (t - ts), v),
+                        None => {
+                            let d = self.trajectories[i].at(t);
+                            (d.x, d.v)
+                        }
                     };
                     StopRamp {
                         t0: t,
@@ -806,39 +899,70 @@ impl Master {
         }
     }
 
-    /// During the stop: torque off for every axis that cannot follow its ramp, has no
-    /// feedback, has finished its ramp and held still, or has run out of time.
+    /// The latest measured position [rad], velocity [rad/s] and sampling instant [s] of
+    /// axis `i`, if it ever reported one.
+    fn measured(&self, i: usize) -> Option<(f64, f64, f64)> {
+        let res = self.cfg.resolution[i];
+        let f = match self.cfg.plan {
+            PlanKind::P2pLumped => self.latest[i]?,
+            PlanKind::LumpedOnly => {
+                let f = self.lo_slots[i].feedback;
+                if f.sample_time_ns == 0 && !f.written {
+                    return None;
+                }
+                f
+            }
+        };
+        Some((
+            f64::from(f.position) * res,
+            f64::from(f.velocity) * res,
+            f.sample_time_ns as f64 * 1e-9,
+        ))
+    }
+
+    /// During the stop: brake for an axis without feedback (the master can reach it but no
+    /// longer sees it); torque off for one that cannot follow its ramp, has ended its ramp
+    /// and held still, or has run out of time.
     fn supervise_stop(&mut self, now: Instant, t: f64) {
         let Some(ramps) = &self.stop else { return };
         let hold = self.cfg.stop_hold.as_ns() as f64 * 1e-9;
         let timeout = self.cfg.stop_timeout.as_ns() as f64 * 1e-9;
         let mut orders = Vec::new();
         for (i, r) in ramps.iter().enumerate() {
-            if self.off[i] {
+            if self.orders[i] == Some(StopOrder::TorqueOff) {
                 continue;
             }
-            let why = if self.blind[i] || self.latest[i].is_none() {
-                Some(OffReason::NoFeedback)
-            } else {
-                let error = r.at(self.fb.sample_time[i]).x - self.fb.position[i];
-                if error.abs() > self.cfg.following_error_limit {
-                    Some(OffReason::FollowingError { error })
-                } else if t >= r.t0 + r.v0.abs() / r.decel + hold {
-                    Some(OffReason::StopComplete)
-                } else if t >= r.t0 + timeout {
-                    Some(OffReason::StopTimeout)
-                } else {
-                    None
+            let measured = self.measured(i).filter(|_| !self.blind[i]);
+            let order = match (self.orders[i], measured) {
+                _ if t >= r.t0 + timeout => Some((StopOrder::TorqueOff, OffReason::StopTimeout)),
+                // Braking on its own already (or off): the drive ends it.
+                (Some(_), _) => None,
+                (None, None) => Some((StopOrder::Brake, OffReason::NoFeedback)),
+                (_, Some((x, v, ts))) => {
+                    let error = r.at(ts).x - x;
+                    if error.abs() > self.cfg.following_error_limit {
+                        Some((StopOrder::TorqueOff, OffReason::FollowingError { error }))
+                    } else if t >= r.t0 + r.v0.abs() / r.decel + hold
+                        && v.abs() <= self.cfg.stop_standstill
+                    {
+                        Some((StopOrder::TorqueOff, OffReason::StopComplete))
+                    } else {
+                        None
+                    }
                 }
             };
-            if let Some(why) = why {
-                orders.push((i, why));
+            if let Some(o) = order {
+                orders.push((i, o));
             }
         }
-        for (axis, why) in orders {
-            self.off[axis] = true;
-            self.events
-                .push_back(MasterEvent::TorqueOff { at: now, axis, why });
+        for (axis, (order, why)) in orders {
+            self.orders[axis] = Some(order);
+            self.events.push_back(MasterEvent::Order {
+                at: now,
+                axis,
+                order,
+                why,
+            });
         }
     }
 
@@ -866,9 +990,12 @@ impl Master {
         } else {
             Flags::empty()
         };
-        if self.off[target] {
-            flags = flags.with(Flags::TORQUE_OFF);
+        match self.orders[target] {
+            Some(StopOrder::TorqueOff) => flags = flags.with(Flags::TORQUE_OFF),
+            Some(StopOrder::Brake) => flags = flags.with(Flags::BRAKE),
+            None => {}
         }
+        self.sent_u[target] = self.output.u[target] as f32;
         let cmd = CommandRepr {
             common: Common {
                 flags,
@@ -1019,6 +1146,7 @@ impl Master {
         } else {
             self.latest[i] = Some(slot);
             self.fresh[i] = true;
+            self.fed[i] = true;
         }
     }
 
@@ -1049,10 +1177,37 @@ impl Master {
                 {
                     s.status = s.status.with(Status::FAULT);
                 }
+                self.check_applied(i, r);
                 Ok(())
             }
             _ if self.acked[i] => Err(Reject::Duplicate),
             _ => Err(Reject::Unsolicited),
+        }
+    }
+
+    /// A response says which command the slave applied: it must be the one this master
+    /// sent (clipped to the drive's range if the slave says it saturated), unless the
+    /// drive no longer follows commands (fault, braking, torque off). Anything else means
+    /// that something besides this master commands the axis: the group stops.
+    fn check_applied(&mut self, i: usize, r: &ResponseRepr) {
+        let idle = Status::FAULT.with(Status::BRAKING).with(Status::TORQUE_OFF);
+        if r.status.bits() & idle.bits() != 0 {
+            return;
+        }
+        let (sent, applied) = (self.sent_u[i], r.applied_v);
+        let ok = if r.status.contains(Status::SATURATED) {
+            applied.abs() <= sent.abs() && applied * sent > 0.0
+        } else {
+            applied == sent
+        };
+        if !ok {
+            self.counters.command_mismatches += 1;
+            self.pending_stop
+                .get_or_insert(StopReason::CommandMismatch {
+                    axis: i,
+                    sent,
+                    applied,
+                });
         }
     }
 
@@ -1074,8 +1229,7 @@ impl Master {
         self.lumped_back += 1;
         self.last_back = Some(self.k);
         let newest = self.newest_sample(now);
-        let r = &mut self.record;
-        r.k = self.k;
+        self.record.k = self.k;
         for (k, slot) in l.slots.iter().enumerate() {
             let i = first + k;
             if i >= self.lo_slots.len() {
@@ -1087,15 +1241,25 @@ impl Master {
                 continue;
             }
             self.lo_slots[i] = *slot;
+            let x = f64::from(f.position) * self.cfg.resolution[i];
+            let ts = f.sample_time_ns as f64 * 1e-9;
             if !f.written {
                 self.counters.samples_missing += 1;
+            } else {
+                self.fed[i] = true;
+                let error = self.desired(i, ts).x - x;
+                if error.abs() > self.cfg.following_error_limit && self.stop.is_none() {
+                    self.pending_stop
+                        .get_or_insert(StopReason::FollowingError { axis: i, error });
+                }
             }
+            let r = &mut self.record;
             r.fresh[i] = f.written;
-            r.position[i] = f64::from(f.position) * self.cfg.resolution[i];
-            r.sample_time[i] = f.sample_time_ns as f64 * 1e-9;
+            r.position[i] = x;
+            r.sample_time[i] = ts;
             r.u[i] = f64::from(slot.command_v);
             r.saturated[i] = f.status.contains(Status::SATURATED);
-            r.apply_time[i] = r.sample_time[i];
+            r.apply_time[i] = ts;
         }
         if self.lumped_back == self.cfg.lumped_offsets.len() {
             self.events.push_back(MasterEvent::Computed { k: self.k });

@@ -13,7 +13,8 @@ pub mod testbed;
 
 pub use clock::{ClockFilter, SyncClock};
 pub use master::{
-    CycleRecord, Master, MasterConfig, MasterCounters, MasterEvent, OffReason, StopReason,
+    CycleRecord, Master, MasterConfig, MasterCounters, MasterEvent, OffReason, StopOrder,
+    StopReason,
 };
 pub use reject::{Reject, Rejections};
 pub use slave::{

@@ -187,6 +187,9 @@ pub struct SlaveConfig {
     /// Frames of a new, self-consistent master time line outside the clock window are
     /// taken as a real clock step after this long with no frame of the old time line.
     pub relock_after: Duration,
+    /// Start of the P2P phase from the cycle start: the master computes there, so no
+    /// command of a cycle can come earlier (one that does is not the master's).
+    pub p2p_start: Duration,
     /// The local reaction when the master is lost.
     pub safe_state: SafeState,
     /// K_b of the brake reaction u = −K_b·v [V·s/rad].
@@ -199,7 +202,8 @@ impl SlaveConfig {
     /// Slave `address` on a ring of cycle `cycle`, `path_delay` from the master, with the
     /// reference ring's other settings: T_ti 2 µs, a 125 µs velocity window, no sampling
     /// lead, W = 5, synchronised clock, ±10 V, a 20-bit encoder, a clock window of ±50 µs,
-    /// re-lock after 100 cycles, brake with K_b = 1.591 V·s/rad for at most 2 s.
+    /// re-lock after 100 cycles, commands taken from the cycle start on (set `p2p_start`
+    /// from the plan), brake with K_b = 1.591 V·s/rad for at most 2 s.
     pub fn new(address: u16, cycle: Duration, path_delay: Duration) -> Self {
         SlaveConfig {
             address,
@@ -214,6 +218,7 @@ impl SlaveConfig {
             resolution: std::f64::consts::TAU / f64::from(1u32 << 20),
             clock_window: Duration::from_us(50),
             relock_after: cycle * 100,
+            p2p_start: Duration::ZERO,
             safe_state: SafeState::Brake,
             brake_gain: 1.591,
             brake_timeout: Duration::from_ms(2_000),
@@ -231,6 +236,12 @@ pub enum SlaveEvent {
     },
     /// The watchdog expired: the master is lost; the safe state's reaction follows.
     WatchdogExpired,
+    /// The drive began to brake on its own: ordered by the master (`BRAKE`), or its safe
+    /// state after the watchdog.
+    Braking {
+        /// Whether the master ordered it.
+        ordered: bool,
+    },
     /// The drive's own brake command (the `Brake` safe state) [V] from now on.
     Brake {
         /// The command after clipping [V].
@@ -272,6 +283,9 @@ pub struct SlaveCounters {
     pub rejected: Rejections,
     /// Clock re-locks to a new master time line.
     pub relocks: u64,
+    /// Clock acquisitions started afresh (a frame disagreed with the frames before it
+    /// before the clock had locked).
+    pub acquisitions_restarted: u64,
 }
 
 /// Which encoder latch comes next.
@@ -514,13 +528,7 @@ impl Slave {
             match (self.drive, self.cfg.safe_state) {
                 (Drive::Off, _) => {}
                 (_, SafeState::TorqueOff) => self.cut_torque(TorqueOffCause::Watchdog),
-                (_, SafeState::Brake) => {
-                    self.status = self.status.with(Status::BRAKING);
-                    self.drive = Drive::Braking {
-                        since: now.as_ns(),
-                        still: 0,
-                    };
-                }
+                (_, SafeState::Brake) => self.begin_brake(now, false),
             }
         }
     }
@@ -531,7 +539,11 @@ impl Slave {
         let Drive::Braking { since, still } = self.drive else {
             return;
         };
-        let still = if moved.abs() <= 1 { still + 1 } else { 0 };
+        let still = if moved.unsigned_abs() <= 1 {
+            still + 1
+        } else {
+            0
+        };
         if still >= STANDSTILL_SAMPLES {
             self.cut_torque(TorqueOffCause::Standstill);
             return;
@@ -547,6 +559,20 @@ impl Slave {
         self.u = u;
         self.drive = Drive::Braking { since, still };
         self.events.push_back(SlaveEvent::Brake { u });
+    }
+
+    /// The drive starts braking on its own at local time `now` (unless it already brakes
+    /// or its torque is off).
+    fn begin_brake(&mut self, now: Instant, ordered: bool) {
+        if self.drive != Drive::Enabled {
+            return;
+        }
+        self.status = self.status.with(Status::BRAKING);
+        self.drive = Drive::Braking {
+            since: now.as_ns(),
+            still: 0,
+        };
+        self.events.push_back(SlaveEvent::Braking { ordered });
     }
 
     fn cut_torque(&mut self, cause: TorqueOffCause) {
@@ -598,6 +624,12 @@ impl Slave {
                 frame.fill_crc();
                 FrameOutcome::Forward
             }
+            // The lumped-only plan carries no commands: a slave that runs its own law takes
+            // none (it would apply it on top of its law's output).
+            FrameKind::Command if self.law.is_some() => {
+                self.reject(Reject::UnexpectedKind);
+                FrameOutcome::Dropped
+            }
             FrameKind::Command => {
                 let Ok(cmd) = CommandRepr::parse_verified(bytes) else {
                     self.reject(Reject::Malformed);
@@ -618,8 +650,7 @@ impl Slave {
                 }
             }
             FrameKind::LumpedOnly if self.law.is_some() => {
-                self.take_lumped_only(rx_start, rx_end, &mut frame);
-                FrameOutcome::Forward
+                self.take_lumped_only(rx_start, rx_end, &mut frame)
             }
             // A lumped frame of the other plan: not ours to read; the ring carries it on.
             FrameKind::Lumped | FrameKind::LumpedOnly => {
@@ -677,6 +708,7 @@ impl Slave {
             Err(_) if !acquired => {
                 self.clock.restart(rx, at);
                 self.candidate = None;
+                self.counters.acquisitions_restarted += 1;
             }
             Err(r) => {
                 if !self.relock(rx, at) {
@@ -728,6 +760,15 @@ impl Slave {
             let dl = l.saturating_sub(c.last_local);
             dm > 0 && (dm - dl).abs() <= self.cfg.clock_window.as_ns()
         });
+        // A frame that fits neither time line (a stray one) leaves the candidate alone, so
+        // that it cannot hold off a re-lock; the candidate is dropped only when it has been
+        // silent for ten cycles.
+        if let Some(c) = self.candidate
+            && !consistent
+            && l.saturating_sub(c.last_local) <= 10 * self.cfg.cycle.as_ns()
+        {
+            return false;
+        }
         let first = match self.candidate {
             Some(c) if consistent => c.first_local,
             _ => l,
@@ -761,20 +802,26 @@ impl Slave {
         rx_start: Instant,
         rx_end: Instant,
         frame: &mut Frame<&mut [u8]>,
-    ) {
+    ) -> FrameOutcome {
         let me = usize::from(self.cfg.address).saturating_sub(1);
         let cycle = frame.cycle();
+        let flags = Flags::from_bits(frame.flags_byte()).unwrap_or_default();
         let Ok(mut p) = LumpedPayload::new_checked(frame.payload_mut(), FrameKind::LumpedOnly)
         else {
             self.reject(Reject::Malformed);
-            return;
+            return FrameOutcome::Dropped;
         };
         let Some(k_me) = p.slot_index(self.cfg.address) else {
-            return;
+            return FrameOutcome::Forward;
         };
         if let Err(r) = self.take_sync(rx_start, cycle, p.master_time_ns()) {
             self.reject(r);
-            return;
+            return FrameOutcome::Forward;
+        }
+        // The master stopped the group: in this plan it cannot command the axes, so every
+        // slave brakes on its own.
+        if flags.contains(Flags::BRAKE) {
+            self.begin_brake(rx_end, true);
         }
         let first = usize::from(p.first_slot());
         let now = self.clock.to_sync(rx_end);
@@ -784,7 +831,9 @@ impl Slave {
             .saturating_add(self.cfg.clock_window.as_ns())
             .max(0) as u64;
         let mut future = 0;
-        let Some(law) = self.law.as_mut() else { return };
+        let Some(law) = self.law.as_mut() else {
+            return FrameOutcome::Forward;
+        };
         let n = law.seen.len();
         for a in 0..n {
             law.fb.fresh[a] = false;
@@ -860,6 +909,7 @@ impl Slave {
             let _ = mine.emit(bytes);
         }
         frame.fill_crc();
+        FrameOutcome::Forward
     }
 
     /// Whether a command for this slave, received (last bit) at local `rx`, may be taken.
@@ -871,7 +921,8 @@ impl Slave {
         let c = unwrap_cycle(cmd.common.cycle, now.div_euclid(t));
         let tol = self.cfg.clock_window.as_ns();
         let start = c.checked_mul(t).ok_or(Reject::Overflow)?;
-        if now < start.saturating_sub(tol) || now > start.saturating_add(t).saturating_add(tol) {
+        let opens = start.saturating_add(self.cfg.p2p_start.as_ns());
+        if now < opens.saturating_sub(tol) || now > start.saturating_add(t).saturating_add(tol) {
             return Err(Reject::WrongCycle);
         }
         // The sample the command was computed from cannot be in the future.
@@ -903,6 +954,9 @@ impl Slave {
             CommandAction::Apply => {
                 if flags.contains(Flags::TORQUE_OFF) && self.drive != Drive::Off {
                     self.cut_torque(TorqueOffCause::Commanded);
+                }
+                if flags.contains(Flags::BRAKE) {
+                    self.begin_brake(rx_end, true);
                 }
                 if !self.status.contains(Status::FAULT) && self.drive == Drive::Enabled {
                     let (u, sat) = saturate(f64::from(cmd.command_v), self.cfg.u_max);

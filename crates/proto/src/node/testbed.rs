@@ -192,9 +192,11 @@ impl Testbed {
             vec![AxisTrajectory::Cosine(traj); n],
         );
         let t_cyc = plan.params.t_cyc;
+        let p2p_start = master.config().p2p_start;
         let slaves = (1..=n)
             .map(|i| {
                 Slave::new(SlaveConfig {
+                    p2p_start,
                     watchdog_cycles: c.watchdog_cycles,
                     resolution,
                     safe_state: c.safe_state,
@@ -414,7 +416,7 @@ impl Testbed {
                 }
                 SlaveEvent::Brake { u } => a.u = u,
                 SlaveEvent::TorqueOff { .. } | SlaveEvent::WatchdogExpired => a.u = 0.0,
-                SlaveEvent::Relocked { .. } => {}
+                SlaveEvent::Relocked { .. } | SlaveEvent::Braking { .. } => {}
             }
             if let SlaveEvent::TorqueOff { .. } = ev {
                 a.off = true;

@@ -180,8 +180,12 @@ fn a_silent_slave_stops_the_group_within_w_cycles() {
         ),
         "{reason:?}"
     );
-    // Located from the nodes' own counters: slave 3 stopped, not a link.
-    assert_eq!(r.ring_break, Some(crate::nodes::RingBreak::Node(3)));
+    // Located from the nodes' own counters: nothing reaches slave 3 any more, though its
+    // drive still runs (its encoder latches go on): the link into it, from slave 2.
+    assert_eq!(
+        r.ring_break,
+        Some(crate::nodes::RingBreak::Link { from: 2, to: 3 })
+    );
     // Silent from cycle 500; W = 5 missed cycles, detected at the next law run.
     assert!(t > 0.5 && t <= 0.5 + 7.0 * 1e-3, "stopped at {t}");
     // Slave 4 sits behind the silent one: no commands reach it, its watchdog expires.
@@ -397,5 +401,43 @@ fn power_of_two_resolution_truncates_like_rem_euclid() {
         let t = r.symmetric(1e12) as i64;
         let l = crate::nodes::floor_i64(o.offset + t as f64 * o.rate);
         assert_eq!(o.local(t).as_ns(), l - l.rem_euclid(res), "{o:?} t = {t}");
+    }
+}
+
+/// The lumped-only plan, slave 3 crashing at 1 s: the master cannot command the axes in
+/// this plan, but it watches the returning frames. It stops the group (no fresh feedback
+/// from slave 3 within W cycles) and its next frames tell every slave to brake, so no axis
+/// runs off. Before, this plan had no supervision: no stop, and the healthy axes, coupled
+/// to frozen neighbours, ran 5.6 rad off their path (the limit is 1 rad).
+#[test]
+fn the_lumped_only_plan_stops_and_brakes_when_a_slave_fails() {
+    let s = scenario(
+        "duration = \"2s\"\n[ring]\nplan = \"lumped-only\"\n[faults]\nsilent_slave = 3\nsilent_from = \"1s\"\n",
+    );
+    let r = run(&s, RunOptions::default()).expect("run");
+    let (t, reason) = r.group_stop.expect("the group stopped");
+    assert!(t > 1.0 && t < 1.01, "stopped at {t}");
+    assert!(
+        matches!(reason, StopReason::NoFeedback { .. }),
+        "{reason:?}"
+    );
+    // Every slave the frames still reach is ordered to brake; slave 4, behind the silent
+    // one, brakes on its watchdog; each ends with its torque off at standstill.
+    for axis in [1, 2, 4] {
+        assert!(
+            r.faults.iter().any(|f| f.axis == axis
+                && matches!(
+                    f.step,
+                    crate::record::FaultStep::TorqueOff(
+                        ringsync_proto::node::TorqueOffCause::Standstill
+                    )
+                )),
+            "axis {axis}: {:?}",
+            r.faults
+        );
+    }
+    // Once stopped, no healthy axis strays past the limit.
+    for a in [0, 1, 3] {
+        assert!(r.summary.axes[a].max_e < 1.5, "{:?}", r.summary.axes[a]);
     }
 }
