@@ -762,3 +762,65 @@ fn stray_frames_do_not_hold_off_a_relock() {
     }
     assert_eq!(s.counters().relocks, 1, "{:?}", s.counters());
 }
+
+/// Found by the fuzzer: a slave of the lumped-only plan took a command frame (that plan
+/// carries none) and applied it on top of its own law's output.
+#[test]
+fn a_lumped_only_slave_takes_no_command() {
+    use ringsync_control::{AxisTrajectory, Cosine, Gains, Pd, VelocitySource};
+    let t_cyc = Duration::from_ms(1);
+    let traj = Cosine::with_peak_speed(15.12, 2.0).expect("cosine");
+    let control = LumpedOnlyControl {
+        law: Box::new(Pd::new(Gains::uniform(1, 3.182, 1.591, 0.0), false).expect("pd")),
+        velocity: VelocitySource::Reported,
+        trajectories: vec![AxisTrajectory::Cosine(traj)],
+        resolution: vec![1e-6],
+    };
+    let mut s = Slave::with_law(SlaveConfig::new(1, t_cyc, Duration::from_us(1)), control);
+    let rx = Instant::from_ns(3_200_000);
+    let mut b = command(3, 1, 10.0, 0, 3_000_000);
+    assert_eq!(s.handle_frame(rx, rx, &mut b), FrameOutcome::Dropped);
+    assert_eq!(s.counters().rejected.get(Reject::UnexpectedKind), 1);
+    assert!(s.poll_event().is_none());
+    assert!(s.poll_transmit().is_none());
+}
+
+/// Found by the fuzzer: an encoder count difference of i64::MIN made the brake's
+/// standstill test overflow (a panic in debug builds).
+#[test]
+fn the_brake_survives_any_encoder_count() {
+    let mut s = Slave::new(SlaveConfig::new(1, Duration::from_ms(1), Duration::ZERO));
+    // No command ever: after W cycles the slave brakes.
+    for _ in 0..12 {
+        let at = s.poll_timeout();
+        s.handle_sample(at, 0);
+        let at = s.poll_timeout();
+        s.handle_sample(at, 0);
+    }
+    assert!(s.status().contains(Status::BRAKING) || s.torque_off());
+    let at = s.poll_timeout();
+    s.handle_sample(at, 0);
+    let at = s.poll_timeout();
+    s.handle_sample(at, i64::MIN);
+}
+
+/// Found by the fuzzer: one lumped frame 60 µs (or 450 µs) late at slave 2, before the
+/// clock window was symmetric and rates were bounded, threw its clock off until a re-lock
+/// and the group stopped. Now the late frame is refused (or taken within the window) and
+/// the clock stays put.
+#[test]
+fn one_late_sync_frame_does_not_throw_a_clock_off() {
+    for late in [40_000, 60_000, 450_000] {
+        let mut r = ring();
+        r.tap = Some(Box::new(move |hop: &Hop, b: &mut Vec<u8>| {
+            if hop.to == 2 && is_kind(b, FrameKind::Lumped) && cycle_of(b) == 50 {
+                return Fate::Delay { by: late };
+            }
+            Fate::Deliver
+        }));
+        r.run_until(300 * MS);
+        assert!(stops(&r).is_empty(), "{late} ns: {:?}", stops(&r));
+        assert!(clock_error(&r, 2).abs() < 1_000, "{late} ns: {}", clock_error(&r, 2));
+        assert_eq!(r.slaves[1].counters().relocks, 0);
+    }
+}
