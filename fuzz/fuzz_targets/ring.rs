@@ -19,10 +19,11 @@
 //!   the one after it (the checks run once a cycle, at k·T + 700 µs, after the cycle's lumped
 //!   frame and commands): the earlier copy when no lumped frame reached the slave between
 //!   that check and t, the later one when none reached it between t and the later check;
-//!   if lumped frames reached it on both sides of t (or at t), either copy is accepted. In true time, the window is widened by the slave's clock error, which the wire
-//!   legitimately moves (a lumped frame up to `late_limit` late is taken and stepped to):
-//!   see docs/fuzzing.md. With `RINGSYNC_FUZZ_TRUE_TIME=1` the true-time window
-//!   [c·T − tol, (c + 1)·T + tol] is asserted as well (exploration mode).
+//!   if lumped frames reached it on both sides of t (or at t), either copy is accepted.
+//!   In true time the window does not hold: the slaves synchronise one way, so a path delay
+//!   the configuration does not know shifts a slave's whole time line (docs/fuzzing.md has
+//!   the counterexample). With `RINGSYNC_FUZZ_TRUE_TIME=1` the true-time window
+//!   [c·T − tol, (c + 1)·T + tol] is asserted as well (exploration mode: it fails).
 //! - A slave applies commands in strictly increasing cycles (so never twice for one cycle),
 //!   until its clock re-locks to a new master time line (which resets that history).
 //! - An axis whose true error |x^d − x| exceeds the limit plus 0.1 rad is, within W + 2
