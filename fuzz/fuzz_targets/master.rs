@@ -1,0 +1,528 @@
+//! One [`Master`] alone (4 axes, the testbed's plan and PD law; the proposed plan or the
+//! lumped-only plan), fed an arbitrary interleaving of `handle_timeout` (at `poll_timeout()`,
+//! or later: a driver that wakes late) and `handle_frame` (at any time up to the next
+//! deadline): its own last lumped frame returned with any slots and header fields, forged
+//! responses and commands with any fields (cycles near the master's, times near now), sealed
+//! and unsealed raw bytes, and whole cycles of a perfect ring (every lumped frame back with
+//! fresh samples near the desired path, every command answered), so that the fuzzer reaches
+//! the law, the slices, the retries and the group stop.
+//!
+//! # Invariants
+//! - No panic.
+//! - Every frame it sends parses; leaves at the time of the call that sent it (never before
+//!   an earlier one); a lumped frame is stamped with that time and carries the cycle in
+//!   progress (which advances by one at a time); a command targets an axis 1..=4, carries the
+//!   cycle of the last lumped frame, retry 0 or 1, and a finite value within ±10 V; once the
+//!   group stops every command carries STOP; once an axis's torque is ordered off, every
+//!   command to it carries TORQUE_OFF and 0 V.
+//! - `poll_timeout()`: after `handle_timeout(t)` (t ≥ the deadline d it answered) the next
+//!   deadline is ≥ d − turnaround. It is not always ≥ t: a driver that wakes late gets the
+//!   deadlines it missed (past ones, to run at once); and a slice that ends by its response
+//!   within the last `turnaround` of a cycle pulls the next slice to after the cycle's end,
+//!   where the master finds nothing fits and answers the next cycle's start, which is then
+//!   up to `turnaround` in the past (the next lumped frame leaves that late, stamped with its
+//!   real send time). After `handle_frame(t)` the deadline is unchanged, or t + turnaround
+//!   (a response ended the slice). At most 64 calls in a row at one time (no livelock).
+//! - The record after `Computed { k }` is cycle k's; with the proposed plan its commands are
+//!   finite and within ±10 V (with the lumped-only plan they are what the slaves reported,
+//!   finite by the wire format).
+//! - A group stop happens at most once and is final; torque off at most once per axis.
+//! - Counters never decrease.
+#![no_main]
+
+use libfuzzer_sys::arbitrary::{self, Arbitrary, Unstructured};
+use libfuzzer_sys::fuzz_target;
+use ringsync_control::{AxisTrajectory, Cosine, Gains, Pd, VelocitySource};
+use ringsync_proto::node::{Master, MasterConfig, MasterCounters, MasterEvent, Transmit};
+use ringsync_proto::{CyclePlan, Duration, Instant, RingParams};
+use ringsync_wire::{Flags, Pdu};
+
+#[path = "forge.rs"]
+mod forge;
+#[path = "seal.rs"]
+mod seal;
+
+use forge::{CYCLE_NS as T, CycleSel, Head, Resp, Slot, When};
+
+/// Axes.
+const N: usize = 4;
+/// Drive range [V].
+const U_MAX: f64 = 10.0;
+/// Longest input in master time [ns].
+const TOTAL: i64 = 2_000 * T;
+/// Most a driver wakes late [ns].
+const MAX_LATE: u32 = 2_000_000;
+
+#[derive(Arbitrary, Debug)]
+enum Op {
+    /// `handle_timeout` at `poll_timeout()`, or `late` after it.
+    Timeout { late: Late },
+    /// A frame arriving `after_ns` (mod 1.2 ms) after the last input, capped at the next
+    /// deadline.
+    Frame { after_ns: u32, frame: MFrame },
+    /// `cycles` cycles of a perfect ring; positions `error` counts off the desired path;
+    /// `quirk` bit 0 loses the lumped frame, bit 1 axis `quirk >> 4`'s responses, bit 2
+    /// marks that axis FAULT, bit 3 makes the samples 1 µs late.
+    Ring { cycles: u8, error: i32, quirk: u8 },
+}
+
+#[derive(Arbitrary, Debug, Clone, Copy)]
+enum Late {
+    OnTime,
+    By(u32),
+}
+
+#[derive(Arbitrary, Debug)]
+enum MFrame {
+    /// The master's last lumped frame back, slots rewritten, header fields replaced.
+    Returned {
+        slots: Vec<Slot>,
+        cycle: Option<CycleSel>,
+        seq: Option<u16>,
+        stamp: Option<When>,
+        first: Option<u16>,
+        count: Option<u8>,
+    },
+    Response {
+        head: Head,
+        resp: Resp,
+    },
+    Command {
+        head: Head,
+        target: u8,
+        value: f32,
+        sample: When,
+    },
+    Sealed(Vec<u8>),
+    Raw(Vec<u8>),
+}
+
+struct Harness {
+    m: Master,
+    now: i64,
+    /// The last transmit's time, lumped frame's cycle and bytes.
+    last_tx: i64,
+    cycle: Option<u32>,
+    last_lumped: Option<Vec<u8>>,
+    /// Frames sent since the perfect ring last answered.
+    sent: Vec<Transmit>,
+    stopped: bool,
+    off: [bool; N],
+    last_k: Option<i64>,
+    same_time_calls: u32,
+    lumped_only: bool,
+}
+
+impl Harness {
+    fn new(lumped_only: bool) -> Self {
+        let plan = CyclePlan::new(&RingParams {
+            slaves: N as u32,
+            ..RingParams::default()
+        })
+        .unwrap_or_else(|e| panic!("plan: {e}"));
+        let res = std::f64::consts::TAU / f64::from(1u32 << 20);
+        let mut cfg = if lumped_only {
+            MasterConfig::lumped_only(&plan, vec![res; N], 1.0)
+        } else {
+            MasterConfig::from_plan(&plan, Duration::ZERO, vec![res; N], 1.0)
+        };
+        cfg.watchdog_cycles = 5;
+        let law = Pd::new(Gains::uniform(N, 3.182, 1.591, 0.0), false)
+            .unwrap_or_else(|e| panic!("law: {e}"));
+        let traj =
+            Cosine::with_peak_speed(15.12, 2.0).unwrap_or_else(|e| panic!("trajectory: {e}"));
+        let m = Master::new(
+            cfg,
+            Box::new(law),
+            VelocitySource::Reported,
+            vec![AxisTrajectory::Cosine(traj); N],
+        );
+        Harness {
+            m,
+            now: 0,
+            last_tx: i64::MIN,
+            cycle: None,
+            last_lumped: None,
+            sent: Vec::new(),
+            stopped: false,
+            off: [false; N],
+            last_k: None,
+            same_time_calls: 0,
+            lumped_only,
+        }
+    }
+
+    fn turnaround(&self) -> i64 {
+        self.m.config().turnaround.as_ns()
+    }
+
+    /// `handle_timeout` at the deadline, `late` after it, or now if that has passed.
+    fn timeout(&mut self, late: i64) {
+        let d = self.m.poll_timeout().as_ns();
+        let t = d.saturating_add(late).max(self.now);
+        if t == self.now {
+            self.same_time_calls += 1;
+            assert!(self.same_time_calls <= 64, "64 calls at {t} ns: a livelock");
+        } else {
+            self.same_time_calls = 0;
+        }
+        self.now = t;
+        let before = self.m.counters();
+        self.m.handle_timeout(Instant::from_ns(t));
+        let next = self.m.poll_timeout().as_ns();
+        assert!(
+            next >= d - self.turnaround(),
+            "deadline {d} ns answered at {t} ns, next deadline {next} ns"
+        );
+        self.drain(t, &before);
+    }
+
+    /// Runs every deadline up to `until`, then returns the time a frame may arrive at.
+    fn timeouts_until(&mut self, until: i64) -> i64 {
+        for _ in 0..256 {
+            if self.m.poll_timeout().as_ns() > until {
+                break;
+            }
+            self.timeout(0);
+        }
+        until.max(self.now)
+    }
+
+    fn frame(&mut self, at: i64, bytes: &[u8]) {
+        let t = self.timeouts_until(at);
+        self.now = t;
+        self.same_time_calls = 0;
+        let d = self.m.poll_timeout().as_ns();
+        let before = self.m.counters();
+        self.m.handle_frame(Instant::from_ns(t), bytes);
+        let next = self.m.poll_timeout().as_ns();
+        assert!(
+            next == d || next == t + self.turnaround(),
+            "a frame at {t} ns moved the deadline {d} -> {next} ns"
+        );
+        self.drain(t, &before);
+    }
+
+    fn drain(&mut self, t: i64, before: &MasterCounters) {
+        check_counters(before, &self.m.counters());
+        while let Some(tx) = self.m.poll_transmit() {
+            self.transmit(t, &tx);
+            self.sent.push(tx);
+        }
+        while let Some(ev) = self.m.poll_event() {
+            match ev {
+                MasterEvent::Computed { k } => {
+                    assert!(
+                        self.last_k.is_none_or(|l| k > l),
+                        "cycle {k} computed again"
+                    );
+                    self.last_k = Some(k);
+                    let r = self.m.record();
+                    assert_eq!(r.k, k, "the record is not cycle {k}'s");
+                    for &u in &r.u {
+                        assert!(u.is_finite(), "record {r:?}");
+                        if !self.lumped_only {
+                            assert!(u.abs() <= U_MAX, "record {r:?}");
+                        }
+                    }
+                }
+                MasterEvent::GroupStop { .. } => {
+                    assert!(!self.stopped, "a second group stop: {ev:?}");
+                    self.stopped = true;
+                }
+                MasterEvent::TorqueOff { axis, .. } => {
+                    assert!(axis < N && !self.off[axis], "{ev:?} twice or no such axis");
+                    self.off[axis] = true;
+                }
+            }
+        }
+        assert!(
+            !self.stopped || self.m.is_stopping(),
+            "the group stop ended"
+        );
+    }
+
+    fn transmit(&mut self, t: i64, tx: &Transmit) {
+        assert_eq!(
+            tx.at.as_ns(),
+            t,
+            "a frame sent at another time than the call's"
+        );
+        assert!(tx.at.as_ns() >= self.last_tx, "frames sent out of order");
+        self.last_tx = tx.at.as_ns();
+        let pdu = Pdu::parse(&tx.bytes)
+            .unwrap_or_else(|e| panic!("the master sent a frame that does not parse: {e:?}"));
+        match pdu {
+            Pdu::Lumped(l) => {
+                assert!(!self.lumped_only, "a kind-1 frame on the lumped-only plan");
+                self.lumped(l.common.cycle, l.master_time_ns, t, &tx.bytes);
+            }
+            Pdu::LumpedOnly(l) => {
+                assert!(self.lumped_only, "a kind-4 frame on the proposed plan");
+                self.lumped(l.common.cycle, l.master_time_ns, t, &tx.bytes);
+            }
+            Pdu::Command(c) => {
+                assert!(!self.lumped_only, "a command on the lumped-only plan");
+                let v = f64::from(c.command_v);
+                assert!(v.is_finite() && v.abs() <= U_MAX, "command {c:?}");
+                assert!((1..=N as u16).contains(&c.target), "command {c:?}");
+                assert_eq!(Some(c.common.cycle), self.cycle, "command {c:?}");
+                assert!(c.common.retry <= 1, "command {c:?}");
+                if self.stopped {
+                    assert!(
+                        c.common.flags.contains(Flags::STOP),
+                        "{c:?} during the stop"
+                    );
+                }
+                if self.off[usize::from(c.target) - 1] {
+                    assert!(
+                        c.common.flags.contains(Flags::TORQUE_OFF) && c.command_v == 0.0,
+                        "{c:?} after torque off"
+                    );
+                }
+            }
+            Pdu::Response(r) => panic!("the master sent a response: {r:?}"),
+        }
+    }
+
+    fn lumped(&mut self, cycle: u32, stamp: u64, t: i64, bytes: &[u8]) {
+        assert_eq!(
+            stamp,
+            t.max(0) as u64,
+            "lumped frame stamped {stamp}, sent at {t}"
+        );
+        if let Some(c) = self.cycle {
+            let d = cycle.wrapping_sub(c);
+            assert!(d <= 1, "lumped frame of cycle {cycle} after cycle {c}");
+        }
+        self.cycle = Some(cycle);
+        self.last_lumped = Some(bytes.to_vec());
+    }
+
+    fn build(&self, f: &MFrame) -> Vec<u8> {
+        let now = self.now;
+        let k = i64::from(self.cycle.unwrap_or(0));
+        match f {
+            MFrame::Returned {
+                slots,
+                cycle,
+                seq,
+                stamp,
+                first,
+                count,
+            } => {
+                let base = self.last_lumped.as_deref().unwrap_or(&[]);
+                let field = |at: usize, n: usize| -> u64 {
+                    base.get(at..at + n).map_or(0, |b| {
+                        b.iter()
+                            .rev()
+                            .fold(0u64, |acc, &x| (acc << 8) | u64::from(x))
+                    })
+                };
+                let kind = if self.lumped_only { 4 } else { 1 };
+                let len = if self.lumped_only { 32 } else { 20 };
+                let n = count.map_or(field(22, 2) as usize, |c| usize::from(c % 16));
+                let mut data = Vec::with_capacity(n * len);
+                for i in 0..n {
+                    match slots.get(i) {
+                        Some(s) => s.put(now, len, &mut data),
+                        None => data.resize(data.len() + len, 0),
+                    }
+                }
+                forge::lumped(
+                    kind,
+                    0,
+                    0,
+                    cycle.map_or(field(4, 4) as u32, |c| c.resolve(k)),
+                    seq.unwrap_or(field(8, 2) as u16),
+                    stamp.map_or(field(12, 8), |s| s.resolve(now)),
+                    first.unwrap_or(field(20, 2) as u16),
+                    n as u16,
+                    &data,
+                )
+            }
+            MFrame::Response { head, resp } => forge::response(head, resp, k, now),
+            MFrame::Command {
+                head,
+                target,
+                value,
+                sample,
+            } => forge::command(
+                head,
+                k,
+                forge::address(*target),
+                *value,
+                sample.resolve(now),
+            ),
+            MFrame::Sealed(raw) => seal::sealed(raw).unwrap_or_else(|| raw.clone()),
+            MFrame::Raw(raw) => raw.clone(),
+        }
+    }
+
+    /// Answers what the master sent as a perfect ring would, for `cycles` cycles.
+    fn ring(&mut self, cycles: u8, error: i32, quirk: u8) {
+        let axis = usize::from(quirk >> 4) % N;
+        let start = self.cycle.unwrap_or(0);
+        self.sent.clear();
+        for _ in 0..512 {
+            let done = self.cycle.unwrap_or(0).wrapping_sub(start);
+            if done > u32::from(cycles % 8) || self.now > TOTAL {
+                break;
+            }
+            // The answers to what went out, in time order, each before the next deadline.
+            let sent = std::mem::take(&mut self.sent);
+            let mut answers: Vec<(i64, Vec<u8>)> = sent
+                .iter()
+                .filter_map(|tx| self.answer(tx, error, quirk, axis))
+                .collect();
+            answers.sort_by_key(|a| a.0);
+            if answers.is_empty() {
+                self.timeout(0);
+            }
+            for (at, b) in answers {
+                self.frame(at, &b);
+            }
+        }
+    }
+
+    fn answer(&self, tx: &Transmit, error: i32, quirk: u8, axis: usize) -> Option<(i64, Vec<u8>)> {
+        let t = tx.at.as_ns();
+        match Pdu::parse(&tx.bytes).ok()? {
+            Pdu::Lumped(l) if quirk & 1 == 0 => {
+                let mut data = Vec::new();
+                for k in 0..l.slots.len() {
+                    self.slot(usize::from(l.first_slot) + k, t, error, quirk, axis)
+                        .put(0, 20, &mut data);
+                }
+                Some((
+                    t + 20_000,
+                    self.relumped(1, &l.common, t, l.first_slot, &data),
+                ))
+            }
+            Pdu::LumpedOnly(l) if quirk & 1 == 0 => {
+                let mut data = Vec::new();
+                for k in 0..l.slots.len() {
+                    self.slot(usize::from(l.first_slot) + k, t, error, quirk, axis)
+                        .put(0, 32, &mut data);
+                }
+                Some((
+                    t + 30_000,
+                    self.relumped(4, &l.common, t, l.first_slot, &data),
+                ))
+            }
+            Pdu::Command(c) => {
+                let i = usize::from(c.target) - 1;
+                if quirk & 2 != 0 && i == axis {
+                    return None;
+                }
+                let status = if quirk & 4 != 0 && i == axis { 1 } else { 0 };
+                let head = Head {
+                    cycle: CycleSel::Raw(c.common.cycle),
+                    retry: c.common.retry,
+                    flags: 0,
+                    seq: 0,
+                };
+                let resp = Resp {
+                    source: c.target as u8,
+                    status,
+                    echo: CycleSel::Raw(c.common.cycle),
+                    position: 0,
+                    velocity: 0,
+                    sample: When::Raw(c.sample_time_ns),
+                    applied: c.command_v,
+                };
+                let hops = (N - i) as i64 * 1_000;
+                Some((t + 8_000 + hops, forge::response(&head, &resp, 0, 0)))
+            }
+            _ => None,
+        }
+    }
+
+    fn relumped(
+        &self,
+        kind: u8,
+        c: &ringsync_wire::Common,
+        t: i64,
+        first: u16,
+        data: &[u8],
+    ) -> Vec<u8> {
+        let n = (data.len() / if kind == 4 { 32 } else { 20 }) as u16;
+        forge::lumped(kind, 0, 0, c.cycle, c.seq, t as u64, first, n, data)
+    }
+
+    /// Axis i's slot, sampled at the cycle start `t` (quirk bit 3: 1 µs later).
+    fn slot(&self, i: usize, t: i64, error: i32, quirk: u8, axis: usize) -> Slot {
+        let res = self.m.config().resolution.get(i).copied().unwrap_or(1.0);
+        let ts = if quirk & 8 != 0 { t + 1_000 } else { t };
+        let d = self.m.desired(i.min(N - 1), ts as f64 * 1e-9);
+        let counts = |x: f64| (x / res).round().clamp(-2e9, 2e9) as i32;
+        Slot {
+            position: counts(d.x).saturating_add(if i == axis { error } else { 0 }),
+            velocity: counts(d.v),
+            sample: When::Raw(ts.max(0) as u64),
+            status: if quirk & 4 != 0 && i == axis { 1 } else { 0 },
+            written: 1,
+            command: 0.0,
+        }
+    }
+}
+
+fn check_counters(b: &MasterCounters, a: &MasterCounters) {
+    assert!(
+        a.frames_sent >= b.frames_sent
+            && a.lumped_lost >= b.lumped_lost
+            && a.samples_missing >= b.samples_missing
+            && a.samples_stale >= b.samples_stale
+            && a.slices_failed >= b.slices_failed
+            && a.retries >= b.retries
+            && a.retries_ok >= b.retries_ok
+            && a.commands_lost >= b.commands_lost
+            && a.rejected
+                .iter()
+                .zip(b.rejected.iter())
+                .all(|(x, y)| x.1 >= y.1),
+        "counters went back: {b:?} -> {a:?}"
+    );
+}
+
+fuzz_target!(|data: &[u8]| {
+    let mut u = Unstructured::new(data);
+    let Ok(lumped_only) = bool::arbitrary(&mut u) else {
+        return;
+    };
+    let mut h = Harness::new(lumped_only);
+    while !u.is_empty() && h.now < TOTAL {
+        let Ok(op) = Op::arbitrary(&mut u) else {
+            break;
+        };
+        if forge::tracing() {
+            eprintln!("{op:?}");
+        }
+        match op {
+            Op::Timeout { late } => {
+                let late = match late {
+                    Late::OnTime => 0,
+                    Late::By(ns) => i64::from(ns % MAX_LATE),
+                };
+                h.timeout(late);
+            }
+            Op::Frame { after_ns, frame } => {
+                let b = h.build(&frame);
+                h.frame(h.now + i64::from(after_ns % 1_200_000), &b);
+            }
+            Op::Ring {
+                cycles,
+                error,
+                quirk,
+            } => h.ring(cycles, error, quirk),
+        }
+    }
+    if forge::tracing() {
+        eprintln!(
+            "at {} ns: {:?}, stopping {}",
+            h.now,
+            h.m.counters(),
+            h.m.is_stopping()
+        );
+    }
+});

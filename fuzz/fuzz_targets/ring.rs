@@ -1,0 +1,589 @@
+//! The whole ring on a hostile wire: a [`Testbed`] (master and 4 slaves, W = 5, brake, limit
+//! 1 rad) driven through an arbitrary sequence of operations: run for up to 20 ms (300 ms in
+//! all, then a tail of W + 3 cycles); inject a sealed forged frame in front of any node
+//! (commands and responses with any header and payload fields, lumped frames with any cycle,
+//! sequence, stamp, first slot and slot count, raw sealed bytes); set tap rules that drop,
+//! duplicate or delay (and so reorder) the next real frames of a kind on their way to a node;
+//! kill one slave. The master stays alive.
+//!
+//! # Invariants (each a panic, so the fuzzer reports it)
+//! - No panic anywhere (overflow checks are on in fuzz builds).
+//! - Every frame leaving the master parses, and its commands are finite and within ±10 V.
+//! - Every `Apply` and `Brake` is finite and within ±10 V.
+//! - Every command a slave applied (`Testbed::applied`, time t, slave i, u) is a command frame
+//!   addressed to slave i that reached it at exactly t (the master's, recorded as the tap saw
+//!   it leave the master, or one the fuzzer injected), with u = its value clipped to ±10 V,
+//!   and whose cycle c is the cycle in progress: the slave's synchronised time S at t lies in
+//!   [c·T − tol, (c + 1)·T + tol] (tol = `timestamp_tolerance`, the window `check_command`
+//!   allows). S is read from a copy of the slave's clock taken at the check before t or at
+//!   the one after it (the checks run once a cycle, at k·T + 700 µs, after the cycle's lumped
+//!   frame and commands): the earlier copy when no lumped frame reached the slave between
+//!   that check and t, the later one when none reached it between t and the later check;
+//!   if lumped frames reached it on both sides of t (or at t), either copy is accepted.
+//!   In true time the window does not hold: the slaves synchronise one way, so a path delay
+//!   the configuration does not know shifts a slave's whole time line (docs/fuzzing.md has
+//!   the counterexample). With `RINGSYNC_FUZZ_TRUE_TIME=1` the true-time window
+//!   [c·T − tol, (c + 1)·T + tol] is asserted as well (exploration mode: it fails).
+//! - A slave applies commands in strictly increasing cycles (so never twice for one cycle),
+//!   until its clock re-locks to a new master time line (which resets that history).
+//! - An axis whose true error |x^d − x| exceeds the limit plus 0.1 rad is, within W + 2
+//!   cycles, either stopping (`Master::is_stopping`) or its slave is in its safe state
+//!   (status FAULT, BRAKING or TORQUE_OFF).
+//!
+//! # Out of scope
+//! The wire has no authentication: a CRC says the bytes are intact, not who sent them. A
+//! forged frame whose *data* is bit-identical to the truth (a lumped frame whose slots are
+//! copied from the real one, with only time, cycle and sequence lied about) cannot be told
+//! from the real one, and neither can a forged command for the cycle in progress that reaches
+//! its slave before the master's: the slave takes it (and then refuses the master's as a
+//! duplicate). Such forgeries are out of scope; forged lumped frames here always carry slots
+//! copied from the last real lumped frame the tap saw, and a forged command applied inside
+//! its cycle window counts as sent.
+#![no_main]
+
+use std::cell::RefCell;
+use std::collections::HashMap;
+use std::rc::Rc;
+use std::sync::OnceLock;
+
+use libfuzzer_sys::arbitrary::{self, Arbitrary, Unstructured};
+use libfuzzer_sys::fuzz_target;
+use ringsync_proto::node::reject::unwrap_cycle;
+use ringsync_proto::node::testbed::{Fate, Hop, Testbed, TestbedConfig};
+use ringsync_proto::node::{SlaveEvent, SyncClock};
+use ringsync_wire::{CommandRepr, Pdu, Status};
+
+#[path = "forge.rs"]
+mod forge;
+#[path = "seal.rs"]
+mod seal;
+
+use forge::{CYCLE_NS as T, CycleSel, Head, Resp, When};
+
+/// Drive range [V].
+const U_MAX: f64 = 10.0;
+/// The checks run once a cycle at this offset into it (after the lumped frame and the
+/// commands of an undisturbed cycle) [ns].
+const CHECK_AT: i64 = 700_000;
+/// Longest single run [ns].
+const MAX_RUN: i64 = 20 * T;
+/// Longest input, before the tail [ns].
+const TOTAL: i64 = 300 * T;
+/// Margin on the following-error limit for the true error [rad].
+const FE_MARGIN: f64 = 0.1;
+/// Largest delay the tap or an injection adds [ns].
+const MAX_DELAY: u32 = 3_000_000;
+/// At most this many tap rules are active at once.
+const MAX_RULES: usize = 8;
+
+#[derive(Arbitrary, Debug)]
+enum Op {
+    /// Run the ring for `us` µs (at most 20 ms).
+    Run { us: u16 },
+    /// Put a forged frame in front of node `to % 5` (0 = master), `after_us` µs from now.
+    Inject {
+        to: u8,
+        after_us: u16,
+        frame: Forgery,
+    },
+    /// Add a tap rule for the next real frames.
+    Tap(Rule),
+    /// Slave `1 + slave % 4` dies (at most one slave; the master stays alive).
+    Kill { slave: u8 },
+}
+
+#[derive(Arbitrary, Debug)]
+enum Forgery {
+    /// A command frame; cycle relative to the cycle in progress, sample time to now.
+    Command {
+        head: Head,
+        target: u8,
+        value: f32,
+        sample: When,
+    },
+    /// A response frame.
+    Response { head: Head, resp: Resp },
+    /// A lumped frame built from the last real one the tap saw (its slots copied), with any
+    /// of its header fields replaced.
+    Lumped {
+        cycle: Option<CycleSel>,
+        seq: Option<u16>,
+        stamp: Option<When>,
+        first: Option<u16>,
+        count: Option<u8>,
+        flags: u8,
+    },
+    /// Any bytes, sealed (CRC fixed where the header's length puts it).
+    Raw(Vec<u8>),
+}
+
+#[derive(Arbitrary, Debug, Clone, Copy)]
+struct Rule {
+    kind: KindSel,
+    /// Node `to % 6` (5: any node).
+    to: u8,
+    fate: FateSel,
+    /// The rule applies to this many frames (at least 1).
+    count: u8,
+}
+
+#[derive(Arbitrary, Debug, Clone, Copy, PartialEq)]
+enum KindSel {
+    Any,
+    Lumped,
+    Command,
+    Response,
+}
+
+#[derive(Arbitrary, Debug, Clone, Copy)]
+enum FateSel {
+    Drop,
+    Duplicate { after_ns: u32 },
+    Delay { by_ns: u32 },
+}
+
+impl Rule {
+    fn matches(&self, hop: &Hop, kind: Option<u8>) -> bool {
+        let to = usize::from(self.to % 6);
+        let kind_ok = match self.kind {
+            KindSel::Any => true,
+            KindSel::Lumped => kind == Some(1),
+            KindSel::Command => kind == Some(2),
+            KindSel::Response => kind == Some(3),
+        };
+        kind_ok && (to == 5 || to == hop.to)
+    }
+
+    fn fate(&self) -> Fate {
+        match self.fate {
+            FateSel::Drop => Fate::Drop,
+            FateSel::Duplicate { after_ns } => Fate::Duplicate {
+                after: i64::from(after_ns % MAX_DELAY),
+            },
+            FateSel::Delay { by_ns } => Fate::Delay {
+                by: i64::from(by_ns % MAX_DELAY),
+            },
+        }
+    }
+}
+
+/// A command frame reaching slave `slave` (addressed to it).
+#[derive(Debug, Clone, Copy)]
+struct Delivery {
+    cycle: u32,
+    value: f32,
+    from_master: bool,
+}
+
+/// What the tap and the injections record, shared with the tap closure.
+#[derive(Default)]
+struct Shared {
+    rules: Vec<(Rule, u8)>,
+    /// The last real lumped frame the tap saw.
+    last_lumped: Option<Vec<u8>>,
+    /// Every command frame the master sent (its bytes).
+    master_commands: std::collections::HashSet<Vec<u8>>,
+    /// Commands to slave i (addressed to it) reaching it at time t: key (i, t).
+    deliveries: HashMap<(usize, i64), Vec<Delivery>>,
+    /// Times at which lumped frames reach each slave (index i − 1), since the last check.
+    lumped_at: Vec<Vec<i64>>,
+}
+
+impl Shared {
+    fn deliver(&mut self, slave: usize, at: i64, bytes: &[u8]) {
+        if let Ok(c) = CommandRepr::parse(bytes)
+            && usize::from(c.target) == slave
+        {
+            let from_master = self.master_commands.contains(bytes);
+            self.deliveries
+                .entry((slave, at))
+                .or_default()
+                .push(Delivery {
+                    cycle: c.common.cycle,
+                    value: c.command_v,
+                    from_master,
+                });
+        }
+    }
+
+    fn lumped_to(&mut self, slave: usize, at: i64) {
+        if let Some(v) = self.lumped_at.get_mut(slave.wrapping_sub(1)) {
+            v.push(at);
+        }
+    }
+
+    fn tap(&mut self, hop: &Hop, b: &[u8]) -> Fate {
+        let kind = b.get(1).copied();
+        if hop.from == 0 {
+            let pdu = Pdu::parse(b)
+                .unwrap_or_else(|e| panic!("a frame leaving the master does not parse: {e:?}"));
+            if let Pdu::Command(c) = pdu {
+                assert!(
+                    c.command_v.is_finite() && f64::from(c.command_v).abs() <= U_MAX,
+                    "the master sent {c:?}"
+                );
+                self.master_commands.insert(b.to_vec());
+            }
+        }
+        if kind == Some(1) {
+            self.last_lumped = Some(b.to_vec());
+        }
+        let mut fate = Fate::Deliver;
+        if let Some(k) = self.rules.iter().position(|(r, _)| r.matches(hop, kind)) {
+            fate = self.rules[k].0.fate();
+            self.rules[k].1 -= 1;
+            if self.rules[k].1 == 0 {
+                self.rules.remove(k);
+            }
+        }
+        let times = match fate {
+            Fate::Deliver => [Some(hop.at), None],
+            Fate::Drop => [None, None],
+            Fate::Duplicate { after } => [Some(hop.at), Some(hop.at + after.max(0))],
+            Fate::Delay { by } => [Some(hop.at + by.max(0)), None],
+        };
+        for at in times.into_iter().flatten() {
+            match kind {
+                Some(1) => self.lumped_to(hop.to, at),
+                Some(2) if hop.to != 0 => self.deliver(hop.to, at, b),
+                _ => {}
+            }
+        }
+        fate
+    }
+}
+
+/// A slave's clock and the lumped frames it had taken, at a step boundary.
+#[derive(Clone)]
+struct ClockAt {
+    clock: SyncClock,
+    syncs: u64,
+}
+
+fn true_time_mode() -> bool {
+    static MODE: OnceLock<bool> = OnceLock::new();
+    *MODE.get_or_init(|| std::env::var_os("RINGSYNC_FUZZ_TRUE_TIME").is_some())
+}
+
+/// Whether a command of wire cycle `cycle` is in its cycle window at synchronised time `s`.
+fn in_window(s: i64, cycle: u32, tol: i64) -> bool {
+    let c = unwrap_cycle(cycle, s.div_euclid(T));
+    let start = c.saturating_mul(T);
+    s >= start.saturating_sub(tol) && s <= start.saturating_add(T).saturating_add(tol)
+}
+
+struct Harness {
+    ring: Testbed,
+    shared: Rc<RefCell<Shared>>,
+    /// Per slave: its clock at the last check, and when that was.
+    clocks: Vec<ClockAt>,
+    checked_at: i64,
+    /// Checked so far: entries of `applied` and `slave_events`.
+    applied_seen: usize,
+    events_seen: usize,
+    /// Per slave: the last cycle applied since its last re-lock.
+    last_cycle: Vec<Option<u32>>,
+    /// Per axis: since when its true error has been over the limit, without a stop.
+    over_since: Vec<Option<i64>>,
+    tol: i64,
+    limit: f64,
+    w: i64,
+}
+
+impl Harness {
+    fn new() -> Self {
+        let cfg = TestbedConfig::default();
+        let limit = cfg.following_error_limit;
+        let w = i64::from(cfg.watchdog_cycles);
+        let mut ring = Testbed::new(cfg);
+        let n = ring.slaves.len();
+        let shared = Rc::new(RefCell::new(Shared {
+            lumped_at: vec![Vec::new(); n],
+            ..Shared::default()
+        }));
+        let tap = shared.clone();
+        ring.tap = Some(Box::new(move |hop: &Hop, b: &mut Vec<u8>| {
+            tap.borrow_mut().tap(hop, b)
+        }));
+        let tol = ring.slaves[0].config().timestamp_tolerance.as_ns();
+        let clocks = ring
+            .slaves
+            .iter()
+            .map(|s| ClockAt {
+                clock: s.clock().clone(),
+                syncs: s.counters().syncs,
+            })
+            .collect();
+        Harness {
+            ring,
+            shared,
+            clocks,
+            checked_at: 0,
+            applied_seen: 0,
+            events_seen: 0,
+            last_cycle: vec![None; n],
+            over_since: vec![None; n],
+            tol,
+            limit,
+            w,
+        }
+    }
+
+    /// Runs to `until`, checking at every k·T + [`CHECK_AT`] on the way and at `until`.
+    fn run_to(&mut self, until: i64) {
+        while self.ring.now() < until {
+            let now = self.ring.now();
+            let next = ((now - CHECK_AT).div_euclid(T) + 1) * T + CHECK_AT;
+            let next = next.min(until);
+            self.ring.run_until(next);
+            self.check();
+        }
+    }
+
+    fn inject(&mut self, to: u8, after_us: u16, frame: &Forgery) {
+        let now = self.ring.now();
+        let to = usize::from(to % 5);
+        let at = now + (i64::from(after_us) * 1_000).min(i64::from(MAX_DELAY));
+        let cycle = now.div_euclid(T);
+        let bytes = match frame {
+            Forgery::Command {
+                head,
+                target,
+                value,
+                sample,
+            } => forge::command(
+                head,
+                cycle,
+                forge::address(*target),
+                *value,
+                sample.resolve(now),
+            ),
+            Forgery::Response { head, resp } => forge::response(head, resp, cycle, now),
+            Forgery::Lumped {
+                cycle: c,
+                seq,
+                stamp,
+                first,
+                count,
+                flags,
+            } => {
+                let sh = self.shared.borrow();
+                let base = sh.last_lumped.as_deref();
+                // The real frame's fields and slots, or an empty frame for 4 slaves.
+                let (b_cycle, b_seq, b_stamp, b_first, slots): (u32, u16, u64, u16, Vec<u8>) =
+                    match base {
+                        Some(b) if b.len() >= 28 => {
+                            let n = usize::from(u16::from_le_bytes([b[22], b[23]]));
+                            let end = (24 + n * 20).min(b.len() - 4);
+                            (
+                                u32::from_le_bytes([b[4], b[5], b[6], b[7]]),
+                                u16::from_le_bytes([b[8], b[9]]),
+                                u64::from_le_bytes(b[12..20].try_into().unwrap_or([0; 8])),
+                                u16::from_le_bytes([b[20], b[21]]),
+                                b[24..end].to_vec(),
+                            )
+                        }
+                        _ => (cycle as u32, 0, (cycle * T) as u64, 0, vec![0; 80]),
+                    };
+                let avail = slots.len() / 20;
+                let count = count.map_or(avail, |c| usize::from(c % 16));
+                // Slots copied from the real frame, repeated if the forger claims more.
+                let mut data = Vec::with_capacity(count * 20);
+                for k in 0..count {
+                    if avail == 0 {
+                        data.extend_from_slice(&[0; 20]);
+                    } else {
+                        let j = k % avail;
+                        data.extend_from_slice(&slots[j * 20..j * 20 + 20]);
+                    }
+                }
+                forge::lumped(
+                    1,
+                    *flags,
+                    0,
+                    c.map_or(b_cycle, |c| c.resolve(cycle)),
+                    seq.unwrap_or(b_seq),
+                    stamp.map_or(b_stamp, |s| s.resolve(now)),
+                    first.unwrap_or(b_first),
+                    count as u16,
+                    &data,
+                )
+            }
+            Forgery::Raw(raw) => match seal::sealed(raw) {
+                Some(b) => b,
+                None => raw.clone(),
+            },
+        };
+        if to != 0 {
+            let mut sh = self.shared.borrow_mut();
+            sh.deliver(to, at, &bytes);
+            if bytes.get(1) == Some(&1) {
+                sh.lumped_to(to, at);
+            }
+        }
+        self.ring.inject(to, at, bytes);
+    }
+
+    fn check(&mut self) {
+        let now = self.ring.now();
+        let ring = &self.ring;
+        // Events: the drive range; re-locks reset a slave's command history.
+        let mut relocked: Vec<Option<i64>> = vec![None; ring.slaves.len()];
+        for (t, i, ev) in &ring.slave_events[self.events_seen..] {
+            match *ev {
+                SlaveEvent::Apply { u } | SlaveEvent::Brake { u } => {
+                    assert!(
+                        u.is_finite() && u.abs() <= U_MAX,
+                        "slave {i}: {ev:?} at {t}"
+                    );
+                }
+                SlaveEvent::Relocked { .. } => relocked[i - 1] = Some(*t),
+                _ => {}
+            }
+        }
+        self.events_seen = ring.slave_events.len();
+        // Every command applied: on the wire for that slave at that time, in its window.
+        let end: Vec<ClockAt> = ring
+            .slaves
+            .iter()
+            .map(|s| ClockAt {
+                clock: s.clock().clone(),
+                syncs: s.counters().syncs,
+            })
+            .collect();
+        let mut shared = self.shared.borrow_mut();
+        for &(t, i, u) in &ring.applied[self.applied_seen..] {
+            if relocked[i - 1].is_some_and(|r| r <= t) {
+                relocked[i - 1] = None;
+                self.last_cycle[i - 1] = None;
+            }
+            let local = ring.local(i, t);
+            let start = &self.clocks[i - 1];
+            let stop = &end[i - 1];
+            // Which copy of the clock the slave used at t (see the module doc).
+            let ls = &shared.lumped_at[i - 1];
+            let before = ls.iter().any(|&x| x > self.checked_at && x < t);
+            let after = ls.iter().any(|&x| x > t && x <= now);
+            let at_t = ls.contains(&t);
+            let changed = stop.syncs != start.syncs;
+            let ambiguous = at_t || before && after;
+            let mut s_at = Vec::with_capacity(2);
+            if !changed || ambiguous || !(before || at_t) {
+                s_at.push(start.clock.to_sync(local).as_ns());
+            }
+            if changed && (ambiguous || before || at_t) {
+                s_at.push(stop.clock.to_sync(local).as_ns());
+            }
+            let cands = shared.deliveries.get(&(i, t)).cloned().unwrap_or_default();
+            let last = self.last_cycle[i - 1];
+            let newer = |c: u32| last.is_none_or(|l| c.wrapping_sub(l) as i32 > 0);
+            let fits = |d: &Delivery| {
+                forge::clip(f64::from(d.value), U_MAX) == u
+                    && s_at.iter().any(|&s| in_window(s, d.cycle, self.tol))
+            };
+            let Some(d) = cands
+                .iter()
+                .filter(|d| fits(d) && newer(d.cycle))
+                .min_by_key(|d| (!d.from_master, d.cycle.wrapping_sub(last.unwrap_or(0))))
+            else {
+                panic!(
+                    "slave {i} applied {u} V at {t} ns (synchronised time {s_at:?}): no command \
+                     for it reached it then with that value, in its cycle window and newer than \
+                     cycle {last:?}; commands that reached it then: {cands:?}"
+                );
+            };
+            if true_time_mode() {
+                assert!(
+                    in_window(t, d.cycle, self.tol),
+                    "slave {i} applied cycle {}'s command at true time {t} ns ({d:?})",
+                    d.cycle
+                );
+            }
+            self.last_cycle[i - 1] = Some(d.cycle);
+        }
+        self.applied_seen = ring.applied.len();
+        shared.deliveries.retain(|&(_, at), _| at > now);
+        for v in &mut shared.lumped_at {
+            v.retain(|&at| at > now);
+        }
+        drop(shared);
+        // A re-lock after the last command applied in this step.
+        for (i, r) in relocked.iter().enumerate() {
+            if r.is_some() {
+                self.last_cycle[i] = None;
+            }
+        }
+        self.clocks = end;
+        self.checked_at = now;
+        // Following error: a stop or the slave's safe state within W + 2 cycles.
+        let safe = Status::FAULT.bits() | Status::BRAKING.bits() | Status::TORQUE_OFF.bits();
+        for a in 0..ring.axes.len() {
+            let err = (ring.desired(a + 1, now) - ring.axes[a].x).abs();
+            let stopped = ring.master.is_stopping() || ring.slaves[a].status().bits() & safe != 0;
+            if err <= self.limit + FE_MARGIN || stopped {
+                self.over_since[a] = None;
+                continue;
+            }
+            let since = *self.over_since[a].get_or_insert(now);
+            assert!(
+                now - since <= (self.w + 2) * T,
+                "axis {} off its path by {err} rad since {since} ns, no stop at {now} ns \
+                 (status {:?})",
+                a + 1,
+                ring.slaves[a].status()
+            );
+        }
+    }
+}
+
+fuzz_target!(|data: &[u8]| {
+    let mut u = Unstructured::new(data);
+    let mut h = Harness::new();
+    let mut killed = false;
+    while !u.is_empty() && h.ring.now() < TOTAL {
+        let Ok(op) = Op::arbitrary(&mut u) else {
+            break;
+        };
+        if forge::tracing() {
+            eprintln!("{op:?}");
+        }
+        match op {
+            Op::Run { us } => {
+                let until = (h.ring.now() + (i64::from(us) * 1_000).min(MAX_RUN)).min(TOTAL);
+                h.run_to(until);
+            }
+            Op::Inject {
+                to,
+                after_us,
+                frame,
+            } => h.inject(to, after_us, &frame),
+            Op::Tap(rule) => {
+                let mut sh = h.shared.borrow_mut();
+                if sh.rules.len() < MAX_RULES {
+                    sh.rules.push((rule, rule.count.max(1)));
+                }
+            }
+            Op::Kill { slave } => {
+                if !killed {
+                    killed = true;
+                    h.ring.dead[1 + usize::from(slave % 4)] = true;
+                }
+            }
+        }
+    }
+    // A tail long enough for every pending check to conclude.
+    let tail = h.ring.now() + (h.w + 3) * T;
+    h.run_to(tail);
+    if forge::tracing() {
+        eprintln!(
+            "at {} ns: master {:?}, stopping {}",
+            h.ring.now(),
+            h.ring.master.counters(),
+            h.ring.master.is_stopping()
+        );
+        for (i, s) in h.ring.slaves.iter().enumerate() {
+            eprintln!("slave {}: {:?} {:?}", i + 1, s.counters(), s.status());
+        }
+        eprintln!("applied {}", h.ring.applied.len());
+    }
+});
