@@ -64,7 +64,6 @@ impl RingConfig {
             PlanKind::P2pLumped => master.p2p_start,
             PlanKind::LumpedOnly => Duration::ZERO,
         };
-        let kd = s.control.kd.expand(n);
         let slaves = (0..n)
             .map(|i| {
                 let a = &s.axis[i % s.axis.len()];
@@ -79,7 +78,7 @@ impl RingConfig {
                     clock_window,
                     p2p_start,
                     safe_state: s.faults.safe_state,
-                    brake_gain: kd[i],
+                    brake_gain: s.faults.brake_gain,
                     ..SlaveConfig::new((i + 1) as u16, t_cyc, plan.d_c[i])
                 }
             })

@@ -318,6 +318,9 @@ pub struct Faults {
     /// torque at once.
     #[serde(deserialize_with = "safe_state")]
     pub safe_state: SafeState,
+    /// K_b of the brake reaction u = −K_b·v (the safe state "brake", or a brake the master
+    /// orders) [V·s/rad].
+    pub brake_gain: f64,
 }
 
 fn safe_state<'de, D: Deserializer<'de>>(d: D) -> Result<SafeState, D::Error> {
@@ -335,6 +338,7 @@ impl Default for Faults {
             silent_slave: 0,
             silent_from: Dur(Duration::ZERO),
             safe_state: SafeState::Brake,
+            brake_gain: 1.591,
         }
     }
 }
@@ -841,15 +845,18 @@ impl Scenario {
         Ok(())
     }
 
-    /// A slave that loses its master brakes with u = −K_D·v, updated once a cycle
-    /// (docs/safety.md): that loop must be stable for every axis. For a torque axis,
-    /// v ← v·(1 − T·K_D/(J/K_a)), so T·K_D/(J/K_a) < 2; for a velocity axis (time constant
-    /// τ, gain k_v), v ← v·(a − (1 − a)·k_v·K_D) with a = e^(−T/τ), so
-    /// (1 − a)·k_v·K_D < 1 + a.
+    /// A slave brakes its axis with u = −K_b·v, updated once a cycle (docs/safety.md):
+    /// that loop must be stable for every axis. For a torque axis,
+    /// v ← v·(1 − T·K_b/(J/K_a)), so T·K_b/(J/K_a) < 2; for a velocity axis (time constant
+    /// τ, gain k_v), v ← v·(a − (1 − a)·k_v·K_b) with a = e^(−T/τ), so
+    /// (1 − a)·k_v·K_b < 1 + a.
     fn check_brake(&self) -> Result<(), ScenarioError> {
         let t = self.ring.cycle.secs();
-        let kd = self.control.kd.expand(self.axes_count());
-        for (i, k) in kd.iter().enumerate() {
+        let k = self.faults.brake_gain;
+        if !(k.is_finite() && k > 0.0) {
+            return Err(out_of_range("faults.brake_gain", k, "> 0 V·s/rad"));
+        }
+        for i in 0..self.axes_count() {
             let Some(a) = self.axis_spec(i) else { continue };
             let (factor, bound) = match a.model {
                 AxisKind::Torque => (t * k / a.j_over_ka, 2.0),
@@ -860,10 +867,11 @@ impl Scenario {
             };
             if factor >= bound {
                 return Err(out_of_range(
-                    format!("control.kd (axis {i})"),
+                    "faults.brake_gain",
                     k,
                     format!(
-                        "a gain the slave's brake (u = −K_D·v once a cycle) can use: its loop factor is {factor:.3}, it must stay under {bound:.3}"
+                        "a gain the slaves' brake (u = −K_b·v once a cycle) can use on axis[{}]: its loop factor is {factor:.3}, it must stay under {bound:.3}",
+                        i % self.axis.len().max(1)
                     ),
                 ));
             }

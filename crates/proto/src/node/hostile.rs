@@ -820,7 +820,11 @@ fn one_late_sync_frame_does_not_throw_a_clock_off() {
         }));
         r.run_until(300 * MS);
         assert!(stops(&r).is_empty(), "{late} ns: {:?}", stops(&r));
-        assert!(clock_error(&r, 2).abs() < 1_000, "{late} ns: {}", clock_error(&r, 2));
+        assert!(
+            clock_error(&r, 2).abs() < 1_000,
+            "{late} ns: {}",
+            clock_error(&r, 2)
+        );
         assert_eq!(r.slaves[1].counters().relocks, 0);
     }
 }
