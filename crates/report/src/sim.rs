@@ -83,7 +83,7 @@ pub fn summary_json(s: &Scenario, hash: u64, r: &RunResult) -> Value {
         .slaves
         .iter()
         .enumerate()
-        .map(|(i, c)| json!({"slave": i + 1, "syncs": c.syncs, "commands": c.commands, "rejected": c.rejected.total(), "retries_answered": c.duplicates, "clock_relocks": c.relocks}))
+        .map(|(i, c)| json!({"slave": i + 1, "syncs": c.syncs, "commands": c.commands, "rejected": c.rejected.total(), "retries_answered": c.duplicates, "clock_relocks": c.relocks, "clock_acquisitions_restarted": c.acquisitions_restarted}))
         .collect();
     let mc = &r.master;
     json!({
@@ -109,6 +109,7 @@ pub fn summary_json(s: &Scenario, hash: u64, r: &RunResult) -> Value {
             "retries": mc.retries,
             "retries_ok": mc.retries_ok,
             "commands_lost": mc.commands_lost,
+            "command_mismatches": mc.command_mismatches,
         },
         "rejected": rejected_json(r),
         "slaves": slaves,
