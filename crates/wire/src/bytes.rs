@@ -51,10 +51,14 @@ pub(crate) fn finite(what: &'static str, v: f32) -> crate::Result<f32> {
     }
 }
 
-/// Declares a zero-copy view `$name<T: AsRef<[u8]>>` over a buffer with `new_unchecked`,
-/// `new_checked` (which calls the view's own `check_len`) and `into_inner`.
+/// Declares a zero-copy view `$name<T: AsRef<[u8]>>` over a buffer with `check_len` (the
+/// given body, over the buffer's bytes `$b`), `new_unchecked`, `new_checked` (which calls
+/// `check_len`) and `into_inner`.
 macro_rules! view {
-    ($(#[$meta:meta])* $name:ident) => {
+    (
+        $(#[$meta:meta])* $name:ident;
+        $(#[$check_meta:meta])* fn check_len($b:ident) $check:block
+    ) => {
         $(#[$meta])*
         #[derive(Debug, Clone, Copy)]
         pub struct $name<T: AsRef<[u8]>> {
@@ -73,6 +77,12 @@ macro_rules! view {
                 let view = Self::new_unchecked(buffer);
                 view.check_len()?;
                 Ok(view)
+            }
+
+            $(#[$check_meta])*
+            pub fn check_len(&self) -> $crate::Result<()> {
+                let $b: &[u8] = self.buffer.as_ref();
+                $check
             }
 
             /// The underlying buffer.

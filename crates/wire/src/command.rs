@@ -102,7 +102,11 @@ view! {
     /// Zero-copy view of a command payload (from [`Frame::command`](crate::Frame::command)).
     /// The getters return the raw fields; [`CommandPayload::check`] applies the rules of
     /// docs/wire.md (as [`CommandRepr::parse`] does).
-    CommandPayload
+    CommandPayload;
+    /// Checks that the payload is exactly [`COMMAND_PAYLOAD_LEN`] (16) bytes long.
+    fn check_len(b) {
+        exact_len(FrameKind::Command, b, COMMAND_PAYLOAD_LEN)
+    }
 }
 
 fields!(CommandPayload {
@@ -112,14 +116,6 @@ fields!(CommandPayload {
 });
 
 impl<T: AsRef<[u8]>> CommandPayload<T> {
-    /// Checks that the payload is exactly [`COMMAND_PAYLOAD_LEN`] (16) bytes long.
-    pub fn check_len(&self) -> Result<()> {
-        exact_len(
-            FrameKind::Command,
-            self.buffer.as_ref(),
-            COMMAND_PAYLOAD_LEN,
-        )
-    }
     /// Checks the fields: a slave target (not 0), the reserved field 0, a finite command.
     pub fn check(&self) -> Result<()> {
         if self.target() == 0 {

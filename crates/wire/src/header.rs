@@ -263,7 +263,13 @@ view! {
     /// [`Frame::command`] or [`Frame::response`]. None of these checks the CRC: the node
     /// that takes the frame does. Setters on a mutable buffer change the bytes only: call
     /// [`Frame::fill_crc`] after the last one.
-    Frame
+    Frame;
+    /// Checks that the buffer holds the header, the payload length it declares and the CRC.
+    fn check_len(b) {
+        need("header", b, HEADER_LEN)?;
+        let len = usize::from(get::<u16>(b, field::LENGTH));
+        need("payload and CRC", b, HEADER_LEN + len + CRC_LEN)
+    }
 }
 
 fields!(Frame {
@@ -276,14 +282,6 @@ fields!(Frame {
 });
 
 impl<T: AsRef<[u8]>> Frame<T> {
-    /// Checks that the buffer holds the header, the payload length it declares and the CRC.
-    pub fn check_len(&self) -> Result<()> {
-        let b = self.buffer.as_ref();
-        need("header", b, HEADER_LEN)?;
-        let len = usize::from(get::<u16>(b, field::LENGTH));
-        need("payload and CRC", b, HEADER_LEN + len + CRC_LEN)
-    }
-
     /// Checks version, kind, flags and CRC; returns the kind. The payload is not checked
     /// (see [`Frame::validate`]).
     pub fn check(&self) -> Result<FrameKind> {

@@ -128,7 +128,11 @@ view! {
     /// [`Frame::response`](crate::Frame::response)). The getters return the raw fields;
     /// [`ResponsePayload::check`] applies the rules of docs/wire.md (as
     /// [`ResponseRepr::parse`] does).
-    ResponsePayload
+    ResponsePayload;
+    /// Checks that the payload is exactly [`RESPONSE_PAYLOAD_LEN`] (28) bytes long.
+    fn check_len(b) {
+        exact_len(FrameKind::Response, b, RESPONSE_PAYLOAD_LEN)
+    }
 }
 
 fields!(ResponsePayload {
@@ -142,14 +146,6 @@ fields!(ResponsePayload {
 });
 
 impl<T: AsRef<[u8]>> ResponsePayload<T> {
-    /// Checks that the payload is exactly [`RESPONSE_PAYLOAD_LEN`] (28) bytes long.
-    pub fn check_len(&self) -> Result<()> {
-        exact_len(
-            FrameKind::Response,
-            self.buffer.as_ref(),
-            RESPONSE_PAYLOAD_LEN,
-        )
-    }
     /// Checks the fields: a slave source (not 0), no reserved status bit, a finite applied
     /// command.
     pub fn check(&self) -> Result<()> {

@@ -60,11 +60,13 @@ fn tables(doc: &str) -> Vec<Table> {
     out
 }
 
-/// One row as the code has it: the doc's field name, offset and size.
+/// One row as the code has it: the doc's field name, offset and size, and the field when it
+/// has a fixed size.
 struct Row {
     name: &'static str,
     offset: String,
     size: String,
+    field: Option<Field>,
 }
 
 fn fixed(name: &'static str, f: Field) -> Row {
@@ -72,23 +74,24 @@ fn fixed(name: &'static str, f: Field) -> Row {
         name,
         offset: f.start.to_string(),
         size: f.len().to_string(),
+        field: Some(f),
     }
 }
 
-fn open(name: &'static str, offset: usize, size: &str) -> Row {
+fn open(name: &'static str, offset: impl ToString, size: &str) -> Row {
     Row {
         name,
         offset: offset.to_string(),
         size: size.to_string(),
+        field: None,
     }
 }
 
-/// A layout: the heading its table stands under, its rows, and the fixed fields that must
-/// tile it from its first offset to `len`.
+/// A layout: the heading its table stands under and its rows, whose fixed fields must tile
+/// it from the first one's offset to `len`.
 struct Layout {
     heading: &'static str,
     rows: Vec<Row>,
-    tiles: Vec<Field>,
     len: usize,
 }
 
@@ -111,20 +114,11 @@ fn layouts() -> Vec<Layout> {
                 fixed("seq", h::SEQ),
                 fixed("payload length L", h::LENGTH),
                 open("payload", h::PAYLOAD.start, "L"),
-                Row {
-                    name: "CRC-32",
-                    offset: format!("{} + L", crc.start),
-                    size: crc.len().to_string(),
-                },
-            ],
-            tiles: vec![
-                h::VERSION,
-                h::KIND,
-                h::FLAGS,
-                h::RETRY,
-                h::CYCLE,
-                h::SEQ,
-                h::LENGTH,
+                open(
+                    "CRC-32",
+                    format!("{} + L", crc.start),
+                    &crc.len().to_string(),
+                ),
             ],
             len: HEADER_LEN,
         },
@@ -140,7 +134,6 @@ fn layouts() -> Vec<Layout> {
                     &format!("{}·m", FeedbackSlot::LEN),
                 ),
             ],
-            tiles: vec![lp::MASTER_TIME, lp::FIRST_SLOT, lp::SLOT_COUNT],
             len: LUMPED_PREFIX_LEN,
         },
         Layout {
@@ -153,14 +146,6 @@ fn layouts() -> Vec<Layout> {
                 fixed("written", fb::WRITTEN),
                 fixed("reserved", fb::RESERVED),
             ],
-            tiles: vec![
-                fb::POSITION,
-                fb::VELOCITY,
-                fb::SAMPLE_TIME,
-                fb::STATUS,
-                fb::WRITTEN,
-                fb::RESERVED,
-            ],
             len: FeedbackSlot::LEN,
         },
         Layout {
@@ -170,12 +155,6 @@ fn layouts() -> Vec<Layout> {
                 fixed("reserved", command::field::RESERVED),
                 fixed("command", command::field::COMMAND),
                 fixed("sampling instant", command::field::SAMPLE_TIME),
-            ],
-            tiles: vec![
-                command::field::TARGET,
-                command::field::RESERVED,
-                command::field::COMMAND,
-                command::field::SAMPLE_TIME,
             ],
             len: command::COMMAND_PAYLOAD_LEN,
         },
@@ -190,15 +169,6 @@ fn layouts() -> Vec<Layout> {
                 fixed("measuring instant", response::field::SAMPLE_TIME),
                 fixed("applied command", response::field::APPLIED),
             ],
-            tiles: vec![
-                response::field::SOURCE,
-                response::field::STATUS,
-                response::field::ECHO_CYCLE,
-                response::field::POSITION,
-                response::field::VELOCITY,
-                response::field::SAMPLE_TIME,
-                response::field::APPLIED,
-            ],
             len: response::RESPONSE_PAYLOAD_LEN,
         },
         Layout {
@@ -208,12 +178,6 @@ fn layouts() -> Vec<Layout> {
                 fixed("desired position", lo::DESIRED_POSITION),
                 fixed("desired velocity", lo::DESIRED_VELOCITY),
                 fixed("command", lo::COMMAND),
-            ],
-            tiles: vec![
-                lo::FEEDBACK,
-                lo::DESIRED_POSITION,
-                lo::DESIRED_VELOCITY,
-                lo::COMMAND,
             ],
             len: LumpedOnlySlot::LEN,
         },
@@ -225,7 +189,6 @@ fn layouts() -> Vec<Layout> {
                 fixed("EtherType", eth::ETHERTYPE),
                 open("payload", eth::PAYLOAD.start, "n"),
             ],
-            tiles: vec![eth::DESTINATION, eth::SOURCE, eth::ETHERTYPE],
             len: ethernet::ETH_HEADER_LEN,
         },
     ]
@@ -277,8 +240,13 @@ fn every_layout_table_matches_the_field_modules() {
 #[test]
 fn fixed_fields_tile_each_layout() {
     for layout in layouts() {
-        let mut at = layout.tiles[0].start;
-        for f in &layout.tiles {
+        let tiles: Vec<&Field> = layout
+            .rows
+            .iter()
+            .filter_map(|r| r.field.as_ref())
+            .collect();
+        let mut at = tiles[0].start;
+        for f in tiles {
             assert_eq!(f.start, at, "gap or overlap in {} at {f:?}", layout.heading);
             at = f.end;
         }
@@ -409,20 +377,9 @@ fn text_form_examples_are_what_display_prints() {
         first_slot: 4,
         slots: vec![LumpedOnlySlot::default()],
     };
-    // The fixture command of tests/fixtures.rs with its CRC's lowest bit flipped.
-    let fixture = CommandRepr {
-        common: Common {
-            flags: Flags::STOP,
-            retry: 1,
-            cycle: 0x0102_0304,
-            seq: 0x0506,
-        },
-        target: 3,
-        command_v: 1.5,
-        sample_time_ns: 1_000_000,
-    };
+    // The command above with its CRC's lowest bit flipped.
     let mut bad = [0u8; COMMAND_PDU_LEN];
-    fixture.emit(&mut bad).expect("emit");
+    command.emit(&mut bad).expect("emit");
     bad[COMMAND_PDU_LEN - CRC_LEN] ^= 1;
     let mut printed: Vec<String> = [
         Pdu::Lumped(lumped),

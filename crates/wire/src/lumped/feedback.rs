@@ -84,7 +84,11 @@ view! {
     /// writes its feedback into a passing frame, the master reads every slot without
     /// copying. The getters return the raw fields; [`FeedbackSlotView::check`] applies the
     /// rules of docs/wire.md.
-    FeedbackSlotView
+    FeedbackSlotView;
+    /// Checks that the buffer holds a slot (20 B; more is ignored).
+    fn check_len(b) {
+        need("feedback slot", b, FeedbackSlot::LEN)
+    }
 }
 
 fields!(FeedbackSlotView {
@@ -95,10 +99,6 @@ fields!(FeedbackSlotView {
 });
 
 impl<T: AsRef<[u8]>> FeedbackSlotView<T> {
-    /// Checks that the buffer holds a slot (20 B; more is ignored).
-    pub fn check_len(&self) -> Result<()> {
-        need("feedback slot", self.buffer.as_ref(), FeedbackSlot::LEN)
-    }
     /// Checks the fields: the written marker is 0 or 1, the reserved byte 0, no reserved
     /// status bit set.
     pub fn check(&self) -> Result<()> {

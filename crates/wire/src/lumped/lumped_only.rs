@@ -73,7 +73,11 @@ view! {
     /// Zero-copy view of one lumped-only slot in place (from
     /// [`LumpedPayload::lumped_only_slot`](super::LumpedPayload::lumped_only_slot)). The
     /// getters return the raw fields; [`LumpedOnlySlotView::check`] applies the rules.
-    LumpedOnlySlotView
+    LumpedOnlySlotView;
+    /// Checks that the buffer holds a slot (32 B; more is ignored).
+    fn check_len(b) {
+        need("lumped-only slot", b, LumpedOnlySlot::LEN)
+    }
 }
 
 fields!(LumpedOnlySlotView {
@@ -83,14 +87,6 @@ fields!(LumpedOnlySlotView {
 });
 
 impl<T: AsRef<[u8]>> LumpedOnlySlotView<T> {
-    /// Checks that the buffer holds a slot (32 B; more is ignored).
-    pub fn check_len(&self) -> Result<()> {
-        need(
-            "lumped-only slot",
-            self.buffer.as_ref(),
-            LumpedOnlySlot::LEN,
-        )
-    }
     /// Checks the fields: those of the feedback part, then a finite command.
     pub fn check(&self) -> Result<()> {
         self.feedback().check()?;
