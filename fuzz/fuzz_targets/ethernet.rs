@@ -24,5 +24,10 @@ fn check(data: &[u8]) {
         if let Ok(payload) = eth.ringsync_payload() {
             let _ = Pdu::parse(payload);
         }
+        if let Ok(pdu) = eth.ringsync_pdu() {
+            // Padding stripped, the PDU parses as it did with the padding.
+            let padded = eth.ringsync_payload().map(Pdu::parse).ok();
+            assert_eq!(Some(Pdu::parse(pdu)), padded);
+        }
     }
 }

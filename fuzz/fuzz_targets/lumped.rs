@@ -1,10 +1,11 @@
-//! Lumped frames of both kinds, through the owned parser and the in-place slot view.
+//! Lumped frames of both kinds, through the owned parser and the in-place payload and slot
+//! views.
 #![no_main]
 
 #[path = "seal.rs"]
 #[macro_use]
 mod seal;
-use ringsync_wire::{FeedbackSlot, Frame, LumpedOnlySlot, LumpedPayload, LumpedRepr, SlotCodec};
+use ringsync_wire::{FeedbackSlot, Frame, LumpedOnlySlot, LumpedRepr, SlotCodec};
 
 fuzz_raw_and_sealed!(check);
 
@@ -13,18 +14,30 @@ fn check(data: &[u8]) {
     let _ = LumpedRepr::<LumpedOnlySlot>::parse(data);
     let mut buf = data.to_vec();
     if let Ok(mut frame) = Frame::new_checked(&mut buf[..]) {
-        if let Ok(kind) = frame.check() {
-            if let Ok(mut p) = LumpedPayload::new_checked(frame.payload_mut(), kind) {
-                let count = usize::from(p.slot_count());
-                for k in 0..=count {
-                    if let Some(b) = p.slot_bytes(k) {
-                        let _ = FeedbackSlot::parse(b);
-                        let _ = LumpedOnlySlot::parse(b);
-                    }
+        let _ = frame.route();
+        if let Ok(p) = frame.lumped() {
+            let _ = (p.master_time_ns(), p.first_slot(), p.check_slots());
+            for k in 0..=usize::from(p.slot_count()) {
+                if let Some(s) = p.feedback_slot(k) {
+                    let _ = (s.position(), s.status(), s.written(), s.check());
                 }
+                if let Some(s) = p.lumped_only_slot(k) {
+                    let _ = (s.feedback().sample_time_ns(), s.command_v(), s.check());
+                }
+                if let Some(b) = p.slot_bytes(k) {
+                    let _ = FeedbackSlot::parse(b);
+                    let _ = LumpedOnlySlot::parse(b);
+                }
+            }
+        }
+        if frame.check().is_ok() {
+            if let Ok(mut p) = frame.lumped_mut() {
                 if let Some(k) = p.slot_index(1) {
                     if let Some(b) = p.slot_bytes_mut(k) {
                         let _ = FeedbackSlot::default().emit(b);
+                    }
+                    if let Some(mut s) = p.feedback_slot_mut(k) {
+                        s.set_written(true);
                     }
                 }
             }
@@ -32,4 +45,3 @@ fn check(data: &[u8]) {
         }
     }
 }
-

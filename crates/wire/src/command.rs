@@ -8,13 +8,28 @@
 //!      4    4 f32   command [V], finite (IEEE 754 binary32)
 //!      8    8 u64   sampling instant the command was computed from [ns, master clock]
 //! ```
+//! The offsets are in [`field`]; [`CommandPayload`] reads and writes them in place.
 
-use crate::error::{Error, Result};
-use crate::field::{f32_at, finite, put_f32, put_u16, put_u64, u16_at, u64_at};
-use crate::header::{CRC_LEN, Common, FrameKind, HEADER_LEN, emit_common, parse_fixed};
+use crate::bytes::{finite, get};
+use crate::error::{Error, Result, exact_len};
+use crate::header::{CRC_LEN, Common, FrameKind, HEADER_LEN, emit_common, parse_common};
+
+/// Byte ranges of the command payload's fields, within the payload (docs/wire.md, "Kind 2").
+pub mod field {
+    use crate::Field;
+
+    /// Target slave address, u16 (1..=65535; 0 is the master and is rejected).
+    pub const TARGET: Field = 0..2;
+    /// Reserved, u16 (0).
+    pub const RESERVED: Field = 2..4;
+    /// Command, f32 [V], finite.
+    pub const COMMAND: Field = 4..8;
+    /// Sampling instant of the feedback the command was computed from, u64 [ns, master clock].
+    pub const SAMPLE_TIME: Field = 8..16;
+}
 
 /// Payload length of a command frame [B].
-pub const COMMAND_PAYLOAD_LEN: usize = 16;
+pub const COMMAND_PAYLOAD_LEN: usize = field::SAMPLE_TIME.end;
 /// Length of a command PDU, header to CRC [B].
 pub const COMMAND_PDU_LEN: usize = HEADER_LEN + COMMAND_PAYLOAD_LEN + CRC_LEN;
 
@@ -44,23 +59,14 @@ impl CommandRepr {
     }
 
     fn parse_inner(buf: &[u8], verify: bool) -> Result<Self> {
-        let (common, p) = parse_fixed(buf, FrameKind::Command, COMMAND_PAYLOAD_LEN, verify)?;
-        let target = u16_at(p, 0);
-        if target == 0 {
-            return Err(Error::BadSlave(target));
-        }
-        let reserved = u16_at(p, 2);
-        if reserved != 0 {
-            return Err(Error::Reserved {
-                field: "command bytes 2-3",
-                value: reserved.into(),
-            });
-        }
+        let (common, p) = parse_common(buf, FrameKind::Command, verify)?;
+        let v = CommandPayload::new_checked(p)?;
+        v.check()?;
         Ok(CommandRepr {
             common,
-            target,
-            command_v: finite("command", f32_at(p, 4))?,
-            sample_time_ns: u64_at(p, 8),
+            target: v.target(),
+            command_v: v.command_v(),
+            sample_time_ns: v.sample_time_ns(),
         })
     }
 
@@ -74,19 +80,54 @@ impl CommandRepr {
         if self.target == 0 {
             return Err(Error::BadSlave(0));
         }
-        let v = finite("command", self.command_v)?;
+        let command_v = finite("command", self.command_v)?;
         emit_common(
             buf,
             FrameKind::Command,
             &self.common,
             COMMAND_PAYLOAD_LEN,
             |p| {
-                put_u16(p, 0, self.target);
-                put_u16(p, 2, 0);
-                put_f32(p, 4, v);
-                put_u64(p, 8, self.sample_time_ns);
+                // The payload is zeroed: the reserved field stays 0.
+                let mut v = CommandPayload::new_unchecked(p);
+                v.set_target(self.target);
+                v.set_command_v(command_v);
+                v.set_sample_time_ns(self.sample_time_ns);
                 Ok(())
             },
         )
+    }
+}
+
+view! {
+    /// Zero-copy view of a command payload (from [`Frame::command`](crate::Frame::command)).
+    /// The getters return the raw fields; [`CommandPayload::check`] applies the rules of
+    /// docs/wire.md (as [`CommandRepr::parse`] does).
+    CommandPayload;
+    /// Checks that the payload is exactly [`COMMAND_PAYLOAD_LEN`] (16) bytes long.
+    fn check_len(b) {
+        exact_len(FrameKind::Command, b, COMMAND_PAYLOAD_LEN)
+    }
+}
+
+fields!(CommandPayload {
+    target, set_target: u16 = field::TARGET, "Target slave address (1..=65535 when valid; 0 is the master's).";
+    command_v, set_command_v: f32 = field::COMMAND, "Command for the drive [V] (raw: may be non-finite before `check`).";
+    sample_time_ns, set_sample_time_ns: u64 = field::SAMPLE_TIME, "Sampling instant of the feedback the command was computed from [ns, master clock].";
+});
+
+impl<T: AsRef<[u8]>> CommandPayload<T> {
+    /// Checks the fields: a slave target (not 0), the reserved field 0, a finite command.
+    pub fn check(&self) -> Result<()> {
+        if self.target() == 0 {
+            return Err(Error::BadSlave(0));
+        }
+        let reserved: u16 = get(self.buffer.as_ref(), field::RESERVED);
+        if reserved != 0 {
+            return Err(Error::Reserved {
+                field: "command bytes 2-3",
+                value: reserved.into(),
+            });
+        }
+        finite("command", self.command_v()).map(drop)
     }
 }

@@ -169,3 +169,16 @@ pub(crate) fn need(what: &'static str, buf: &[u8], needed: usize) -> Result<()> 
         Ok(())
     }
 }
+
+/// Returns `Err(PayloadLength)` unless the payload of a `kind` frame is `expected` bytes.
+pub(crate) fn exact_len(kind: FrameKind, payload: &[u8], expected: usize) -> Result<()> {
+    if payload.len() == expected {
+        Ok(())
+    } else {
+        Err(Error::PayloadLength {
+            kind,
+            expected,
+            got: payload.len(),
+        })
+    }
+}

@@ -13,30 +13,54 @@
 //!   12+L    4 u32   CRC-32 over bytes 0..12+L
 //! ```
 //! All multi-byte fields are little-endian. Bytes after the CRC (Ethernet padding) are
-//! ignored.
+//! ignored. The offsets are in [`field`].
 
-use core::fmt;
-
+use crate::bytes::{get, put};
+use crate::command::CommandPayload;
 use crate::crc::crc32;
 use crate::error::{Error, Result, need};
-use crate::field::{put_u16, put_u32, u16_at, u32_at};
+use crate::lumped::{LumpedPayload, field as lumped_field};
+use crate::response::ResponsePayload;
+
+/// Byte ranges of the header fields within a PDU (docs/wire.md, "Common header").
+pub mod field {
+    use crate::{Field, Rest};
+
+    /// Protocol version, u8 (1 in this version).
+    pub const VERSION: Field = 0..1;
+    /// Frame kind, u8 (1 lumped, 2 command, 3 response, 4 lumped-only).
+    pub const KIND: Field = 1..2;
+    /// Flags, u8 (bit 0 `STOP`, bit 1 `TORQUE_OFF`, bits 2-7 reserved).
+    pub const FLAGS: Field = 2..3;
+    /// Retry count, u8 (0 for the first attempt).
+    pub const RETRY: Field = 3..4;
+    /// Cycle counter of the sender, u32 (wraps).
+    pub const CYCLE: Field = 4..8;
+    /// Sequence number of the sender, u16 (wraps).
+    pub const SEQ: Field = 8..10;
+    /// Payload length L, u16 [B].
+    pub const LENGTH: Field = 10..12;
+    /// The payload starts here; its length is the header's L.
+    pub const PAYLOAD: Rest = 12..;
+
+    /// The payload of a PDU whose header declares `len` payload bytes.
+    pub const fn payload(len: usize) -> Field {
+        PAYLOAD.start..PAYLOAD.start + len
+    }
+
+    /// The CRC-32 trailer, u32, of a PDU with `payload_len` payload bytes.
+    pub const fn crc(payload_len: usize) -> Field {
+        let at = PAYLOAD.start + payload_len;
+        at..at + super::CRC_LEN
+    }
+}
 
 /// Protocol version this crate reads and writes.
 pub const VERSION: u8 = 1;
 /// Length of the common header [B].
-pub const HEADER_LEN: usize = 12;
+pub const HEADER_LEN: usize = field::PAYLOAD.start;
 /// Length of the CRC-32 trailer [B].
 pub const CRC_LEN: usize = 4;
-
-mod off {
-    pub const VERSION: usize = 0;
-    pub const KIND: usize = 1;
-    pub const FLAGS: usize = 2;
-    pub const RETRY: usize = 3;
-    pub const CYCLE: usize = 4;
-    pub const SEQ: usize = 8;
-    pub const LEN: usize = 10;
-}
 
 /// The kind of a PDU (header byte 1).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -75,12 +99,6 @@ impl FrameKind {
     }
 }
 
-impl fmt::Display for FrameKind {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.name())
-    }
-}
-
 /// Header flags (header byte 2).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct Flags(u8);
@@ -110,9 +128,17 @@ impl Flags {
             Ok(Flags(b))
         }
     }
+    /// Decodes the byte, dropping reserved bits.
+    pub const fn from_bits_truncate(b: u8) -> Self {
+        Flags(b & Self::DEFINED)
+    }
     /// The raw byte.
     pub const fn bits(self) -> u8 {
         self.0
+    }
+    /// Whether no flag is set.
+    pub const fn is_empty(self) -> bool {
+        self.0 == 0
     }
     /// Whether every bit of `other` is set.
     pub const fn contains(self, other: Flags) -> bool {
@@ -161,9 +187,17 @@ impl Status {
             Ok(Status(b))
         }
     }
+    /// Decodes the field, dropping reserved bits.
+    pub const fn from_bits_truncate(b: u16) -> Self {
+        Status(b & Self::DEFINED)
+    }
     /// The raw bits.
     pub const fn bits(self) -> u16 {
         self.0
+    }
+    /// Whether no bit is set.
+    pub const fn is_empty(self) -> bool {
+        self.0 == 0
     }
     /// Whether every bit of `other` is set.
     pub const fn contains(self, other: Status) -> bool {
@@ -175,33 +209,87 @@ impl Status {
     }
 }
 
-/// A read/write view of one PDU in a byte buffer (smoltcp style).
+/// Where a frame goes, read from its header and routing fields only ([`Frame::route`]).
 ///
-/// After [`Frame::new_checked`] every accessor is infallible and cannot panic.
-#[derive(Debug, Clone)]
-pub struct Frame<T: AsRef<[u8]>> {
-    buffer: T,
+/// Slot k of a lumped frame belongs to slave `first_slot + k + 1`, so a lumped frame serves
+/// slaves `first_slot + 1 ..= first_slot + slot_count`. Addresses are raw wire values: a
+/// corrupted frame routes somewhere, and the node that receives it rejects it (its CRC).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Route {
+    /// Sync lumped frame (kind 1), for the slaves of its slots, then back to the master.
+    Lumped {
+        /// Index of the first slot.
+        first_slot: u16,
+        /// Number of slots.
+        slot_count: u16,
+    },
+    /// Lumped-only frame (kind 4), for the slaves of its slots, then back to the master.
+    LumpedOnly {
+        /// Index of the first slot.
+        first_slot: u16,
+        /// Number of slots.
+        slot_count: u16,
+    },
+    /// Command frame (kind 2), for one slave.
+    Command {
+        /// Target slave address (1..=65535 when valid).
+        target: u16,
+    },
+    /// Response frame (kind 3), from one slave to the master.
+    Response {
+        /// Source slave address (1..=65535 when valid).
+        source: u16,
+    },
 }
 
-impl<T: AsRef<[u8]>> Frame<T> {
-    /// Wraps a buffer without checks; accessors may panic on a short buffer.
-    pub const fn new_unchecked(buffer: T) -> Self {
-        Frame { buffer }
+impl Route {
+    /// The frame kind.
+    pub fn kind(&self) -> FrameKind {
+        match self {
+            Route::Lumped { .. } => FrameKind::Lumped,
+            Route::LumpedOnly { .. } => FrameKind::LumpedOnly,
+            Route::Command { .. } => FrameKind::Command,
+            Route::Response { .. } => FrameKind::Response,
+        }
     }
+}
 
-    /// Wraps a buffer after checking that the header and the payload length it declares,
-    /// plus the CRC, fit. Version, kind, flags and CRC are checked by the `Repr` parsers
-    /// (or by [`Frame::check`]).
-    pub fn new_checked(buffer: T) -> Result<Self> {
-        let b = buffer.as_ref();
+view! {
+    /// A read/write view of one PDU in a byte buffer (smoltcp style).
+    ///
+    /// After [`Frame::new_checked`] (header, declared payload and CRC fit) no accessor can
+    /// panic. The raw getters (`version`, `kind_byte`, `flags_byte`, `retry`, `cycle`, `seq`)
+    /// return the bytes as they are; [`Frame::check`] checks version, kind, flags and CRC,
+    /// [`Frame::validate`] everything [`Pdu::parse`](crate::Pdu::parse) checks.
+    ///
+    /// A driver that only needs to know what a frame is and where it goes calls
+    /// [`Frame::route`]; one that needs a payload field reads it through [`Frame::lumped`],
+    /// [`Frame::command`] or [`Frame::response`]. None of these checks the CRC: the node
+    /// that takes the frame does. Setters on a mutable buffer change the bytes only: call
+    /// [`Frame::fill_crc`] after the last one.
+    Frame;
+    /// Checks that the buffer holds the header, the payload length it declares and the CRC.
+    fn check_len(b) {
         need("header", b, HEADER_LEN)?;
-        let len = u16_at(b, off::LEN) as usize;
-        need("payload and CRC", b, HEADER_LEN + len + CRC_LEN)?;
-        Ok(Frame { buffer })
+        let len = usize::from(get::<u16>(b, field::LENGTH));
+        need("payload and CRC", b, HEADER_LEN + len + CRC_LEN)
     }
+}
 
-    /// Checks version, kind, flags and CRC; returns the kind.
+fields!(Frame {
+    version: u8 = field::VERSION, "Protocol version byte (1 in this version of the format).";
+    kind_byte: u8 = field::KIND, "Raw kind byte (1 lumped, 2 command, 3 response, 4 lumped-only); [`Frame::kind`] decodes it.";
+    flags_byte: u8 = field::FLAGS, "Raw flags byte, reserved bits included; [`Frame::flags`] decodes it.";
+    retry, set_retry: u8 = field::RETRY, "Retry count: 0 for the first attempt, k for the k-th retry.";
+    cycle, set_cycle: u32 = field::CYCLE, "Cycle counter of the sender (wraps) [cycles].";
+    seq, set_seq: u16 = field::SEQ, "Sequence number of the sender (wraps), one per PDU sent.";
+});
+
+impl<T: AsRef<[u8]>> Frame<T> {
+    /// Checks version, kind, flags and CRC; returns the kind. The payload is not checked
+    /// (see [`Frame::validate`]).
     pub fn check(&self) -> Result<FrameKind> {
+        self.check_len()?;
         if self.version() != VERSION {
             return Err(Error::BadVersion(self.version()));
         }
@@ -215,37 +303,110 @@ impl<T: AsRef<[u8]>> Frame<T> {
         Ok(kind)
     }
 
-    /// The underlying buffer.
-    pub fn into_inner(self) -> T {
-        self.buffer
+    /// Checks everything [`Pdu::parse`](crate::Pdu::parse) checks, in the same order and
+    /// with the same errors, without building the representation (no allocation): header,
+    /// CRC, then the kind's payload length and fields. Returns the kind.
+    pub fn validate(&self) -> Result<FrameKind> {
+        let kind = self.check()?;
+        match kind {
+            FrameKind::Lumped | FrameKind::LumpedOnly => self.lumped()?.check_slots()?,
+            FrameKind::Command => self.command()?.check()?,
+            FrameKind::Response => self.response()?.check()?,
+        }
+        Ok(kind)
     }
-    /// Protocol version byte.
-    pub fn version(&self) -> u8 {
-        self.buffer.as_ref()[off::VERSION]
+
+    /// The frame kind, from the kind byte alone (no version or CRC check).
+    pub fn kind(&self) -> Result<FrameKind> {
+        self.check_len()?;
+        FrameKind::from_u8(self.kind_byte())
     }
-    /// Raw kind byte.
-    pub fn kind_byte(&self) -> u8 {
-        self.buffer.as_ref()[off::KIND]
+
+    /// The header flags; reserved bits are dropped ([`Frame::check`] rejects them).
+    pub fn flags(&self) -> Flags {
+        Flags::from_bits_truncate(self.flags_byte())
     }
-    /// Raw flags byte.
-    pub fn flags_byte(&self) -> u8 {
-        self.buffer.as_ref()[off::FLAGS]
+
+    /// The header fields a representation owns; reserved flag bits are dropped.
+    pub fn common(&self) -> Common {
+        Common {
+            flags: self.flags(),
+            retry: self.retry(),
+            cycle: self.cycle(),
+            seq: self.seq(),
+        }
     }
-    /// Retry count (0 = first attempt).
-    pub fn retry(&self) -> u8 {
-        self.buffer.as_ref()[off::RETRY]
+
+    /// What the frame is and where it goes, from the kind byte and the routing fields
+    /// (first slot and slot count, target, source): the cheap question a driver asks to
+    /// decide which node processes the frame next. Neither the version, the CRC, the payload
+    /// length nor the addresses are checked (the receiving node checks them); the routing
+    /// fields must lie inside the declared payload.
+    pub fn route(&self) -> Result<Route> {
+        let kind = self.kind()?;
+        let p = self.payload();
+        let word = |f: crate::Field| -> Result<u16> {
+            need("routing fields", p, f.end)?;
+            Ok(get(p, f))
+        };
+        Ok(match kind {
+            FrameKind::Lumped | FrameKind::LumpedOnly => {
+                let slot_count = word(lumped_field::SLOT_COUNT)?;
+                let first_slot = word(lumped_field::FIRST_SLOT)?;
+                if kind == FrameKind::Lumped {
+                    Route::Lumped {
+                        first_slot,
+                        slot_count,
+                    }
+                } else {
+                    Route::LumpedOnly {
+                        first_slot,
+                        slot_count,
+                    }
+                }
+            }
+            FrameKind::Command => Route::Command {
+                target: word(crate::command::field::TARGET)?,
+            },
+            FrameKind::Response => Route::Response {
+                source: word(crate::response::field::SOURCE)?,
+            },
+        })
     }
-    /// Cycle counter.
-    pub fn cycle(&self) -> u32 {
-        u32_at(self.buffer.as_ref(), off::CYCLE)
+
+    /// The payload of a lumped frame (kind 1 or 4) as a view: master send stamp, slots.
+    /// Checks the kind and the prefix against the payload length, not the CRC.
+    pub fn lumped(&self) -> Result<LumpedPayload<&[u8]>> {
+        let kind = self.kind()?;
+        LumpedPayload::new_checked(self.payload(), kind)
     }
-    /// Sequence number of the sender.
-    pub fn seq(&self) -> u16 {
-        u16_at(self.buffer.as_ref(), off::SEQ)
+
+    /// The payload of a command frame as a view. Checks the kind and the payload length,
+    /// not the CRC.
+    pub fn command(&self) -> Result<CommandPayload<&[u8]>> {
+        self.expect_kind(FrameKind::Command)?;
+        CommandPayload::new_checked(self.payload())
     }
-    /// Payload length [B].
+
+    /// The payload of a response frame as a view. Checks the kind and the payload length,
+    /// not the CRC.
+    pub fn response(&self) -> Result<ResponsePayload<&[u8]>> {
+        self.expect_kind(FrameKind::Response)?;
+        ResponsePayload::new_checked(self.payload())
+    }
+
+    fn expect_kind(&self, expected: FrameKind) -> Result<()> {
+        let got = self.kind()?;
+        if got == expected {
+            Ok(())
+        } else {
+            Err(Error::WrongKind { expected, got })
+        }
+    }
+
+    /// Payload length L the header declares [B].
     pub fn payload_len(&self) -> usize {
-        u16_at(self.buffer.as_ref(), off::LEN) as usize
+        usize::from(get::<u16>(self.buffer.as_ref(), field::LENGTH))
     }
     /// Length of the PDU, header to CRC [B].
     pub fn pdu_len(&self) -> usize {
@@ -253,15 +414,22 @@ impl<T: AsRef<[u8]>> Frame<T> {
     }
     /// The payload bytes.
     pub fn payload(&self) -> &[u8] {
-        &self.buffer.as_ref()[HEADER_LEN..HEADER_LEN + self.payload_len()]
+        &self.buffer.as_ref()[field::payload(self.payload_len())]
     }
     /// CRC-32 carried in the trailer.
     pub fn crc(&self) -> u32 {
-        u32_at(self.buffer.as_ref(), HEADER_LEN + self.payload_len())
+        get(self.buffer.as_ref(), field::crc(self.payload_len()))
     }
     /// CRC-32 of header and payload as they are now.
     pub fn compute_crc(&self) -> u32 {
         crc32(&self.buffer.as_ref()[..HEADER_LEN + self.payload_len()])
+    }
+}
+
+impl<T: AsRef<[u8]>> AsRef<[u8]> for Frame<T> {
+    /// The whole underlying buffer (the PDU, then any padding).
+    fn as_ref(&self) -> &[u8] {
+        self.buffer.as_ref()
     }
 }
 
@@ -270,21 +438,32 @@ impl<T: AsRef<[u8]> + AsMut<[u8]>> Frame<T> {
     /// [`Frame::fill_crc`]).
     pub fn payload_mut(&mut self) -> &mut [u8] {
         let len = self.payload_len();
-        &mut self.buffer.as_mut()[HEADER_LEN..HEADER_LEN + len]
+        &mut self.buffer.as_mut()[field::payload(len)]
     }
-    /// Sets the retry count.
-    pub fn set_retry(&mut self, v: u8) {
-        self.buffer.as_mut()[off::RETRY] = v;
+    /// The payload of a lumped frame as a mutable view (see [`Frame::lumped`]).
+    pub fn lumped_mut(&mut self) -> Result<LumpedPayload<&mut [u8]>> {
+        let kind = self.kind()?;
+        LumpedPayload::new_checked(self.payload_mut(), kind)
+    }
+    /// The payload of a command frame as a mutable view (see [`Frame::command`]).
+    pub fn command_mut(&mut self) -> Result<CommandPayload<&mut [u8]>> {
+        self.expect_kind(FrameKind::Command)?;
+        CommandPayload::new_checked(self.payload_mut())
+    }
+    /// The payload of a response frame as a mutable view (see [`Frame::response`]).
+    pub fn response_mut(&mut self) -> Result<ResponsePayload<&mut [u8]>> {
+        self.expect_kind(FrameKind::Response)?;
+        ResponsePayload::new_checked(self.payload_mut())
     }
     /// Sets the flags byte.
     pub fn set_flags(&mut self, v: Flags) {
-        self.buffer.as_mut()[off::FLAGS] = v.bits();
+        put(self.buffer.as_mut(), field::FLAGS, v.bits());
     }
     /// Recomputes and stores the CRC-32 trailer.
     pub fn fill_crc(&mut self) {
-        let at = HEADER_LEN + self.payload_len();
+        let at = field::crc(self.payload_len());
         let c = self.compute_crc();
-        put_u32(self.buffer.as_mut(), at, c);
+        put(self.buffer.as_mut(), at, c);
     }
 }
 
@@ -295,7 +474,7 @@ pub struct Common {
     pub flags: Flags,
     /// Retry count (0 = first attempt).
     pub retry: u8,
-    /// Cycle counter.
+    /// Cycle counter [cycles].
     pub cycle: u32,
     /// Sequence number of the sender.
     pub seq: u16,
@@ -319,34 +498,13 @@ pub(crate) fn parse_common(buf: &[u8], kind: FrameKind, verify: bool) -> Result<
     }
     let common = Common {
         flags: Flags::from_bits(frame.flags_byte())?,
-        retry: frame.retry(),
-        cycle: frame.cycle(),
-        seq: frame.seq(),
+        ..frame.common()
     };
-    let len = frame.payload_len();
-    Ok((common, &buf[HEADER_LEN..HEADER_LEN + len]))
+    Ok((common, &buf[field::payload(frame.payload_len())]))
 }
 
-/// [`parse_common`] for a kind whose payload has one fixed length.
-pub(crate) fn parse_fixed(
-    buf: &[u8],
-    kind: FrameKind,
-    payload_len: usize,
-    verify: bool,
-) -> Result<(Common, &[u8])> {
-    let (common, p) = parse_common(buf, kind, verify)?;
-    if p.len() != payload_len {
-        return Err(Error::PayloadLength {
-            kind,
-            expected: payload_len,
-            got: p.len(),
-        });
-    }
-    Ok((common, p))
-}
-
-/// Writes header (kind, common fields, payload length) into `buf`, lets `payload` fill the
-/// payload, then the CRC. `buf` must hold `HEADER_LEN + payload_len + CRC_LEN` bytes.
+/// Writes header (kind, common fields, payload length) into `buf`, zeroes the payload and
+/// lets `payload` fill it, then writes the CRC. Returns the PDU length.
 pub(crate) fn emit_common(
     buf: &mut [u8],
     kind: FrameKind,
@@ -367,15 +525,17 @@ pub(crate) fn emit_common(
             got: usize::from(u16::MAX),
         });
     };
-    buf[off::VERSION] = VERSION;
-    buf[off::KIND] = kind as u8;
-    buf[off::FLAGS] = common.flags.bits();
-    buf[off::RETRY] = common.retry;
-    put_u32(buf, off::CYCLE, common.cycle);
-    put_u16(buf, off::SEQ, common.seq);
-    put_u16(buf, off::LEN, len16);
-    payload(&mut buf[HEADER_LEN..HEADER_LEN + payload_len])?;
-    let c = crc32(&buf[..HEADER_LEN + payload_len]);
-    put_u32(buf, HEADER_LEN + payload_len, c);
+    put(buf, field::VERSION, VERSION);
+    put(buf, field::KIND, kind as u8);
+    put(buf, field::LENGTH, len16);
+    let mut frame = Frame::new_unchecked(&mut buf[..total]);
+    frame.set_flags(common.flags);
+    frame.set_retry(common.retry);
+    frame.set_cycle(common.cycle);
+    frame.set_seq(common.seq);
+    let p = frame.payload_mut();
+    p.fill(0);
+    payload(p)?;
+    frame.fill_crc();
     Ok(total)
 }

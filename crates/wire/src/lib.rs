@@ -7,18 +7,38 @@
 //! CRC-32; the same bytes travel as the payload of an Ethernet II frame with EtherType
 //! 0x88B5 or as a UDP datagram.
 //!
-//! In the style of smoltcp's `wire` module there are zero-copy views over byte buffers
-//! ([`Frame`], [`LumpedPayload`], [`EthernetFrame`]) and owned representations with `parse`,
-//! `emit` and `buffer_len`. No parser panics on any input; each returns an [`Error`] that
-//! names what was wrong.
+//! In the style of smoltcp's `wire` module each layout has
+//!
+//! - a `field` module of byte ranges ([`header::field`], [`lumped::field`],
+//!   [`lumped::feedback::field`], [`lumped::lumped_only::field`], [`command::field`],
+//!   [`response::field`], [`ethernet::field`]); a test checks them against the tables of
+//!   docs/wire.md;
+//! - a zero-copy view over a byte buffer ([`Frame`], [`LumpedPayload`],
+//!   [`FeedbackSlotView`], [`LumpedOnlySlotView`], [`CommandPayload`], [`ResponsePayload`],
+//!   [`EthernetFrame`]): `new_checked` checks the length, after which no getter can panic.
+//!   Getters return the raw wire values (typed bit sets drop reserved bits); each view's
+//!   `check` applies the field rules (reserved zero, finite floats, addresses);
+//! - an owned representation with `parse`, `emit` and `buffer_len`, which reads and writes
+//!   through the view.
+//!
+//! No parser panics on any input; each returns an [`Error`] that names what was wrong.
+//! Frames and PDUs print as one line ([`Frame`]'s and [`Pdu`]'s `Display`).
 //!
 //! ```
-//! use ringsync_wire::{CommandRepr, Common, Pdu};
+//! use ringsync_wire::{CommandRepr, Common, Frame, Pdu, Route};
 //! let cmd = CommandRepr { common: Common { cycle: 7, ..Common::default() },
 //!                         target: 2, command_v: -1.25, sample_time_ns: 1_000_000 };
 //! let mut buf = [0u8; 64];
 //! let n = cmd.emit(&mut buf).unwrap();
 //! assert_eq!(Pdu::parse(&buf[..n]), Ok(Pdu::Command(cmd)));
+//!
+//! // A driver routes a frame without parsing it, and reads single fields in place.
+//! let frame = Frame::new_checked(&buf[..n]).unwrap();
+//! assert_eq!(frame.route(), Ok(Route::Command { target: 2 }));
+//! assert_eq!(frame.command().unwrap().command_v(), -1.25);
+//! assert_eq!(frame.to_string(),
+//!            "command cycle 7 seq 0 → slave 2: -1.250 V, sampled at 1000000 ns");
+//!
 //! buf[20] ^= 1; // a flipped bit is caught by the CRC
 //! assert!(Pdu::parse(&buf[..n]).is_err());
 //! ```
@@ -26,25 +46,33 @@
 
 extern crate alloc;
 
+#[macro_use]
+mod bytes;
 pub mod command;
 mod crc;
+mod display;
 mod error;
 pub mod ethernet;
-mod field;
 pub mod header;
 pub mod lumped;
 pub mod response;
 
-pub use command::{COMMAND_PDU_LEN, CommandRepr};
+pub use command::{COMMAND_PDU_LEN, CommandPayload, CommandRepr};
 pub use crc::crc32;
 pub use error::{Error, Result};
 pub use ethernet::{ETHERTYPE, EthernetFrame};
-pub use header::{CRC_LEN, Common, Flags, Frame, FrameKind, HEADER_LEN, Status, VERSION};
+pub use header::{CRC_LEN, Common, Flags, Frame, FrameKind, HEADER_LEN, Route, Status, VERSION};
 pub use lumped::{
-    FeedbackSlot, LumpedFrameRepr, LumpedOnlyFrameRepr, LumpedOnlySlot, LumpedPayload, LumpedRepr,
-    SlotCodec,
+    FeedbackSlot, FeedbackSlotView, LumpedFrameRepr, LumpedOnlyFrameRepr, LumpedOnlySlot,
+    LumpedOnlySlotView, LumpedPayload, LumpedRepr, SlotCodec,
 };
-pub use response::{RESPONSE_PDU_LEN, ResponseRepr};
+pub use response::{RESPONSE_PDU_LEN, ResponsePayload, ResponseRepr};
+
+/// The bytes of one fixed-size field: its range within its layout (header, payload or slot),
+/// as the `field` modules give them.
+pub type Field = core::ops::Range<usize>;
+/// Where a variable-length part (a payload, the slots) starts, to the end of its layout.
+pub type Rest = core::ops::RangeFrom<usize>;
 
 /// Any ringsync PDU, decoded.
 #[derive(Debug, Clone, PartialEq)]

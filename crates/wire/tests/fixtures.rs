@@ -3,9 +3,9 @@
 //! `zlib.crc32` over the same bytes.
 
 use ringsync_wire::{
-    CommandRepr, Common, Error, FeedbackSlot, Flags, FrameKind, LumpedFrameRepr,
-    LumpedOnlyFrameRepr, LumpedOnlySlot, LumpedPayload, Pdu, ResponseRepr, SlotCodec, Status,
-    ethernet,
+    CommandPayload, CommandRepr, Common, Error, FeedbackSlot, FeedbackSlotView, Flags, Frame,
+    FrameKind, LumpedFrameRepr, LumpedOnlyFrameRepr, LumpedOnlySlot, LumpedOnlySlotView,
+    LumpedPayload, Pdu, ResponsePayload, ResponseRepr, Route, SlotCodec, Status, ethernet,
 };
 
 #[rustfmt::skip]
@@ -389,4 +389,434 @@ fn ethernet_frame_lengths() {
     buf[13] = 0x00;
     let eth = ringsync_wire::EthernetFrame::new_checked(&buf[..]).expect("eth");
     assert_eq!(eth.ringsync_payload(), Err(Error::BadEtherType(0x8800)));
+}
+
+// ---- views over the same fixtures ----------------------------------------------------------
+
+fn frame(bytes: &[u8]) -> Frame<&[u8]> {
+    Frame::new_checked(bytes).expect("frame")
+}
+
+#[test]
+fn header_view_of_the_command_fixture() {
+    let f = frame(&COMMAND);
+    assert_eq!(f.kind(), Ok(FrameKind::Command));
+    assert_eq!(f.flags(), Flags::STOP);
+    assert_eq!(f.common(), command_repr().common);
+    assert_eq!(
+        (f.version(), f.retry(), f.cycle(), f.seq()),
+        (1, 1, 0x0102_0304, 0x0506)
+    );
+    assert_eq!(
+        (f.payload_len(), f.pdu_len(), f.crc()),
+        (16, 32, 0x8f88_8adc)
+    );
+    assert_eq!(f.validate(), Ok(FrameKind::Command));
+}
+
+#[test]
+fn command_view_reads_and_writes_the_fixture() {
+    let f = frame(&COMMAND);
+    assert_eq!(f.route(), Ok(Route::Command { target: 3 }));
+    let c = f.command().expect("command");
+    assert_eq!(
+        (c.target(), c.command_v(), c.sample_time_ns()),
+        (3, 1.5, 1_000_000)
+    );
+    assert_eq!(c.check(), Ok(()));
+    // Written field by field into another command, the view makes the fixture's bytes.
+    let mut other = command_repr();
+    other.target = 9;
+    other.command_v = -7.0;
+    other.sample_time_ns = 5;
+    let mut buf = vec![0u8; COMMAND.len()];
+    other.emit(&mut buf).expect("emit");
+    let mut f = Frame::new_checked(&mut buf[..]).expect("frame");
+    let mut c = f.command_mut().expect("command");
+    c.set_target(3);
+    c.set_command_v(1.5);
+    c.set_sample_time_ns(1_000_000);
+    f.fill_crc();
+    assert_eq!(buf, COMMAND);
+}
+
+#[test]
+fn response_view_reads_and_writes_the_fixture() {
+    let f = frame(&RESPONSE);
+    assert_eq!(f.route(), Ok(Route::Response { source: 2 }));
+    let r = f.response().expect("response");
+    assert_eq!(
+        (r.source(), r.status(), r.status_bits()),
+        (2, Status::SATURATED, 2)
+    );
+    assert_eq!(
+        (r.echo_cycle(), r.position(), r.velocity()),
+        (0x0A0B_0C0D, -2, 1000)
+    );
+    assert_eq!((r.sample_time_ns(), r.applied_v()), (2_000_125, -0.5));
+    assert_eq!(r.check(), Ok(()));
+    let mut buf = vec![0u8; RESPONSE.len()];
+    ResponseRepr {
+        source: 1,
+        status: Status::FAULT,
+        ..response_repr()
+    }
+    .emit(&mut buf)
+    .expect("emit");
+    let mut f = Frame::new_checked(&mut buf[..]).expect("frame");
+    let mut r = f.response_mut().expect("response");
+    r.set_source(2);
+    r.set_status(Status::SATURATED);
+    r.set_echo_cycle(0x0A0B_0C0D);
+    r.set_position(-2);
+    r.set_velocity(1000);
+    r.set_sample_time_ns(2_000_125);
+    r.set_applied_v(-0.5);
+    f.fill_crc();
+    assert_eq!(buf, RESPONSE);
+}
+
+#[test]
+fn lumped_views_read_the_fixture_slots() {
+    let f = frame(&LUMPED);
+    assert_eq!(
+        f.route(),
+        Ok(Route::Lumped {
+            first_slot: 0,
+            slot_count: 2
+        })
+    );
+    let p = f.lumped().expect("lumped");
+    assert_eq!(p.kind(), FrameKind::Lumped);
+    assert_eq!(
+        (p.master_time_ns(), p.first_slot(), p.slot_count()),
+        (123_456_789, 0, 2)
+    );
+    assert_eq!(p.slot_len(), 20);
+    assert_eq!(p.check_slots(), Ok(()));
+    let s0 = p.feedback_slot(0).expect("slot 0");
+    assert_eq!(
+        (s0.position(), s0.velocity(), s0.sample_time_ns()),
+        (1 << 20, -100, 1000)
+    );
+    assert_eq!((s0.status(), s0.written()), (Status::empty(), true));
+    let s1 = p.feedback_slot(1).expect("slot 1");
+    assert_eq!((s1.status(), s1.written()), (Status::CLOCK_UNLOCKED, false));
+    assert!(p.feedback_slot(2).is_none());
+    assert!(
+        p.lumped_only_slot(0).is_none(),
+        "no lumped-only slots in kind 1"
+    );
+    let positions: Vec<i32> = p.feedback_slots().map(|s| s.position()).collect();
+    assert_eq!(positions, [1 << 20, 0]);
+}
+
+#[test]
+fn feedback_slot_view_writes_what_the_repr_emits() {
+    let mine = lumped_repr().slots[0];
+    let mut by_view = [0xAAu8; 20];
+    let mut v = FeedbackSlotView::new_checked(&mut by_view[..]).expect("slot");
+    v.set_position(mine.position);
+    v.set_velocity(mine.velocity);
+    v.set_sample_time_ns(mine.sample_time_ns);
+    v.set_status(mine.status);
+    v.set_written(mine.written);
+    assert_eq!(
+        v.check(),
+        Err(Error::Reserved {
+            field: "slot byte 19",
+            value: 0xAA
+        })
+    );
+    by_view[19] = 0;
+    assert_eq!(by_view[..], LUMPED[24..44]);
+    assert_eq!(FeedbackSlot::parse(&by_view), Ok(mine));
+}
+
+#[test]
+fn lumped_only_views_read_and_write_the_fixture_slot() {
+    let f = frame(&LUMPED_ONLY);
+    assert_eq!(
+        f.route(),
+        Ok(Route::LumpedOnly {
+            first_slot: 4,
+            slot_count: 1
+        })
+    );
+    let p = f.lumped().expect("lumped-only");
+    assert_eq!(
+        (p.kind(), p.slot_len(), p.slot_index(5)),
+        (FrameKind::LumpedOnly, 32, Some(0))
+    );
+    let s = p.lumped_only_slot(0).expect("slot");
+    assert_eq!(
+        (s.desired_position(), s.desired_velocity(), s.command_v()),
+        (5, -5, 2.0)
+    );
+    let fb = s.feedback();
+    assert_eq!(
+        (
+            fb.position(),
+            fb.velocity(),
+            fb.sample_time_ns(),
+            fb.written()
+        ),
+        (7, 8, 9, true)
+    );
+    // The feedback part reads the same through either accessor.
+    assert_eq!(p.feedback_slot(0).expect("feedback").position(), 7);
+    assert_eq!(s.check(), Ok(()));
+
+    let mut buf = LUMPED_ONLY.to_vec();
+    let mut f = Frame::new_checked(&mut buf[..]).expect("frame");
+    let mut p = f.lumped_mut().expect("lumped-only");
+    p.set_master_time_ns(6);
+    let mut s = p.lumped_only_slot_mut(0).expect("slot");
+    s.set_command_v(-1.0);
+    s.set_desired_position(50);
+    s.set_desired_velocity(-50);
+    s.feedback_mut().set_status(Status::STOPPING);
+    p.feedback_slot_mut(0).expect("feedback").set_velocity(80);
+    f.fill_crc();
+    let mut want = lumped_only_repr();
+    want.master_time_ns = 6;
+    let slot = &mut want.slots[0];
+    (slot.command_v, slot.desired_position, slot.desired_velocity) = (-1.0, 50, -50);
+    (slot.feedback.status, slot.feedback.velocity) = (Status::STOPPING, 80);
+    assert_eq!(Pdu::parse(&buf), Ok(Pdu::LumpedOnly(want)));
+}
+
+#[test]
+fn view_accessors_name_the_wrong_kind_or_length() {
+    assert_eq!(
+        frame(&RESPONSE).command().map(|_| ()),
+        Err(Error::WrongKind {
+            expected: FrameKind::Command,
+            got: FrameKind::Response
+        })
+    );
+    assert_eq!(
+        frame(&COMMAND).lumped().map(|_| ()),
+        Err(Error::WrongKind {
+            expected: FrameKind::Lumped,
+            got: FrameKind::Command
+        })
+    );
+    assert_eq!(
+        frame(&LUMPED).response().map(|_| ()),
+        Err(Error::WrongKind {
+            expected: FrameKind::Response,
+            got: FrameKind::Lumped
+        })
+    );
+    let mut b = COMMAND.to_vec();
+    b[1] = 9;
+    assert_eq!(frame(&b).kind(), Err(Error::BadKind(9)));
+    assert_eq!(frame(&b).route(), Err(Error::BadKind(9)));
+    assert_eq!(
+        CommandPayload::new_checked(&COMMAND[12..27]).map(|_| ()),
+        Err(Error::PayloadLength {
+            kind: FrameKind::Command,
+            expected: 16,
+            got: 15
+        })
+    );
+    assert_eq!(
+        ResponsePayload::new_checked(&RESPONSE[12..]).map(|_| ()),
+        Err(Error::PayloadLength {
+            kind: FrameKind::Response,
+            expected: 28,
+            got: 32
+        })
+    );
+    assert_eq!(
+        FeedbackSlotView::new_checked(&LUMPED[24..43]).map(|_| ()),
+        Err(Error::Truncated {
+            what: "feedback slot",
+            needed: 20,
+            got: 19
+        })
+    );
+    assert_eq!(
+        LumpedOnlySlotView::new_checked(&LUMPED_ONLY[24..55]).map(|_| ()),
+        Err(Error::Truncated {
+            what: "lumped-only slot",
+            needed: 32,
+            got: 31
+        })
+    );
+    // A command whose header declares a 1-byte payload: the target is not there to route by.
+    let mut short = COMMAND[..17].to_vec();
+    short[10] = 1;
+    assert_eq!(
+        frame(&short).route(),
+        Err(Error::Truncated {
+            what: "routing fields",
+            needed: 2,
+            got: 1
+        })
+    );
+}
+
+#[test]
+fn route_reads_no_crc_but_validate_does() {
+    let mut b = COMMAND.to_vec();
+    b[31] ^= 0xFF;
+    let f = frame(&b);
+    assert_eq!(f.route(), Ok(Route::Command { target: 3 }));
+    assert_eq!(f.command().map(|c| c.target()), Ok(3));
+    assert!(matches!(f.validate(), Err(Error::BadCrc { .. })));
+}
+
+#[test]
+fn view_checks_report_what_the_parsers_report() {
+    let at = |i: usize, v: u8, f: &[u8]| {
+        let mut b = f.to_vec();
+        b[i] = v;
+        reseal(b)
+    };
+    let b = at(12, 0, &COMMAND);
+    assert_eq!(
+        frame(&b).command().expect("view").check(),
+        Err(Error::BadSlave(0))
+    );
+    let b = at(14, 1, &COMMAND);
+    assert_eq!(
+        frame(&b).command().expect("view").check(),
+        Err(Error::Reserved {
+            field: "command bytes 2-3",
+            value: 1
+        })
+    );
+    let b = at(15, 0x40, &RESPONSE);
+    let f = frame(&b);
+    let r = f.response().expect("view");
+    assert_eq!(r.check(), Err(Error::ReservedStatus(0x4002)));
+    assert_eq!((r.status(), r.status_bits()), (Status::SATURATED, 0x4002));
+    let b = at(42, 2, &LUMPED);
+    let p = frame(&b).lumped().map(|p| p.check_slots());
+    assert_eq!(p, Ok(Err(Error::BadMarker(2))));
+    let mut b = LUMPED_ONLY.to_vec();
+    b[52..56].copy_from_slice(&f32::INFINITY.to_le_bytes());
+    let b = reseal(b);
+    let f = frame(&b);
+    let p = f.lumped().expect("view");
+    let s = p.lumped_only_slot(0).expect("slot");
+    assert_eq!(s.check(), Err(Error::NonFinite("slot command")));
+    assert_eq!(s.command_v(), f32::INFINITY);
+}
+
+#[test]
+fn validate_and_parse_agree_on_every_single_bit_flip() {
+    for fixture in [&COMMAND[..], &RESPONSE[..], &LUMPED[..], &LUMPED_ONLY[..]] {
+        for byte in 0..fixture.len() {
+            for bit in 0..8 {
+                let mut b = fixture.to_vec();
+                b[byte] ^= 1 << bit;
+                // Resealed too (when the length still fits), to reach the payload checks.
+                let declared = usize::from(u16::from_le_bytes([b[10], b[11]]));
+                let sealed = (16 + declared <= b.len()).then(|| reseal(b.clone()));
+                for b in [Some(b), sealed].into_iter().flatten() {
+                    let parsed = Pdu::parse(&b).map(|p| p.kind());
+                    let validated = Frame::new_checked(&b[..]).and_then(|f| f.validate());
+                    assert_eq!(validated, parsed, "flip of byte {byte} bit {bit}");
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn display_of_the_fixtures() {
+    let line = |b: &[u8]| frame(b).to_string();
+    assert_eq!(
+        line(&COMMAND),
+        "command cycle 16909060 seq 1286 retry 1 flags STOP → slave 3: 1.500 V, sampled at 1000000 ns"
+    );
+    assert_eq!(
+        line(&RESPONSE),
+        "response cycle 42 seq 7 from slave 2: status SATURATED, echo cycle 168496141, \
+         position -2 counts, velocity 1000 counts/s, sampled at 2000125 ns, applied -0.500 V"
+    );
+    assert_eq!(
+        line(&LUMPED),
+        "lumped cycle 9 seq 1, slots 0..2, sent at 123456789 ns"
+    );
+    assert_eq!(
+        line(&LUMPED_ONLY),
+        "lumped-only cycle 10 seq 2, slots 4..5, sent at 5 ns"
+    );
+    for (bytes, pdu) in [
+        (&COMMAND[..], Pdu::Command(command_repr())),
+        (&RESPONSE[..], Pdu::Response(response_repr())),
+        (&LUMPED[..], Pdu::Lumped(lumped_repr())),
+        (&LUMPED_ONLY[..], Pdu::LumpedOnly(lumped_only_repr())),
+    ] {
+        assert_eq!(line(bytes), pdu.to_string());
+    }
+    assert_eq!(
+        Frame::new_unchecked(&COMMAND[..5]).to_string(),
+        "bad frame (truncated header: need 12 bytes, got 5)"
+    );
+    assert_eq!(
+        Frame::new_unchecked(&COMMAND[..30]).to_string(),
+        "bad frame (truncated payload and CRC: need 32 bytes, got 30)"
+    );
+    let b = {
+        let mut b = LUMPED.to_vec();
+        b[42] = 2;
+        reseal(b)
+    };
+    assert_eq!(
+        line(&b),
+        "bad frame (bad written-this-cycle marker 2: expected 0 or 1)"
+    );
+    let mut stop = command_repr();
+    stop.common.flags = Flags::STOP.with(Flags::TORQUE_OFF);
+    stop.common.retry = 0;
+    assert!(
+        Pdu::Command(stop)
+            .to_string()
+            .starts_with("command cycle 16909060 seq 1286 flags STOP|TORQUE_OFF → ")
+    );
+}
+
+#[test]
+fn display_of_flags_and_status() {
+    assert_eq!(Flags::empty().to_string(), "-");
+    assert_eq!(Flags::TORQUE_OFF.to_string(), "TORQUE_OFF");
+    assert_eq!(
+        Flags::TORQUE_OFF.with(Flags::STOP).to_string(),
+        "STOP|TORQUE_OFF"
+    );
+    assert_eq!(Status::empty().to_string(), "-");
+    assert_eq!(
+        Status::BRAKING
+            .with(Status::FAULT)
+            .with(Status::SATURATED)
+            .to_string(),
+        "FAULT|SATURATED|BRAKING"
+    );
+    let all = Status::from_bits(Status::DEFINED).expect("defined");
+    assert_eq!(
+        all.to_string(),
+        "FAULT|SATURATED|WATCHDOG|CLOCK_UNLOCKED|FOLLOWING_ERROR|STOPPING|TORQUE_OFF|BRAKING"
+    );
+    assert_eq!(Status::from_bits_truncate(0xFF02), Status::SATURATED);
+    assert_eq!(Flags::from_bits_truncate(0x81), Flags::STOP);
+}
+
+#[test]
+fn ethernet_view_strips_the_padding() {
+    let mut buf = [0u8; 60];
+    ethernet::emit_header(&mut buf, [0xFF; 6], [2; 6]).expect("header");
+    buf[ethernet::field::PAYLOAD.start..][..COMMAND.len()].copy_from_slice(&COMMAND);
+    let eth = ringsync_wire::EthernetFrame::new_checked(&buf[..]).expect("eth");
+    assert_eq!((eth.dst(), eth.src()), ([0xFF; 6], [2; 6]));
+    assert_eq!(eth.ringsync_payload().map(<[u8]>::len), Ok(46));
+    assert_eq!(eth.ringsync_pdu(), Ok(&COMMAND[..]));
+    // A PDU that declares more than the frame holds is handed over whole, to be rejected.
+    buf[ethernet::field::PAYLOAD.start + 10] = 200;
+    let eth = ringsync_wire::EthernetFrame::new_checked(&buf[..]).expect("eth");
+    assert_eq!(eth.ringsync_pdu().map(<[u8]>::len), Ok(46));
 }

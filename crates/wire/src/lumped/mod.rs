@@ -1,0 +1,312 @@
+//! Sync lumped frames: the proposed plan's (kind 1) and the lumped-only plan's (kind 4).
+//!
+//! ```text
+//! payload
+//! offset size type  field
+//!      0    8 u64   master send timestamp [ns, master clock]
+//!      8    2 u16   first slot index f (slot k belongs to slave f + k + 1)
+//!     10    2 u16   slot count m
+//!     12  m*S       slots, S = 20 B (kind 1) or 32 B (kind 4)
+//! ```
+//! The offsets of the prefix are in [`field`], those of the slots in [`feedback::field`]
+//! (kind 1, and the first 20 B of a kind-4 slot) and [`lumped_only::field`] (kind 4).
+
+use alloc::vec::Vec;
+
+use crate::bytes::{get, put};
+use crate::error::{Error, Result, need};
+use crate::ethernet::MTU;
+use crate::header::{CRC_LEN, Common, FrameKind, HEADER_LEN, emit_common, parse_common};
+
+pub mod feedback;
+pub mod lumped_only;
+
+pub use feedback::{FeedbackSlot, FeedbackSlotView};
+pub use lumped_only::{LumpedOnlySlot, LumpedOnlySlotView};
+
+/// Byte ranges of the lumped payload prefix, within the payload (docs/wire.md, "Kind 1").
+pub mod field {
+    use crate::{Field, Rest};
+
+    /// Master send timestamp, u64 [ns, master clock].
+    pub const MASTER_TIME: Field = 0..8;
+    /// First slot index f, u16: slot k belongs to slave f + k + 1.
+    pub const FIRST_SLOT: Field = 8..10;
+    /// Slot count m, u16.
+    pub const SLOT_COUNT: Field = 10..12;
+    /// The slots start here, m slots of the kind's slot length.
+    pub const SLOTS: Rest = 12..;
+}
+
+/// Bytes of the lumped payload before the first slot [B].
+pub const LUMPED_PREFIX_LEN: usize = field::SLOTS.start;
+
+/// Most slots of `slot_len` bytes that one lumped frame carries within the Ethernet MTU.
+pub const fn slot_capacity(slot_len: usize) -> usize {
+    (MTU - HEADER_LEN - CRC_LEN - LUMPED_PREFIX_LEN) / slot_len
+}
+
+/// Length of a lumped PDU with `slots` slots of `slot_len` bytes, header to CRC [B].
+pub const fn lumped_pdu_len(slots: usize, slot_len: usize) -> usize {
+    HEADER_LEN + LUMPED_PREFIX_LEN + slots * slot_len + CRC_LEN
+}
+
+/// A slot layout: how one slave's part of a lumped frame is encoded.
+pub trait SlotCodec: Sized + Copy {
+    /// Frame kind that carries this slot layout.
+    const KIND: FrameKind;
+    /// Encoded length of one slot [B].
+    const LEN: usize;
+    /// Decodes one slot from the first `LEN` bytes of `b`, checking every field.
+    fn parse(b: &[u8]) -> Result<Self>;
+    /// Encodes into the first `LEN` bytes of `b` (reserved bytes zeroed).
+    fn emit(&self, b: &mut [u8]) -> Result<()>;
+}
+
+/// `Err(BufferTooSmall)` unless `b` holds `len` bytes (a slot to be emitted).
+pub(crate) fn room(b: &[u8], len: usize) -> Result<()> {
+    if b.len() < len {
+        Err(Error::BufferTooSmall {
+            needed: len,
+            got: b.len(),
+        })
+    } else {
+        Ok(())
+    }
+}
+
+/// Owned representation of a lumped frame with slots of layout `S`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LumpedRepr<S> {
+    /// Common header fields.
+    pub common: Common,
+    /// Master's send timestamp [ns, master clock].
+    pub master_time_ns: u64,
+    /// Index of the first slot: slot k belongs to slave `first_slot + k + 1`.
+    pub first_slot: u16,
+    /// The slots, in ring order.
+    pub slots: Vec<S>,
+}
+
+/// The proposed plan's sync lumped frame.
+pub type LumpedFrameRepr = LumpedRepr<FeedbackSlot>;
+/// The lumped-only plan's frame.
+pub type LumpedOnlyFrameRepr = LumpedRepr<LumpedOnlySlot>;
+
+/// Slot length of a lumped kind, or `WrongKind` for the others.
+fn slot_len(kind: FrameKind) -> Result<usize> {
+    match kind {
+        FrameKind::Lumped => Ok(FeedbackSlot::LEN),
+        FrameKind::LumpedOnly => Ok(LumpedOnlySlot::LEN),
+        other => Err(Error::WrongKind {
+            expected: FrameKind::Lumped,
+            got: other,
+        }),
+    }
+}
+
+impl<S: SlotCodec> LumpedRepr<S> {
+    /// Parses and checks a whole PDU (header, payload, CRC).
+    pub fn parse(buf: &[u8]) -> Result<Self> {
+        Self::parse_inner(buf, true)
+    }
+
+    /// Parses a PDU whose header and CRC the caller has just verified with
+    /// [`Frame::check`](crate::Frame::check); the payload is still checked.
+    pub fn parse_verified(buf: &[u8]) -> Result<Self> {
+        Self::parse_inner(buf, false)
+    }
+
+    fn parse_inner(buf: &[u8], verify: bool) -> Result<Self> {
+        let (common, payload) = parse_common(buf, S::KIND, verify)?;
+        let p = LumpedPayload::new_checked(payload, S::KIND)?;
+        let slots = p.slot_chunks().map(S::parse).collect::<Result<Vec<_>>>()?;
+        Ok(LumpedRepr {
+            common,
+            master_time_ns: p.master_time_ns(),
+            first_slot: p.first_slot(),
+            slots,
+        })
+    }
+
+    /// Length of the emitted PDU [B].
+    pub fn buffer_len(&self) -> usize {
+        lumped_pdu_len(self.slots.len(), S::LEN)
+    }
+
+    /// Writes the PDU into `buf`; returns the bytes written.
+    pub fn emit(&self, buf: &mut [u8]) -> Result<usize> {
+        let count = self.slots.len();
+        let capacity = slot_capacity(S::LEN);
+        if count > capacity {
+            return Err(Error::SlotCountOverCapacity { count, capacity });
+        }
+        // count <= capacity < 2^16, so the cast is exact.
+        let count16 = count as u16;
+        if u32::from(self.first_slot) + u32::from(count16) > u32::from(u16::MAX) {
+            return Err(Error::SlotRange {
+                first: self.first_slot,
+                count: count16,
+            });
+        }
+        let len = LUMPED_PREFIX_LEN + count * S::LEN;
+        emit_common(buf, S::KIND, &self.common, len, |p| {
+            put(p, field::MASTER_TIME, self.master_time_ns);
+            put(p, field::FIRST_SLOT, self.first_slot);
+            put(p, field::SLOT_COUNT, count16);
+            for (slot, chunk) in self
+                .slots
+                .iter()
+                .zip(p[field::SLOTS].chunks_exact_mut(S::LEN))
+            {
+                slot.emit(chunk)?;
+            }
+            Ok(())
+        })
+    }
+}
+
+/// Zero-copy view of a lumped payload (the bytes [`Frame::payload`](crate::Frame::payload)
+/// returns, or [`Frame::lumped`](crate::Frame::lumped) directly), for a slave that reads the
+/// master timestamp and writes its own slot as the frame passes, and for the master that
+/// reads the slots in place.
+///
+/// After [`LumpedPayload::new_checked`] (prefix and slot count agree with the length) no
+/// accessor can panic; slot accessors return `None` past the last slot.
+#[derive(Debug, Clone, Copy)]
+pub struct LumpedPayload<T: AsRef<[u8]>> {
+    buffer: T,
+    kind: FrameKind,
+}
+
+impl<T: AsRef<[u8]>> LumpedPayload<T> {
+    /// Wraps the payload of a frame of kind `kind` (lumped or lumped-only) after checking
+    /// its prefix: the slot count within the MTU's capacity, the slot addresses within
+    /// 65535, and the payload length equal to prefix plus slots.
+    pub fn new_checked(buffer: T, kind: FrameKind) -> Result<Self> {
+        let slot_len = slot_len(kind)?;
+        let payload = buffer.as_ref();
+        need("lumped payload prefix", payload, LUMPED_PREFIX_LEN)?;
+        let first: u16 = get(payload, field::FIRST_SLOT);
+        let count: u16 = get(payload, field::SLOT_COUNT);
+        let capacity = slot_capacity(slot_len);
+        if usize::from(count) > capacity {
+            return Err(Error::SlotCountOverCapacity {
+                count: count.into(),
+                capacity,
+            });
+        }
+        if u32::from(first) + u32::from(count) > u32::from(u16::MAX) {
+            return Err(Error::SlotRange { first, count });
+        }
+        let expected = LUMPED_PREFIX_LEN + usize::from(count) * slot_len;
+        if payload.len() != expected {
+            return Err(Error::PayloadLength {
+                kind,
+                expected,
+                got: payload.len(),
+            });
+        }
+        Ok(LumpedPayload { buffer, kind })
+    }
+
+    /// The underlying buffer.
+    pub fn into_inner(self) -> T {
+        self.buffer
+    }
+    /// Frame kind: [`FrameKind::Lumped`] or [`FrameKind::LumpedOnly`].
+    pub fn kind(&self) -> FrameKind {
+        self.kind
+    }
+    /// Length of one slot [B]: 20 (kind 1) or 32 (kind 4).
+    pub fn slot_len(&self) -> usize {
+        match self.kind {
+            FrameKind::LumpedOnly => LumpedOnlySlot::LEN,
+            _ => FeedbackSlot::LEN,
+        }
+    }
+    /// Master's send timestamp [ns, master clock].
+    pub fn master_time_ns(&self) -> u64 {
+        get(self.buffer.as_ref(), field::MASTER_TIME)
+    }
+    /// Index of the first slot: slot k belongs to slave `first_slot + k + 1`.
+    pub fn first_slot(&self) -> u16 {
+        get(self.buffer.as_ref(), field::FIRST_SLOT)
+    }
+    /// Number of slots.
+    pub fn slot_count(&self) -> u16 {
+        get(self.buffer.as_ref(), field::SLOT_COUNT)
+    }
+    /// Index in this frame of the slot of slave `address` (1-based), if it is here.
+    pub fn slot_index(&self, address: u16) -> Option<usize> {
+        let k = usize::from(address).checked_sub(usize::from(self.first_slot()) + 1)?;
+        (k < usize::from(self.slot_count())).then_some(k)
+    }
+    /// Byte range of slot `k` within the payload, or `None` past the end.
+    fn slot_range(&self, k: usize) -> Option<crate::Field> {
+        if k >= usize::from(self.slot_count()) {
+            return None;
+        }
+        let at = LUMPED_PREFIX_LEN + k * self.slot_len();
+        Some(at..at + self.slot_len())
+    }
+    /// Bytes of slot `k`, or `None` past the end.
+    pub fn slot_bytes(&self, k: usize) -> Option<&[u8]> {
+        self.slot_range(k).map(|r| &self.buffer.as_ref()[r])
+    }
+    /// Every slot's bytes, in ring order.
+    fn slot_chunks(&self) -> core::slice::ChunksExact<'_, u8> {
+        self.buffer.as_ref()[field::SLOTS].chunks_exact(self.slot_len())
+    }
+    /// The feedback part of slot `k` (the whole slot of kind 1, the first 20 B of a kind-4
+    /// slot), or `None` past the end.
+    pub fn feedback_slot(&self, k: usize) -> Option<FeedbackSlotView<&[u8]>> {
+        self.slot_bytes(k).map(FeedbackSlotView::new_unchecked)
+    }
+    /// The feedback part of every slot, in ring order (slot k belongs to slave
+    /// `first_slot + k + 1`).
+    pub fn feedback_slots(&self) -> impl ExactSizeIterator<Item = FeedbackSlotView<&[u8]>> {
+        self.slot_chunks().map(FeedbackSlotView::new_unchecked)
+    }
+    /// Slot `k` of a lumped-only frame; `None` past the end or in a kind-1 frame.
+    pub fn lumped_only_slot(&self, k: usize) -> Option<LumpedOnlySlotView<&[u8]>> {
+        if self.kind != FrameKind::LumpedOnly {
+            return None;
+        }
+        self.slot_bytes(k).map(LumpedOnlySlotView::new_unchecked)
+    }
+    /// Checks every slot's fields (markers, reserved bytes, status bits, finite commands),
+    /// in ring order, as [`LumpedRepr::parse`] does; the first failure is returned.
+    pub fn check_slots(&self) -> Result<()> {
+        let each = |b: &[u8]| match self.kind {
+            FrameKind::LumpedOnly => LumpedOnlySlotView::new_unchecked(b).check(),
+            _ => FeedbackSlotView::new_unchecked(b).check(),
+        };
+        self.slot_chunks().try_for_each(each)
+    }
+}
+
+impl<T: AsRef<[u8]> + AsMut<[u8]>> LumpedPayload<T> {
+    /// Writes [`master_time_ns`](Self::master_time_ns): the master's send timestamp
+    /// [ns, master clock].
+    pub fn set_master_time_ns(&mut self, v: u64) {
+        put(self.buffer.as_mut(), field::MASTER_TIME, v);
+    }
+    /// Mutable bytes of slot `k`, or `None` past the end.
+    pub fn slot_bytes_mut(&mut self, k: usize) -> Option<&mut [u8]> {
+        let r = self.slot_range(k)?;
+        Some(&mut self.buffer.as_mut()[r])
+    }
+    /// The feedback part of slot `k`, mutable (see [`LumpedPayload::feedback_slot`]).
+    pub fn feedback_slot_mut(&mut self, k: usize) -> Option<FeedbackSlotView<&mut [u8]>> {
+        self.slot_bytes_mut(k).map(FeedbackSlotView::new_unchecked)
+    }
+    /// Slot `k` of a lumped-only frame, mutable (see [`LumpedPayload::lumped_only_slot`]).
+    pub fn lumped_only_slot_mut(&mut self, k: usize) -> Option<LumpedOnlySlotView<&mut [u8]>> {
+        if self.kind != FrameKind::LumpedOnly {
+            return None;
+        }
+        self.slot_bytes_mut(k)
+            .map(LumpedOnlySlotView::new_unchecked)
+    }
+}
