@@ -7,7 +7,11 @@ use core::fmt;
 use crate::{CommandRepr, Common, Flags, Frame, FrameKind, Pdu, ResponseRepr, Status};
 
 /// Names of the header flags, in bit order.
-const FLAG_NAMES: [(Flags, &str); 2] = [(Flags::STOP, "STOP"), (Flags::TORQUE_OFF, "TORQUE_OFF")];
+const FLAG_NAMES: [(Flags, &str); 3] = [
+    (Flags::STOP, "STOP"),
+    (Flags::TORQUE_OFF, "TORQUE_OFF"),
+    (Flags::BRAKE, "BRAKE"),
+];
 
 /// Names of the status bits, in bit order.
 const STATUS_NAMES: [(Status, &str); 8] = [
