@@ -67,6 +67,14 @@ fn a_signal_ends_a_veth_run_cleanly(signal: &str) {
     assert!(namespaces_of(pid).is_empty(), "{:?}", namespaces_of(pid));
     let summary = std::fs::read_to_string(dir.join("summary.json")).expect("partial summary");
     assert!(summary.contains("\"interrupted\": true"));
+    // It reports the cycles it ran (about half a second's), not the 30 s it planned.
+    let v: serde_json::Value = serde_json::from_str(&summary).expect("json");
+    let (ran, planned) = (v["cycles"].as_i64(), v["cycles_planned"].as_i64());
+    assert_eq!(planned, Some(30_000), "{summary}");
+    assert!(
+        ran.is_some_and(|c| (100..5_000).contains(&c)),
+        "cycles {ran:?}"
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }
 
@@ -402,5 +410,13 @@ fn a_run_started_with_nohup_keeps_running_through_sighup() {
     assert_eq!(status.code(), Some(1), "{status}");
     let summary = std::fs::read_to_string(dir.join("summary.json")).expect("partial summary");
     assert!(summary.contains("\"interrupted\": true"));
+    // It reports the cycles it ran (about half a second's), not the 30 s it planned.
+    let v: serde_json::Value = serde_json::from_str(&summary).expect("json");
+    let (ran, planned) = (v["cycles"].as_i64(), v["cycles_planned"].as_i64());
+    assert_eq!(planned, Some(30_000), "{summary}");
+    assert!(
+        ran.is_some_and(|c| (100..5_000).contains(&c)),
+        "cycles {ran:?}"
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }
