@@ -123,7 +123,7 @@ pub(crate) fn out(text: &str) -> Result<Outcome, CliError> {
 /// `text` with every line cut to a readable length.
 fn readable(text: &str) -> String {
     text.lines()
-        .map(|l| ringsync_sim::scenario::clip_middle(l, ERROR_LINE_CHARS))
+        .map(|l| ringsync_model::scenario::clip_middle(l, ERROR_LINE_CHARS))
         .collect::<Vec<_>>()
         .join("\n")
 }

@@ -4,14 +4,15 @@ use std::path::PathBuf;
 
 use anyhow::Context as _;
 use clap::{Args, ValueEnum};
+use ringsync_model::scenario::Scenario;
 use ringsync_proto::Duration;
 use ringsync_report::sim::{summary_json, trace_csv};
 use ringsync_rt::run::ASSUMPTIONS;
 use ringsync_rt::stats::Percentiles;
 use ringsync_rt::{
-    Flap, Forgery, Kill, Pin, Realtime, RtError, RtOptions, RtResult, SimPrediction, TransportKind,
+    Flap, Forgery, Kill, Pin, Realtime, RtError, RtOptions, RtResult, TransportKind,
 };
-use ringsync_sim::scenario::Scenario;
+use ringsync_sim::SimPrediction;
 use serde_json::{Value, json};
 
 use crate::scenario_cmd::usage;
@@ -300,7 +301,10 @@ pub(crate) fn rt(args: &RtArgs) -> Result<Outcome, CliError> {
     let prediction = if args.no_sim_prediction {
         None
     } else {
-        Some(ringsync_rt::sim_prediction(&r.scenario, 8).map_err(rt_error)?)
+        Some(
+            ringsync_sim::predict(&r.scenario, 8)
+                .map_err(|e| CliError::Failure(anyhow::Error::new(e)))?,
+        )
     };
     let summary = rt_summary(&r, hash, transport.name(), prediction);
     let text = serde_json::to_string_pretty(&summary).context("cannot format JSON")?;

@@ -1,7 +1,7 @@
 //! `ringsync scenario` and `ringsync check`.
 
 use clap::{Args, Subcommand};
-use ringsync_sim::{Scenario, ScenarioError, builtin, builtin_names};
+use ringsync_model::{Scenario, ScenarioError, builtin, builtin_names};
 
 use crate::{CliError, Outcome, out};
 
@@ -70,8 +70,8 @@ pub struct CheckArgs {
 /// Runs `ringsync check`: exit status 3 unless the verdict is stable.
 pub(crate) fn check(args: &CheckArgs) -> Result<Outcome, CliError> {
     let s = Scenario::load(&args.scenario).map_err(usage)?;
-    let r = ringsync_sim::check::check(&s, args.points as usize).map_err(|e| match e {
-        ringsync_sim::check::CheckError::Scenario(e) => usage(e),
+    let r = ringsync_model::check::check(&s, args.points as usize).map_err(|e| match e {
+        ringsync_model::check::CheckError::Scenario(e) => usage(e),
         other => CliError::Failure(other.into()),
     })?;
     if args.json {
@@ -82,6 +82,6 @@ pub(crate) fn check(args: &CheckArgs) -> Result<Outcome, CliError> {
         out(&ringsync_report::check_text(&r))?;
     }
     Ok(Outcome::flagged_if(
-        r.verdict() != ringsync_sim::check::Verdict::Stable,
+        r.verdict() != ringsync_model::check::Verdict::Stable,
     ))
 }

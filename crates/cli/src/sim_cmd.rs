@@ -5,11 +5,11 @@ use std::time::Instant as WallClock;
 
 use anyhow::Context as _;
 use clap::Args;
+use ringsync_model::scenario::{LawKind, Scenario};
 use ringsync_report::sim::{
     ReproRow, repro_figures, repro_html, repro_json, repro_table, summary_json, trace_csv,
 };
 use ringsync_sim::run::{RunError, RunOptions, run};
-use ringsync_sim::scenario::{LawKind, Scenario};
 
 use crate::output::OutDir;
 use crate::scenario_cmd::usage;
@@ -42,7 +42,7 @@ fn run_error(e: RunError) -> CliError {
 /// The results directory for `--out`, which must not hold the scenario file: it is replaced.
 pub(crate) fn out_dir(out: &Path, scenario: &str) -> Result<OutDir, CliError> {
     let dir = OutDir::create("--out", out)?;
-    if ringsync_sim::builtin(scenario).is_none() {
+    if ringsync_model::builtin(scenario).is_none() {
         dir.keep_out(Path::new(scenario))?;
     }
     Ok(dir)
@@ -159,7 +159,7 @@ pub(crate) fn reproduce(args: &ReproduceArgs) -> Result<Outcome, CliError> {
         .flat_map(|&p| laws.iter().map(move |&l| (p, l)))
         .collect();
     // One single-threaded simulation per case, the cases in parallel.
-    let results: Vec<Result<(ReproRow, ringsync_sim::RunResult), CliError>> =
+    let results: Vec<Result<(ReproRow, ringsync_model::RunResult), CliError>> =
         std::thread::scope(|scope| {
             let handles: Vec<_> = combos
                 .iter()

@@ -2,7 +2,7 @@
 
 use std::fmt::Write as _;
 
-use ringsync_sim::check::{ASSUMPTIONS, CheckReport, RobustTerm, Verdict};
+use ringsync_model::check::{ASSUMPTIONS, CheckReport, RobustTerm, Verdict};
 use serde_json::{Value, json};
 
 /// A readable report of `ringsync check`.

@@ -2,7 +2,7 @@
 //! as an Ethernet II frame (EtherType 0x88B5, padded to the 60-byte minimum) with its simulated
 //! send time at nanosecond resolution.
 
-use ringsync_sim::run::Captured;
+use ringsync_model::result::Captured;
 
 fn block(out: &mut Vec<u8>, kind: u32, body: &[u8]) {
     let len = 12 + body.len().div_ceil(4) * 4;

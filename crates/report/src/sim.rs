@@ -2,10 +2,10 @@
 
 use std::fmt::Write as _;
 
+use ringsync_model::RunResult;
+use ringsync_model::result::ASSUMPTIONS;
+use ringsync_model::scenario::{CoulombSign, Scenario};
 use ringsync_proto::node::{Rejections, StopReason};
-use ringsync_sim::RunResult;
-use ringsync_sim::run::ASSUMPTIONS;
-use ringsync_sim::scenario::{CoulombSign, Scenario};
 use serde_json::{Value, json};
 
 fn stop_json(stop: &Option<(f64, StopReason)>) -> Value {
@@ -461,7 +461,7 @@ on what the frame carries: this cycle's data of the slaves before them, last cyc
 /// Per-axis series of one trace column.
 fn per_axis(
     r: &RunResult,
-    f: fn(&ringsync_sim::run::TraceRow) -> f64,
+    f: fn(&ringsync_model::result::TraceRow) -> f64,
 ) -> Vec<crate::plot::Series<'static>> {
     use crate::plot::{PALETTE, Series};
     (1..=r.summary.axes.len())

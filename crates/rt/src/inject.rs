@@ -8,8 +8,8 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicI64, AtomicU64, Ordering};
 use std::thread::JoinHandle;
 
+use ringsync_model::rng::Rng;
 use ringsync_proto::Duration;
-use ringsync_sim::rng::Rng;
 use ringsync_wire::{CommandRepr, Common, FeedbackSlot, LumpedRepr};
 
 use crate::netns::VethRing;

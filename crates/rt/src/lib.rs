@@ -15,7 +15,7 @@ pub mod transport;
 
 pub use inject::{Flap, Forgery};
 pub use realtime::{Applied, CpuClaim, Pin, Realtime};
-pub use run::{Kill, RtError, RtOptions, RtResult, SimPrediction, Timing, run, sim_prediction};
+pub use run::{Kill, RtError, RtOptions, RtResult, Timing, run};
 pub use transport::TransportKind;
 
 /// Installs the Ctrl-C (SIGINT), SIGTERM and SIGHUP (terminal closed) handler: the returned

@@ -19,14 +19,14 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicI64, Ordering};
 use std::thread::JoinHandle;
 
+use ringsync_model::Scenario;
+use ringsync_model::nodes::{Oscillator, RingConfig, ServoAxis, locate_break_of};
+use ringsync_model::record::{AxisProbe, Recorder};
+use ringsync_model::result::{Captured, LinkCounters, RunResult};
 use ringsync_proto::node::{
     ClockFilter, FrameOutcome, MasterCounters, MasterEvent, Reject, SlaveEvent,
 };
 use ringsync_proto::{Duration, Instant, PlanKind};
-use ringsync_sim::nodes::{Oscillator, RingConfig, ServoAxis, locate_break_of};
-use ringsync_sim::record::{AxisProbe, Recorder};
-use ringsync_sim::run::{Captured, LinkCounters, RunResult};
-use ringsync_sim::{RunOptions, Scenario};
 use ringsync_wire::{FrameKind, Status};
 
 use crate::calibrate::{Calibration, calibrate};
@@ -234,7 +234,7 @@ pub struct Injection {
 pub enum RtError {
     /// The scenario is invalid.
     #[error(transparent)]
-    Scenario(#[from] ringsync_sim::ScenarioError),
+    Scenario(#[from] ringsync_model::ScenarioError),
     /// The namespaces or links could not be created.
     #[error(transparent)]
     Netns(#[from] NetnsError),
@@ -383,7 +383,7 @@ pub fn run(scenario: &Scenario, opts: &RtOptions, stop: &AtomicBool) -> Result<R
     }
     // The clock window: software timestamps, and what free-running clocks drift apart
     // when the scenario turns clock sync off (as the simulator allows for it).
-    let tolerance = RT_TIMESTAMP_TOLERANCE.max(ringsync_sim::nodes::timestamp_tolerance(&s));
+    let tolerance = RT_TIMESTAMP_TOLERANCE.max(ringsync_model::nodes::timestamp_tolerance(&s));
     for i in 0..n {
         rc.slaves[i].path_delay = Duration::from_ns(cal.path[i]);
         rc.slaves[i].clock_window = tolerance;
@@ -591,43 +591,6 @@ fn rejections_text(all: &ringsync_proto::node::Rejections) -> String {
     } else {
         format!("{} ({})", all.total(), reasons.join(", "))
     }
-}
-
-/// The simulator's prediction for a scenario: means over several seeds, because one run's
-/// Sync-RMSE moves by about ±10 % with the seed (encoder quantisation) and a real-time run
-/// is one more draw of that noise.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct SimPrediction {
-    /// Seeds run: the scenario's seed and the next ones.
-    pub seeds: u64,
-    /// Mean Track-RMSE [rad].
-    pub track_rmse: f64,
-    /// Mean Sync-RMSE [rad].
-    pub sync_rmse: f64,
-    /// Smallest and largest Sync-RMSE over the seeds [rad].
-    pub sync_rmse_range: (f64, f64),
-}
-
-/// Simulates `s` (as run, after the overrides) with `seeds` seeds from its own.
-pub fn sim_prediction(s: &Scenario, seeds: u64) -> Result<SimPrediction, RtError> {
-    let seeds = seeds.max(1);
-    let (mut track, mut sync, mut lo, mut hi) = (0.0, 0.0, f64::INFINITY, 0.0f64);
-    for k in 0..seeds {
-        let mut sk = s.clone();
-        sk.seed = s.seed.wrapping_add(k);
-        let r = ringsync_sim::run(&sk, RunOptions::default())
-            .map_err(|e| RtError::Config(e.to_string()))?;
-        track += r.summary.track_rmse;
-        sync += r.summary.sync_rmse;
-        lo = lo.min(r.summary.sync_rmse);
-        hi = hi.max(r.summary.sync_rmse);
-    }
-    Ok(SimPrediction {
-        seeds,
-        track_rmse: track / seeds as f64,
-        sync_rmse: sync / seeds as f64,
-        sync_rmse_range: (lo, hi),
-    })
 }
 
 /// The running ring.

@@ -5,15 +5,14 @@
 use std::sync::atomic::AtomicBool;
 use std::sync::{Mutex, OnceLock};
 
+use ringsync_model::Scenario;
+use ringsync_model::nodes::RingBreak;
+use ringsync_model::record::FaultStep;
 use ringsync_proto::Duration;
 use ringsync_proto::node::Reject;
 use ringsync_rt::netns::ringsync_namespaces;
-use ringsync_rt::{
-    Flap, Forgery, Kill, RtOptions, RtResult, SimPrediction, TransportKind, run, sim_prediction,
-};
-use ringsync_sim::Scenario;
-use ringsync_sim::nodes::RingBreak;
-use ringsync_sim::record::FaultStep;
+use ringsync_rt::{Flap, Forgery, Kill, RtOptions, RtResult, TransportKind, run};
+use ringsync_sim::{SimPrediction, predict as sim_prediction};
 
 static SERIAL: Mutex<()> = Mutex::new(());
 static PREDICTION: OnceLock<SimPrediction> = OnceLock::new();

@@ -8,9 +8,9 @@
 use std::hint::black_box;
 
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
+use ringsync_model::scenario::{Dur, Scenario};
 use ringsync_proto::{CyclePlan, Duration};
 use ringsync_sim::run::{RunOptions, run};
-use ringsync_sim::scenario::{Dur, Scenario};
 
 fn paper_2015(c: &mut Criterion) {
     let s = Scenario::default();

@@ -1,15 +1,12 @@
-//! Scenarios and the deterministic co-simulator of ringsync.
-//!
-//! A [`Scenario`] is a TOML file in which every parameter of the reference scenario
-//! (docs/system.md, "The reference scenario") is a field; see `scenarios/paper-2015.toml`, the built-in one.
+//! The deterministic co-simulator of ringsync: the sans-IO nodes of `ringsync-proto`, built
+//! from a scenario by `ringsync-model`, driven by an event queue on modelled links and
+//! oscillators. Same scenario and seed: identical results.
 
-pub mod check;
-pub mod nodes;
-pub mod record;
-pub mod rng;
+pub mod predict;
 pub mod run;
-pub mod scenario;
 pub mod sweep;
 
-pub use run::{RunOptions, RunResult, run, run_with_progress};
-pub use scenario::{Scenario, ScenarioError, builtin, builtin_names};
+pub use predict::{SimPrediction, predict};
+pub use ringsync_model::result::RunResult;
+pub use ringsync_model::{Scenario, ScenarioError, builtin, builtin_names};
+pub use run::{RunOptions, run, run_with_progress};

@@ -5,8 +5,10 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 
 use serde::Deserialize;
 
-use crate::run::{RunOptions, RunResult, run};
-use crate::scenario::{Dur, ECHO_CHARS, Scenario, ScenarioError, clip, clip_middle};
+use ringsync_model::RunResult;
+
+use crate::run::{RunOptions, run};
+use ringsync_model::scenario::{Dur, ECHO_CHARS, Scenario, ScenarioError, clip, clip_middle};
 
 /// One swept key and its values, from `key=v1,v2,…`.
 #[derive(Debug, Clone, PartialEq)]

@@ -1,5 +1,5 @@
 use ringsync_proto::CyclePlan;
-use ringsync_proto::node::Reject;
+use ringsync_proto::node::{Reject, StopReason};
 use ringsync_proto::plan::Timeline;
 
 use super::*;
@@ -184,7 +184,7 @@ fn a_silent_slave_stops_the_group_within_w_cycles() {
     // drive still runs (its encoder latches go on): the link into it, from slave 2.
     assert_eq!(
         r.ring_break,
-        Some(crate::nodes::RingBreak::Link { from: 2, to: 3 })
+        Some(ringsync_model::nodes::RingBreak::Link { from: 2, to: 3 })
     );
     // Silent from cycle 500; W = 5 missed cycles, detected at the next law run.
     assert!(t > 0.5 && t <= 0.5 + 7.0 * 1e-3, "stopped at {t}");
@@ -371,39 +371,6 @@ fn reproduction_snapshot() {
     }
 }
 
-#[test]
-fn integer_floor_matches_libm_floor() {
-    let mut r = crate::rng::Rng::stream(7, 7);
-    for _ in 0..100_000 {
-        let y = r.symmetric(1e13);
-        assert_eq!(crate::nodes::floor_i64(y), y.floor() as i64, "{y}");
-        let z = y.round();
-        assert_eq!(crate::nodes::floor_i64(z), z as i64, "{z}");
-    }
-    for y in [-1.0, -0.5, -0.0, 0.0, 0.5, 1.0, -1e-300, 4e15 + 0.5] {
-        assert_eq!(crate::nodes::floor_i64(y), y.floor() as i64, "{y}");
-    }
-}
-
-/// The oscillator's truncation to a power-of-two resolution (a mask) against rem_euclid,
-/// for negative readings too.
-#[test]
-fn power_of_two_resolution_truncates_like_rem_euclid() {
-    use crate::nodes::Oscillator;
-    let mut r = crate::rng::Rng::stream(5, 9);
-    for k in 0..100_000 {
-        let res = [2i64, 8, 64, 1024][k % 4];
-        let o = Oscillator {
-            offset: r.symmetric(1e9),
-            rate: 1.0 + r.symmetric(1e-4),
-            res,
-        };
-        let t = r.symmetric(1e12) as i64;
-        let l = crate::nodes::floor_i64(o.offset + t as f64 * o.rate);
-        assert_eq!(o.local(t).as_ns(), l - l.rem_euclid(res), "{o:?} t = {t}");
-    }
-}
-
 /// The lumped-only plan, slave 3 crashing at 1 s: the master cannot command the axes in
 /// this plan, but it watches the returning frames. It stops the group (no fresh feedback
 /// from slave 3 within W cycles) and its next frames tell every slave to brake, so no axis
@@ -428,7 +395,7 @@ fn the_lumped_only_plan_stops_and_brakes_when_a_slave_fails() {
             r.faults.iter().any(|f| f.axis == axis
                 && matches!(
                     f.step,
-                    crate::record::FaultStep::TorqueOff(
+                    ringsync_model::record::FaultStep::TorqueOff(
                         ringsync_proto::node::TorqueOffCause::Standstill
                     )
                 )),

@@ -10,7 +10,7 @@ use ringsync_proto::node::{
     StopReason, TorqueOffCause,
 };
 
-use crate::run::{Captured, LinkCounters, PassageLog, RunResult, TraceRow};
+use crate::result::{Captured, LinkCounters, PassageLog, RunResult, TraceRow};
 
 /// One axis at a cycle start, as the driver observes it.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -21,7 +21,7 @@ use serde::{Deserialize, Deserializer};
 /// The built-in scenarios: (name, TOML text).
 const BUILTIN: &[(&str, &str)] = &[(
     "paper-2015",
-    include_str!("../../../scenarios/paper-2015.toml"),
+    include_str!("../../../../scenarios/paper-2015.toml"),
 )];
 
 /// Names of the built-in scenarios.

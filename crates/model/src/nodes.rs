@@ -375,6 +375,39 @@ mod break_tests {
     use super::*;
 
     #[test]
+    fn integer_floor_matches_libm_floor() {
+        let mut r = crate::rng::Rng::stream(7, 7);
+        for _ in 0..100_000 {
+            let y = r.symmetric(1e13);
+            assert_eq!(super::floor_i64(y), y.floor() as i64, "{y}");
+            let z = y.round();
+            assert_eq!(super::floor_i64(z), z as i64, "{z}");
+        }
+        for y in [-1.0, -0.5, -0.0, 0.0, 0.5, 1.0, -1e-300, 4e15 + 0.5] {
+            assert_eq!(super::floor_i64(y), y.floor() as i64, "{y}");
+        }
+    }
+
+    /// The oscillator's truncation to a power-of-two resolution (a mask) against rem_euclid,
+    /// for negative readings too.
+    #[test]
+    fn power_of_two_resolution_truncates_like_rem_euclid() {
+        use super::Oscillator;
+        let mut r = crate::rng::Rng::stream(5, 9);
+        for k in 0..100_000 {
+            let res = [2i64, 8, 64, 1024][k % 4];
+            let o = Oscillator {
+                offset: r.symmetric(1e9),
+                rate: 1.0 + r.symmetric(1e-4),
+                res,
+            };
+            let t = r.symmetric(1e12) as i64;
+            let l = super::floor_i64(o.offset + t as f64 * o.rate);
+            assert_eq!(o.local(t).as_ns(), l - l.rem_euclid(res), "{o:?} t = {t}");
+        }
+    }
+
+    #[test]
     fn the_first_node_that_stopped_receiving_names_the_break() {
         let k = 100;
         let all = [true; 4];
