@@ -7,6 +7,7 @@
 //! The scenario's reference is `paper-2015` (docs/system.md, "The reference scenario").
 
 pub mod check;
+pub mod motion;
 pub mod nodes;
 pub mod record;
 pub mod result;

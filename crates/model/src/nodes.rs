@@ -3,11 +3,10 @@
 //! oscillators and the servo axes with their held commands.
 
 use ringsync_plant::{AxisModel, Encoder};
-use ringsync_proto::node::{
-    LumpedOnlyControl, Master, MasterConfig, SafeState, Slave, SlaveConfig, SlaveEvent,
-};
+use ringsync_proto::node::{Master, MasterConfig, SafeState, Slave, SlaveConfig, SlaveEvent};
 use ringsync_proto::{CyclePlan, Duration, Instant, PlanKind};
 
+use crate::motion::{ControlMotion, SlaveControl, StopSettings};
 use crate::record::{FaultStep, Recorder};
 use crate::rng::Rng;
 use crate::scenario::{Scenario, ScenarioError};
@@ -44,16 +43,10 @@ impl RingConfig {
             .map(|e| e.resolution())
             .collect::<Vec<_>>();
         let mut master = if s.ring.plan == PlanKind::LumpedOnly {
-            MasterConfig::lumped_only(&plan, resolution.clone(), s.faults.following_error_limit)
+            MasterConfig::lumped_only(&plan, resolution.clone())
         } else {
-            MasterConfig::from_plan(
-                &plan,
-                s.ring.jitter.0,
-                resolution.clone(),
-                s.faults.following_error_limit,
-            )
+            MasterConfig::from_plan(&plan, s.ring.jitter.0, resolution.clone())
         };
-        master.stop_deceleration = 200.0;
         master.watchdog_cycles = s.faults.watchdog_cycles;
         let tolerance = timestamp_tolerance(s);
         master.timestamp_tolerance = tolerance;
@@ -98,21 +91,33 @@ impl RingConfig {
         let trajectories = s
             .trajectories()
             .map_err(|e| scenario_err("trajectory", e))?;
-        let master = Master::new(self.master.clone(), law, s.velocity_source(), trajectories);
+        let stop = StopSettings {
+            following_error_limit: s.faults.following_error_limit,
+            ..StopSettings::default()
+        };
+        let motion = ControlMotion::new(
+            law,
+            s.velocity_source(),
+            trajectories,
+            self.resolution.clone(),
+            s.ring.cycle.0,
+            stop,
+        );
+        let master = Master::new(self.master.clone(), Box::new(motion));
         let slaves = self
             .slaves
             .iter()
             .map(|cfg| {
                 if s.ring.plan == PlanKind::LumpedOnly {
-                    let control = LumpedOnlyControl {
-                        law: s.law().map_err(|e| scenario_err("control", e))?,
-                        velocity: s.velocity_source(),
-                        trajectories: s
-                            .trajectories()
+                    let control = SlaveControl::new(
+                        s.law().map_err(|e| scenario_err("control", e))?,
+                        s.velocity_source(),
+                        s.trajectories()
                             .map_err(|e| scenario_err("trajectory", e))?,
-                        resolution: self.resolution.clone(),
-                    };
-                    Ok(Slave::with_law(cfg.clone(), control))
+                        self.resolution.clone(),
+                        s.ring.cycle.0,
+                    );
+                    Ok(Slave::with_law(cfg.clone(), Box::new(control)))
                 } else {
                     Ok(Slave::new(cfg.clone()))
                 }

@@ -171,7 +171,7 @@ impl ControlOutput {
 
 /// A control law: commands from the error history (newest sample first) and the cycle's
 /// inputs.
-pub trait ControlLaw {
+pub trait ControlLaw: Send {
     /// Short name used in outputs: `pd` (`pd+ff` with feed-forward), `sync` or `ring-coupled`.
     fn name(&self) -> &'static str;
     /// Number of axes.

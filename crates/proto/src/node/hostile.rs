@@ -390,80 +390,6 @@ fn frozen_feedback_trips_the_watchdog_within_w_cycles() {
     assert!(r.master.counters().samples_stale >= 5);
 }
 
-/// Axis 2 seizes at full speed (its drive can no longer move it): the following error
-/// stops the group; axis 2 cannot follow its stop ramp and gets torque off at once; the
-/// others ramp down from where they are and get torque off when they have held still.
-/// Everything is off within a bounded time, and each step is an event with its axis.
-#[test]
-fn a_group_stop_ramps_down_then_cuts_torque() {
-    let mut r = ring();
-    r.run_until(500 * MS);
-    // At 0.5 s every axis moves at its peak speed (15 rad/s): axis 2 keeps that speed.
-    r.gains[1] = 0.0;
-    r.run_until(2_000 * MS);
-    let s = stops(&r);
-    assert_eq!(s.len(), 1);
-    let (t_stop, reason) = s[0];
-    assert!(
-        matches!(reason, StopReason::FollowingError { axis: 1, .. }),
-        "{reason:?}"
-    );
-    let offs: Vec<(i64, usize, OffReason)> = r
-        .master_events
-        .iter()
-        .filter_map(|(t, e)| match e {
-            MasterEvent::Order {
-                axis,
-                order: StopOrder::TorqueOff,
-                why,
-                ..
-            } => Some((*t, *axis, *why)),
-            _ => None,
-        })
-        .collect();
-    assert_eq!(offs.len(), 4, "{offs:?}");
-    let seized = offs.iter().find(|o| o.1 == 1).expect("axis 2 off");
-    assert!(
-        matches!(seized.2, OffReason::FollowingError { .. }),
-        "{seized:?}"
-    );
-    assert!(
-        seized.0 - t_stop < 120 * MS,
-        "axis 2 off {} ms after the stop",
-        (seized.0 - t_stop) / MS
-    );
-    for o in offs.iter().filter(|o| o.1 != 1) {
-        assert_eq!(o.2, OffReason::StopComplete, "{o:?}");
-        // A ramp from ≤ 15.2 rad/s at 200 rad/s² lasts ≤ 76 ms, then 100 ms of hold.
-        assert!(
-            o.0 - t_stop <= 190 * MS,
-            "axis {} off {} ms after the stop",
-            o.1 + 1,
-            (o.0 - t_stop) / MS
-        );
-    }
-    // Every slave applied the order, and the ramping axes ended at standstill near where
-    // the ramp put them.
-    for i in 1..=4 {
-        assert!(r.slaves[i - 1].torque_off(), "slave {i}");
-        assert!(r.slave_events.iter().any(|(_, s, e)| *s == i
-            && *e
-                == SlaveEvent::TorqueOff {
-                    cause: TorqueOffCause::Commanded
-                }));
-    }
-    // The ramping axes were at standstill (below 0.2 rad/s) when their torque went off
-    // (the testbed's frictionless axes keep that speed after: they coast).
-    for i in [0, 2, 3] {
-        assert!(
-            r.axes[i].v.abs() < 0.2,
-            "axis {} at {} rad/s",
-            i + 1,
-            r.axes[i].v
-        );
-    }
-}
-
 /// The master is gone at full speed. With `brake`, each slave damps its own axis to
 /// standstill and then cuts torque; with `torque-off` it cuts torque at once and the axis
 /// coasts (the testbed's axes have no friction: they keep their speed).
@@ -641,41 +567,6 @@ fn samples_that_come_back_late_still_feed_the_watchdog() {
     assert!(r.worst_error() < 0.1, "{}", r.worst_error());
 }
 
-/// The ring breaks at slave 3 at full speed. The master has no feedback from any axis; it
-/// can still reach slaves 1 and 2, and orders them to brake on their own; 3 and 4, which
-/// it cannot reach, brake after their watchdogs. Every axis ends at standstill, none coasts.
-/// Before the fix the master ordered torque off to the axes it could reach, and they coasted.
-#[test]
-fn a_broken_ring_brakes_every_axis_it_can_reach_and_the_rest_brake_alone() {
-    let mut r = ring();
-    r.run_until(500 * MS);
-    r.dead[3] = true;
-    r.run_until(1_500 * MS);
-    let s = stops(&r);
-    assert!(
-        matches!(s.first(), Some((_, StopReason::NoFeedback { .. }))),
-        "{s:?}"
-    );
-    for i in [1, 2] {
-        assert!(
-            r.slave_events
-                .iter()
-                .any(|(_, s, e)| *s == i && *e == SlaveEvent::Braking { ordered: true }),
-            "slave {i} was not ordered to brake"
-        );
-    }
-    assert!(
-        r.slave_events
-            .iter()
-            .any(|(_, s, e)| *s == 4 && *e == SlaveEvent::Braking { ordered: false })
-    );
-    for i in [1, 2, 4] {
-        let v = r.axes[i - 1].v;
-        assert!(v.abs() < 0.1, "axis {i} at {v} rad/s");
-        assert!(r.slaves[i - 1].torque_off(), "slave {i}");
-    }
-}
-
 /// The real lumped frame of cycle 300 to slave 1 is lost, and a forger sends two frames
 /// that lie about the time between them (1 ns of master time in 20 µs). Before the fix the
 /// clock took the rate 20000/1 from them: every later frame fell outside its window and
@@ -767,15 +658,18 @@ fn stray_frames_do_not_hold_off_a_relock() {
 /// carries none) and applied it on top of its own law's output.
 #[test]
 fn a_lumped_only_slave_takes_no_command() {
-    use ringsync_control::{AxisTrajectory, Cosine, Gains, Pd, VelocitySource};
+    /// A law that always commands 1 V.
+    struct One;
+    impl SlaveLaw for One {
+        fn axes(&self) -> usize {
+            1
+        }
+        fn command(&mut self, _: usize, _: &[Option<FeedbackSlot>], _: f64) -> f64 {
+            1.0
+        }
+    }
     let t_cyc = Duration::from_ms(1);
-    let traj = Cosine::with_peak_speed(15.12, 2.0).expect("cosine");
-    let control = LumpedOnlyControl {
-        law: Box::new(Pd::new(Gains::uniform(1, 3.182, 1.591, 0.0), false).expect("pd")),
-        velocity: VelocitySource::Reported,
-        trajectories: vec![AxisTrajectory::Cosine(traj)],
-        resolution: vec![1e-6],
-    };
+    let control = Box::new(One);
     let mut s = Slave::with_law(SlaveConfig::new(1, t_cyc, Duration::from_us(1)), control);
     let rx = Instant::from_ns(3_200_000);
     let mut b = command(3, 1, 10.0, 0, 3_000_000);

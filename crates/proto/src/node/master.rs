@@ -33,16 +33,13 @@
 
 use std::collections::VecDeque;
 
-use ringsync_control::{
-    AxisTrajectory, ControlInput, ControlLaw, ControlOutput, Controller, Feedback, State,
-    Trajectory, VelocitySource,
-};
 use ringsync_wire::{
     CommandRepr, Common, FeedbackSlot, Flags, Frame, FrameKind, LumpedOnlySlot, LumpedPayload,
     LumpedRepr, ResponseRepr, SlotCodec, Status,
 };
 
 use super::Transmit;
+use super::motion::{CycleRecord, Motion, MotionInput, MotionOutput, Setpoint};
 use super::reject::{Reject, Rejections};
 use crate::plan::{CyclePlan, FrameRef, Node, PlanKind};
 use crate::time::{Duration, Instant};
@@ -70,12 +67,9 @@ pub struct MasterConfig {
     /// Arrival of axis i's command (last bit at its slave) from the cycle start, first try;
     /// with the lumped-only plan, the lumped frame's last bit at slave i.
     pub command_arrival: Vec<Duration>,
-    /// Encoder resolution of each axis [rad per count].
+    /// Encoder resolution of each axis [rad per count] (the lumped-only frame carries the
+    /// desired motion in counts).
     pub resolution: Vec<f64>,
-    /// Following-error limit [rad].
-    pub following_error_limit: f64,
-    /// Deceleration of the group-stop ramp [rad/s²].
-    pub stop_deceleration: f64,
     /// W: consecutive cycles without a response from an axis, or without a fresh
     /// feedback sample, before the group stops.
     pub watchdog_cycles: u32,
@@ -85,20 +79,12 @@ pub struct MasterConfig {
     /// How far in the future (by the master's clock) a feedback sample's sampling instant
     /// may lie and still be taken (the slaves' clock error).
     pub timestamp_tolerance: Duration,
-    /// During a group stop, how long an axis holds still at the end of its ramp before
-    /// its torque goes off.
-    pub stop_hold: Duration,
-    /// During a group stop, the longest any axis keeps its torque.
-    pub stop_timeout: Duration,
-    /// During a group stop, an axis counts as standing still below this speed [rad/s].
-    pub stop_standstill: f64,
 }
 
 impl MasterConfig {
     /// The schedule of the lumped-only plan on the ring of `plan` (a single lumped frame).
-    pub fn lumped_only(plan: &CyclePlan, resolution: Vec<f64>, following_error_limit: f64) -> Self {
-        let mut c =
-            MasterConfig::from_plan(plan, Duration::ZERO, resolution, following_error_limit);
+    pub fn lumped_only(plan: &CyclePlan, resolution: Vec<f64>) -> Self {
+        let mut c = MasterConfig::from_plan(plan, Duration::ZERO, resolution);
         let lo = &plan.lumped_only.lumped;
         c.plan = PlanKind::LumpedOnly;
         c.lumped_slots = lo.frame_slots.clone();
@@ -110,12 +96,7 @@ impl MasterConfig {
     }
 
     /// The schedule of `plan`, with `jitter` allowed per hop when waiting for a response.
-    pub fn from_plan(
-        plan: &CyclePlan,
-        jitter: Duration,
-        resolution: Vec<f64>,
-        following_error_limit: f64,
-    ) -> Self {
+    pub fn from_plan(plan: &CyclePlan, jitter: Duration, resolution: Vec<f64>) -> Self {
         let n = plan.slaves() as i64;
         let tl = plan.timeline();
         let gap = plan.link.gap();
@@ -150,14 +131,9 @@ impl MasterConfig {
             reserve_slices: plan.reserve_slices,
             command_arrival,
             resolution,
-            following_error_limit,
-            stop_deceleration: 200.0,
             watchdog_cycles: 5,
             plan: PlanKind::P2pLumped,
             timestamp_tolerance: Duration::from_us(50),
-            stop_hold: Duration::from_ms(100),
-            stop_timeout: Duration::from_ms(2_000),
-            stop_standstill: 0.2,
         }
     }
 
@@ -337,54 +313,6 @@ pub struct MasterCounters {
     pub command_mismatches: u64,
 }
 
-/// What the master computed in one cycle (for traces).
-#[derive(Debug, Clone, PartialEq)]
-pub struct CycleRecord {
-    /// Cycle index k.
-    pub k: i64,
-    /// Sampling instant of each axis's latest sample [s, synchronised clock].
-    pub sample_time: Vec<f64>,
-    /// Measured position of each axis [rad].
-    pub position: Vec<f64>,
-    /// Whether the sample is from this cycle.
-    pub fresh: Vec<bool>,
-    /// Command sent to each axis [V].
-    pub u: Vec<f64>,
-    /// Whether it was clipped.
-    pub saturated: Vec<bool>,
-    /// Planned arrival of each command [s].
-    pub apply_time: Vec<f64>,
-}
-
-#[derive(Debug, Clone, Copy)]
-struct StopRamp {
-    t0: f64,
-    x0: f64,
-    v0: f64,
-    decel: f64,
-}
-
-impl StopRamp {
-    fn at(&self, t: f64) -> State {
-        let tau = (t - self.t0).max(0.0);
-        let t_stop = self.v0.abs() / self.decel;
-        let s = self.v0.signum();
-        if tau >= t_stop {
-            State {
-                x: self.x0 + self.v0 * t_stop - 0.5 * s * self.decel * t_stop * t_stop,
-                v: 0.0,
-                a: 0.0,
-            }
-        } else {
-            State {
-                x: self.x0 + self.v0 * tau - 0.5 * s * self.decel * tau * tau,
-                v: self.v0 - s * self.decel * tau,
-                a: -s * self.decel,
-            }
-        }
-    }
-}
-
 /// A lumped frame as it went out, to recognise it when it comes back.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 struct SentLumped {
@@ -397,9 +325,14 @@ struct SentLumped {
 /// The master.
 pub struct Master {
     cfg: MasterConfig,
-    controller: Controller<Box<dyn ControlLaw>>,
-    trajectories: Vec<AxisTrajectory>,
-    stop: Option<Vec<StopRamp>>,
+    /// The motion application (law, trajectories, supervision, the stop ramp).
+    motion: Box<dyn Motion>,
+    /// Its output of the last run.
+    mout: MotionOutput,
+    /// The lumped-only plan: each axis's latest written feedback, and the cycle's record
+    /// (what the slaves did).
+    lo_latest: Vec<Option<FeedbackSlot>>,
+    lo_record: CycleRecord,
     /// A stop detected outside the law's run, taken at the next one.
     pending_stop: Option<StopReason>,
     /// Current cycle index; lumped frames sent so far in it; whether the law has run.
@@ -440,10 +373,6 @@ pub struct Master {
     /// The cycle of the last lumped frame taken.
     last_back: Option<i64>,
     retry_queue: VecDeque<usize>,
-    fb: Feedback,
-    input: ControlInput,
-    output: ControlOutput,
-    record: CycleRecord,
     seq: u16,
     out: VecDeque<Transmit>,
     events: VecDeque<MasterEvent>,
@@ -452,19 +381,14 @@ pub struct Master {
 }
 
 impl Master {
-    /// A master for `law` with one trajectory per axis.
-    pub fn new(
-        cfg: MasterConfig,
-        law: Box<dyn ControlLaw>,
-        velocity: VelocitySource,
-        trajectories: Vec<AxisTrajectory>,
-    ) -> Self {
+    /// A master running `motion` on the ring of `cfg` (`motion` has `cfg.axes()` axes).
+    pub fn new(cfg: MasterConfig, motion: Box<dyn Motion>) -> Self {
         let n = cfg.axes();
-        let t_cyc = cfg.cycle.as_ns() as f64 * 1e-9;
         Master {
-            controller: Controller::new(law, velocity),
-            trajectories,
-            stop: None,
+            motion,
+            mout: MotionOutput::new(n),
+            lo_latest: vec![None; n],
+            lo_record: CycleRecord::new(n),
             pending_stop: None,
             k: 0,
             next_lumped: 0,
@@ -488,18 +412,6 @@ impl Master {
             sent_lumped: vec![SentLumped::default(); cfg.lumped_offsets.len()],
             last_back: None,
             retry_queue: VecDeque::new(),
-            fb: Feedback::new(n),
-            input: ControlInput::new(n, t_cyc),
-            output: ControlOutput::new(n),
-            record: CycleRecord {
-                k: 0,
-                sample_time: vec![0.0; n],
-                position: vec![0.0; n],
-                fresh: vec![false; n],
-                u: vec![0.0; n],
-                saturated: vec![false; n],
-                apply_time: vec![0.0; n],
-            },
             seq: 0,
             out: VecDeque::new(),
             events: VecDeque::new(),
@@ -519,11 +431,18 @@ impl Master {
     }
     /// The last cycle's figures.
     pub fn record(&self) -> &CycleRecord {
-        &self.record
+        match self.cfg.plan {
+            PlanKind::P2pLumped => &self.mout.record,
+            PlanKind::LumpedOnly => &self.lo_record,
+        }
     }
     /// Whether the group is stopping.
     pub fn is_stopping(&self) -> bool {
-        self.stop.is_some()
+        self.motion.is_stopping()
+    }
+    /// The motion application.
+    pub fn motion(&self) -> &dyn Motion {
+        &*self.motion
     }
     /// The cycle in progress, k.
     pub fn cycle(&self) -> i64 {
@@ -546,11 +465,8 @@ impl Master {
     }
 
     /// The desired state of axis `i` at `t` [s] (the stop ramp once stopping).
-    pub fn desired(&self, i: usize, t: f64) -> State {
-        match &self.stop {
-            Some(r) => r[i].at(t),
-            None => self.trajectories[i].at(t),
-        }
+    pub fn desired(&self, i: usize, t: f64) -> Setpoint {
+        self.motion.desired(i, t)
     }
 
     fn cycle_start(&self) -> Instant {
@@ -632,22 +548,23 @@ impl Master {
     /// for W cycles). The master cannot command the axes in this plan: from the stop on,
     /// its lumped frames carry STOP and BRAKE, and every drive brakes on its own.
     fn supervise_lumped_only(&mut self, now: Instant) {
-        let n = self.cfg.axes();
-        let mut reason = self.pending_stop.take();
-        for i in 0..n {
-            self.since_fresh[i] = if std::mem::take(&mut self.fed[i]) {
-                0
-            } else {
-                self.since_fresh[i].saturating_add(1)
-            };
-            self.blind[i] = self.since_fresh[i] >= self.cfg.watchdog_cycles;
-            if self.blind[i] && reason.is_none() {
-                reason = Some(StopReason::NoFeedback { axis: i });
-            }
-        }
-        if let (Some(r), None) = (reason, &self.stop) {
-            self.begin_stop(now, r);
-            for axis in 0..n {
+        self.feedback_watchdog();
+        let was_stopping = self.motion.is_stopping();
+        let input = MotionInput {
+            k: self.k,
+            now,
+            cycle_start: self.cycle_start(),
+            samples: &self.lo_latest,
+            fresh: &self.fresh,
+            blind: &self.blind,
+            command_arrival: &self.cfg.command_arrival,
+            pending: self.pending_stop.take(),
+            commanded: false,
+        };
+        self.motion.compute(&input, &mut self.mout);
+        self.take_motion_events(now);
+        if !was_stopping && self.motion.is_stopping() {
+            for axis in 0..self.cfg.axes() {
                 self.orders[axis] = Some(StopOrder::Brake);
                 self.events.push_back(MasterEvent::Order {
                     at: now,
@@ -718,7 +635,7 @@ impl Master {
         self.seq = self.seq.wrapping_add(1);
         // In the lumped-only plan the lumped frame is the only way to the drives: once the
         // group stops it tells them all to brake.
-        let flags = if self.stop.is_some() && self.cfg.plan == PlanKind::LumpedOnly {
+        let flags = if self.motion.is_stopping() && self.cfg.plan == PlanKind::LumpedOnly {
             Flags::STOP.with(Flags::BRAKE)
         } else {
             Flags::empty()
@@ -780,182 +697,46 @@ impl Master {
     }
 
     fn compute(&mut self, now: Instant) {
-        let n = self.cfg.axes();
         if self.lumped_back < self.cfg.lumped_offsets.len() {
             self.counters.lumped_lost += (self.cfg.lumped_offsets.len() - self.lumped_back) as u64;
         }
-        let t_start = self.cycle_start().as_ns() as f64 * 1e-9;
-        let t_now = now.as_ns() as f64 * 1e-9;
-        let mut stop_reason = self.pending_stop.take();
-        for i in 0..n {
-            let res = self.cfg.resolution[i];
-            match self.latest[i] {
-                Some(s) => {
-                    let ts = s.sample_time_ns as f64 * 1e-9;
-                    self.fb.position[i] = f64::from(s.position) * res;
-                    self.fb.velocity[i] = f64::from(s.velocity) * res;
-                    self.fb.sample_time[i] = ts;
-                    self.fb.desired[i] = self.desired(i, ts);
-                    self.fb.fresh[i] = self.fresh[i];
-                    if s.status.contains(Status::FAULT) && stop_reason.is_none() {
-                        stop_reason = Some(StopReason::AxisFault { axis: i });
-                    }
-                }
-                None => {
-                    self.fb.position[i] = 0.0;
-                    self.fb.velocity[i] = 0.0;
-                    self.fb.sample_time[i] = t_start;
-                    self.fb.desired[i] = self.desired(i, t_start);
-                    self.fb.fresh[i] = false;
-                }
-            }
-            let e = self.fb.desired[i].x - self.fb.position[i];
-            if self.latest[i].is_some()
-                && e.abs() > self.cfg.following_error_limit
-                && stop_reason.is_none()
-            {
-                stop_reason = Some(StopReason::FollowingError { axis: i, error: e });
-            }
-            // Feedback watchdog, counted in the master's own cycles: a law run on a sample
-            // W cycles old drives the axis blind (with the ring broken behind it, the error
-            // it sees never closes and the command winds up to saturation), whatever
-            // timestamps the frames claim.
+        self.feedback_watchdog();
+        let input = MotionInput {
+            k: self.k,
+            now,
+            cycle_start: self.cycle_start(),
+            samples: &self.latest,
+            fresh: &self.fresh,
+            blind: &self.blind,
+            command_arrival: &self.cfg.command_arrival,
+            pending: self.pending_stop.take(),
+            commanded: true,
+        };
+        self.motion.compute(&input, &mut self.mout);
+        self.take_motion_events(now);
+        self.events.push_back(MasterEvent::Computed { k: self.k });
+    }
+
+    /// The feedback watchdog, counted in the master's own cycles: an axis from which no
+    /// new sample came in W law runs is blind, whatever timestamps the frames claim.
+    fn feedback_watchdog(&mut self) {
+        for i in 0..self.cfg.axes() {
             self.since_fresh[i] = if std::mem::take(&mut self.fed[i]) {
                 0
             } else {
                 self.since_fresh[i].saturating_add(1)
             };
             self.blind[i] = self.since_fresh[i] >= self.cfg.watchdog_cycles;
-            if self.blind[i] && stop_reason.is_none() && self.stop.is_none() {
-                stop_reason = Some(StopReason::NoFeedback { axis: i });
-            }
-        }
-        if let (Some(reason), None) = (stop_reason, &self.stop) {
-            self.begin_stop(now, reason);
-        }
-        if self.stop.is_some() {
-            self.supervise_stop(now, t_now);
-        }
-        for i in 0..n {
-            let a = t_start + self.cfg.command_arrival[i].as_ns() as f64 * 1e-9;
-            self.input.apply_time[i] = a;
-            self.input.desired[i] = self.desired(i, a);
-        }
-        if self
-            .controller
-            .update(&self.fb, &self.input, &mut self.output)
-            .is_err()
-        {
-            // Lengths are fixed at construction; an error here is a bug. Command 0 V.
-            self.output.u.fill(0.0);
-        }
-        for i in 0..n {
-            if self.blind[i] || self.orders[i].is_some() {
-                self.output.u[i] = 0.0;
-                self.output.saturated[i] = false;
-            }
-        }
-        let r = &mut self.record;
-        r.k = self.k;
-        r.sample_time.copy_from_slice(&self.fb.sample_time);
-        r.position.copy_from_slice(&self.fb.position);
-        r.fresh.copy_from_slice(&self.fb.fresh);
-        r.u.copy_from_slice(&self.output.u);
-        r.saturated.copy_from_slice(&self.output.saturated);
-        r.apply_time.copy_from_slice(&self.input.apply_time);
-        self.events.push_back(MasterEvent::Computed { k: self.k });
-    }
-
-    /// The group stop begins at `now`: every axis ramps down from where it is (its
-    /// measured position, moved on by its measured velocity to `now`, and that velocity),
-    /// like a drive's quick stop.
-    fn begin_stop(&mut self, now: Instant, reason: StopReason) {
-        let n = self.cfg.axes();
-        let t = now.as_ns() as f64 * 1e-9;
-        let decel = self.cfg.stop_deceleration;
-        self.stop = Some(
-            (0..n)
-                .map(|i| {
-                    let (x0, v0) = match self.measured(i) {
-                        Some((x, v, ts)) => (x + v * (t - ts), v),
-                        None => {
-                            let d = self.trajectories[i].at(t);
-                            (d.x, d.v)
-                        }
-                    };
-                    StopRamp {
-                        t0: t,
-                        x0,
-                        v0,
-                        decel,
-                    }
-                })
-                .collect(),
-        );
-        self.events
-            .push_back(MasterEvent::GroupStop { at: now, reason });
-        for i in 0..n {
-            self.fb.desired[i] = self.desired(i, self.fb.sample_time[i]);
         }
     }
 
-    /// The latest measured position [rad], velocity [rad/s] and sampling instant [s] of
-    /// axis `i`, if it ever reported one.
-    fn measured(&self, i: usize) -> Option<(f64, f64, f64)> {
-        let res = self.cfg.resolution[i];
-        let f = match self.cfg.plan {
-            PlanKind::P2pLumped => self.latest[i]?,
-            PlanKind::LumpedOnly => {
-                let f = self.lo_slots[i].feedback;
-                if f.sample_time_ns == 0 && !f.written {
-                    return None;
-                }
-                f
-            }
-        };
-        Some((
-            f64::from(f.position) * res,
-            f64::from(f.velocity) * res,
-            f.sample_time_ns as f64 * 1e-9,
-        ))
-    }
-
-    /// During the stop: brake for an axis without feedback (the master can reach it but no
-    /// longer sees it); torque off for one that cannot follow its ramp, has ended its ramp
-    /// and held still, or has run out of time.
-    fn supervise_stop(&mut self, now: Instant, t: f64) {
-        let Some(ramps) = &self.stop else { return };
-        let hold = self.cfg.stop_hold.as_ns() as f64 * 1e-9;
-        let timeout = self.cfg.stop_timeout.as_ns() as f64 * 1e-9;
-        let mut orders = Vec::new();
-        for (i, r) in ramps.iter().enumerate() {
-            if self.orders[i] == Some(StopOrder::TorqueOff) {
-                continue;
-            }
-            let measured = self.measured(i).filter(|_| !self.blind[i]);
-            let order = match (self.orders[i], measured) {
-                _ if t >= r.t0 + timeout => Some((StopOrder::TorqueOff, OffReason::StopTimeout)),
-                // Braking on its own already (or off): the drive ends it.
-                (Some(_), _) => None,
-                (None, None) => Some((StopOrder::Brake, OffReason::NoFeedback)),
-                (_, Some((x, v, ts))) => {
-                    let error = r.at(ts).x - x;
-                    if error.abs() > self.cfg.following_error_limit {
-                        Some((StopOrder::TorqueOff, OffReason::FollowingError { error }))
-                    } else if t >= r.t0 + r.v0.abs() / r.decel + hold
-                        && v.abs() <= self.cfg.stop_standstill
-                    {
-                        Some((StopOrder::TorqueOff, OffReason::StopComplete))
-                    } else {
-                        None
-                    }
-                }
-            };
-            if let Some(o) = order {
-                orders.push((i, o));
-            }
+    /// The stop the motion began and the orders it gave in its last run, as events.
+    fn take_motion_events(&mut self, now: Instant) {
+        if let Some(reason) = self.mout.stop.take() {
+            self.events
+                .push_back(MasterEvent::GroupStop { at: now, reason });
         }
-        for (axis, (order, why)) in orders {
+        for (axis, order, why) in self.mout.orders.drain(..) {
             self.orders[axis] = Some(order);
             self.events.push_back(MasterEvent::Order {
                 at: now,
@@ -985,7 +766,7 @@ impl Master {
         };
         self.open = Some((target, retry));
         self.seq = self.seq.wrapping_add(1);
-        let mut flags = if self.stop.is_some() {
+        let mut flags = if self.motion.is_stopping() {
             Flags::STOP
         } else {
             Flags::empty()
@@ -995,7 +776,7 @@ impl Master {
             Some(StopOrder::Brake) => flags = flags.with(Flags::BRAKE),
             None => {}
         }
-        self.sent_u[target] = self.output.u[target] as f32;
+        self.sent_u[target] = self.mout.u[target] as f32;
         let cmd = CommandRepr {
             common: Common {
                 flags,
@@ -1004,8 +785,10 @@ impl Master {
                 seq: self.seq,
             },
             target: (target + 1) as u16,
-            command_v: self.output.u[target] as f32,
-            sample_time_ns: (self.fb.sample_time[target] * 1e9).round().max(0.0) as u64,
+            command_v: self.mout.u[target] as f32,
+            sample_time_ns: (self.mout.record.sample_time[target] * 1e9)
+                .round()
+                .max(0.0) as u64,
         };
         let mut buf = self.spares.take(cmd.buffer_len());
         if cmd.emit(&mut buf).is_ok() {
@@ -1229,7 +1012,7 @@ impl Master {
         self.lumped_back += 1;
         self.last_back = Some(self.k);
         let newest = self.newest_sample(now);
-        self.record.k = self.k;
+        self.lo_record.k = self.k;
         for (k, slot) in l.slots.iter().enumerate() {
             let i = first + k;
             if i >= self.lo_slots.len() {
@@ -1246,14 +1029,11 @@ impl Master {
             if !f.written {
                 self.counters.samples_missing += 1;
             } else {
+                // The motion supervises it at the cycle's end (following error, freshness).
                 self.fed[i] = true;
-                let error = self.desired(i, ts).x - x;
-                if error.abs() > self.cfg.following_error_limit && self.stop.is_none() {
-                    self.pending_stop
-                        .get_or_insert(StopReason::FollowingError { axis: i, error });
-                }
+                self.lo_latest[i] = Some(f);
             }
-            let r = &mut self.record;
+            let r = &mut self.lo_record;
             r.fresh[i] = f.written;
             r.position[i] = x;
             r.sample_time[i] = ts;

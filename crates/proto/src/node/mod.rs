@@ -7,18 +7,19 @@
 
 pub mod clock;
 pub mod master;
+pub mod motion;
 pub mod reject;
 pub mod slave;
 pub mod testbed;
 
 pub use clock::{ClockFilter, SyncClock};
 pub use master::{
-    CycleRecord, Master, MasterConfig, MasterCounters, MasterEvent, OffReason, StopOrder,
-    StopReason,
+    Master, MasterConfig, MasterCounters, MasterEvent, OffReason, StopOrder, StopReason,
 };
+pub use motion::{CycleRecord, Motion, MotionInput, MotionOutput, Setpoint};
 pub use reject::{Reject, Rejections};
 pub use slave::{
-    FrameOutcome, LumpedOnlyControl, SafeState, Slave, SlaveConfig, SlaveCounters, SlaveEvent,
+    FrameOutcome, SafeState, Slave, SlaveConfig, SlaveCounters, SlaveEvent, SlaveLaw,
     TorqueOffCause,
 };
 

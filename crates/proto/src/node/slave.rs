@@ -48,10 +48,6 @@
 
 use std::collections::VecDeque;
 
-use ringsync_control::{
-    AxisTrajectory, ControlInput, ControlLaw, ControlOutput, Controller, Feedback, Trajectory,
-    VelocitySource,
-};
 use ringsync_wire::{
     CommandRepr, Common, FeedbackSlot, Flags, Frame, FrameKind, LumpedOnlySlot, LumpedPayload,
     ResponseRepr, SlotCodec, Status,
@@ -124,36 +120,17 @@ impl TorqueOffCause {
     }
 }
 
-/// What a slave needs to run the control law itself (the lumped-only plan of ref. [3]).
-pub struct LumpedOnlyControl {
-    /// The law, for all n axes (the slave uses its own axis's command).
-    pub law: Box<dyn ControlLaw>,
-    /// Where ė comes from.
-    pub velocity: VelocitySource,
-    /// The desired motion of every axis (the slaves evaluate it themselves).
-    pub trajectories: Vec<AxisTrajectory>,
-    /// Encoder resolution of every axis [rad per count].
-    pub resolution: Vec<f64>,
-}
-
-impl std::fmt::Debug for LumpedOnlyControl {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("LumpedOnlyControl")
-            .field("law", &self.law.name())
-            .finish_non_exhaustive()
-    }
-}
-
-/// The law, history and scratch of a slave that controls its own axis.
-struct SlaveLaw {
-    trajectories: Vec<AxisTrajectory>,
-    resolution: Vec<f64>,
-    controller: Controller<Box<dyn ControlLaw>>,
-    fb: Feedback,
-    input: ControlInput,
-    out: ControlOutput,
-    /// Sampling instant of the newest sample taken into the history, per axis [ns].
-    seen: Vec<u64>,
+/// What a slave of the lumped-only plan (ref. [3]) runs on the data its lumped frame
+/// carries: its own axis's command from the feedback of every axis the frame holds.
+/// `ringsync-model` implements it with the control library's laws.
+pub trait SlaveLaw: Send {
+    /// Number of axes of the ring.
+    fn axes(&self) -> usize;
+    /// The command [V] for this slave's own axis `me` (0-based) at `now` [s, synchronised
+    /// clock], from `slots` (length [`SlaveLaw::axes`]): axis a's feedback as the frame
+    /// carries it (this slave's own fresh sample at `me`), or `None` where the frame holds
+    /// none for it (or the slave refused it).
+    fn command(&mut self, me: usize, slots: &[Option<FeedbackSlot>], now: f64) -> f64;
 }
 
 /// Configuration of one slave.
@@ -349,7 +326,9 @@ pub struct Slave {
     out: VecDeque<Transmit>,
     events: VecDeque<SlaveEvent>,
     counters: SlaveCounters,
-    law: Option<SlaveLaw>,
+    law: Option<Box<dyn SlaveLaw>>,
+    /// Scratch for the frame's slots handed to the law.
+    law_slots: Vec<Option<FeedbackSlot>>,
     spares: super::Spares,
 }
 
@@ -363,28 +342,13 @@ impl std::fmt::Debug for Slave {
 }
 
 impl Slave {
-    /// A slave of the lumped-only plan: it runs `control` on the data the lumped frame
+    /// A slave of the lumped-only plan: it runs `law` on the data the lumped frame
     /// carries and applies its own axis's command as the frame passes.
-    pub fn with_law(cfg: SlaveConfig, control: LumpedOnlyControl) -> Self {
-        let n = control.law.axes();
-        let t_cyc = cfg.cycle.as_ns() as f64 * 1e-9;
-        let LumpedOnlyControl {
-            law,
-            velocity,
-            trajectories,
-            resolution,
-        } = control;
-        let controller = Controller::new(law, velocity);
+    pub fn with_law(cfg: SlaveConfig, law: Box<dyn SlaveLaw>) -> Self {
+        let n = law.axes();
         let mut s = Slave::new(cfg);
-        s.law = Some(SlaveLaw {
-            trajectories,
-            resolution,
-            controller,
-            fb: Feedback::new(n),
-            input: ControlInput::new(n, t_cyc),
-            out: ControlOutput::new(n),
-            seen: vec![u64::MAX; n],
-        });
+        s.law = Some(law);
+        s.law_slots = vec![None; n];
         s
     }
 
@@ -413,6 +377,7 @@ impl Slave {
             counters: SlaveCounters::default(),
             spares: super::Spares::default(),
             law: None,
+            law_slots: Vec::new(),
         }
     }
 
@@ -831,13 +796,8 @@ impl Slave {
             .saturating_add(self.cfg.clock_window.as_ns())
             .max(0) as u64;
         let mut future = 0;
-        let Some(law) = self.law.as_mut() else {
-            return FrameOutcome::Forward;
-        };
-        let n = law.seen.len();
-        for a in 0..n {
-            law.fb.fresh[a] = false;
-        }
+        let n = self.law_slots.len();
+        self.law_slots.fill(None);
         for k in 0..usize::from(p.slot_count()) {
             let a = first + k;
             if a >= n {
@@ -855,34 +815,13 @@ impl Slave {
                 future += 1;
                 continue;
             }
-            if slot.sample_time_ns == law.seen[a]
-                || slot.sample_time_ns == 0 && law.seen[a] != u64::MAX
-            {
-                continue;
-            }
-            let ts = slot.sample_time_ns as f64 * 1e-9;
-            let res = law.resolution[a];
-            law.fb.position[a] = f64::from(slot.position) * res;
-            law.fb.velocity[a] = f64::from(slot.velocity) * res;
-            law.fb.sample_time[a] = ts;
-            law.fb.desired[a] = law.trajectories[a].at(ts);
-            law.fb.fresh[a] = true;
-            law.seen[a] = slot.sample_time_ns;
+            self.law_slots[a] = Some(slot);
         }
         let t = now.as_ns() as f64 * 1e-9;
-        for a in 0..n {
-            law.input.apply_time[a] = t;
-            law.input.desired[a] = law.trajectories[a].at(t);
-        }
-        let u = if law
-            .controller
-            .update(&law.fb, &law.input, &mut law.out)
-            .is_ok()
-        {
-            law.out.u.get(me).copied().unwrap_or(0.0)
-        } else {
-            0.0
+        let Some(law) = self.law.as_mut() else {
+            return FrameOutcome::Forward;
         };
+        let u = law.command(me, &self.law_slots, t);
         for _ in 0..future {
             self.reject(Reject::FutureTimestamp);
         }

@@ -20,11 +20,12 @@
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;
 
-use ringsync_control::{AxisTrajectory, Cosine, Gains, Pd, VelocitySource};
-use ringsync_wire::Frame;
+use ringsync_wire::{Frame, Status};
 
+use super::motion::{Motion, MotionInput, MotionOutput, Setpoint};
 use super::{
     FrameOutcome, Master, MasterConfig, MasterEvent, SafeState, Slave, SlaveConfig, SlaveEvent,
+    StopReason,
 };
 use crate::plan::{CyclePlan, RingParams};
 use crate::time::{Duration, Instant};
@@ -80,6 +81,116 @@ pub struct Axis {
     pub off: bool,
     /// True time of the state [ns].
     pub t: i64,
+}
+
+/// Encoder resolution of the testbed's axes [rad per count]: 2^20 counts per revolution.
+pub const RESOLUTION: f64 = std::f64::consts::TAU / 1_048_576.0;
+
+/// A minimal motion for the protocol's tests: PD on a cosine per axis (peak speed
+/// `peak_speed`, period 2 s; K_P 3.182 V/rad, K_D 1.591 V·s/rad on the reported velocity,
+/// ±10 V). It stops on whatever the protocol raises, on a slave's fault, on a following
+/// error and on a blind axis; once stopped it holds every axis where the stop found it,
+/// and commands 0 V to a blind axis. It gives no per-axis orders: the full group stop (ramps,
+/// brake and torque-off orders) is `ringsync-model`'s `ControlMotion`.
+#[derive(Debug, Clone)]
+pub struct PdMotion {
+    axes: usize,
+    amplitude: f64,
+    omega: f64,
+    limit: f64,
+    resolution: f64,
+    hold: Option<Vec<f64>>,
+}
+
+impl PdMotion {
+    /// The motion of `n` axes.
+    pub fn new(n: usize, peak_speed: f64, following_error_limit: f64, resolution: f64) -> Self {
+        let period = 2.0;
+        let omega = std::f64::consts::TAU / period;
+        PdMotion {
+            axes: n,
+            amplitude: peak_speed / omega,
+            omega,
+            limit: following_error_limit,
+            resolution,
+            hold: None,
+        }
+    }
+}
+
+impl Motion for PdMotion {
+    fn axes(&self) -> usize {
+        self.axes
+    }
+
+    fn compute(&mut self, input: &MotionInput<'_>, out: &mut MotionOutput) {
+        out.stop = None;
+        out.orders.clear();
+        let n = input.samples.len();
+        let t_start = input.cycle_start.as_ns() as f64 * 1e-9;
+        let mut stop = input.pending;
+        let mut feedback = vec![(0.0, 0.0, t_start); n];
+        for (i, fb) in feedback.iter_mut().enumerate() {
+            if let Some(s) = input.samples[i] {
+                let (x, v) = (
+                    f64::from(s.position) * self.resolution,
+                    f64::from(s.velocity) * self.resolution,
+                );
+                let ts = s.sample_time_ns as f64 * 1e-9;
+                *fb = (x, v, ts);
+                if s.status.contains(Status::FAULT) {
+                    stop = stop.or(Some(StopReason::AxisFault { axis: i }));
+                }
+                let error = self.desired(i, ts).x - x;
+                if error.abs() > self.limit {
+                    stop = stop.or(Some(StopReason::FollowingError { axis: i, error }));
+                }
+            }
+            if input.blind[i] && self.hold.is_none() {
+                stop = stop.or(Some(StopReason::NoFeedback { axis: i }));
+            }
+        }
+        if let (Some(reason), None) = (stop, &self.hold) {
+            self.hold = Some(feedback.iter().map(|f| f.0).collect());
+            out.stop = Some(reason);
+        }
+        let r = &mut out.record;
+        r.k = input.k;
+        for (i, &(x, v, ts)) in feedback.iter().enumerate() {
+            let d = self.desired(i, ts);
+            let u = if input.blind[i] || !input.commanded {
+                0.0
+            } else {
+                3.182 * (d.x - x) + 1.591 * (d.v - v)
+            };
+            let clipped = u.clamp(-10.0, 10.0);
+            out.u[i] = clipped;
+            out.saturated[i] = clipped != u;
+            r.sample_time[i] = ts;
+            r.position[i] = x;
+            r.fresh[i] = input.fresh[i];
+            r.u[i] = clipped;
+            r.saturated[i] = clipped != u;
+            r.apply_time[i] = t_start + input.command_arrival[i].as_ns() as f64 * 1e-9;
+        }
+    }
+
+    fn is_stopping(&self) -> bool {
+        self.hold.is_some()
+    }
+
+    fn desired(&self, axis: usize, t: f64) -> Setpoint {
+        match &self.hold {
+            Some(x) => Setpoint {
+                x: x.get(axis).copied().unwrap_or(0.0),
+                v: 0.0,
+            },
+            None => Setpoint {
+                x: self.amplitude * (1.0 - (self.omega * t).cos()),
+                v: self.amplitude * self.omega * (self.omega * t).sin(),
+            },
+        }
+    }
 }
 
 /// A frame about to reach node `to` (0 = the master, i = slave i) at true time `at` [ns].
@@ -162,35 +273,36 @@ pub struct Testbed {
 }
 
 impl Testbed {
-    /// A ring at rest at time 0.
+    /// A ring at rest at time 0 whose master runs the minimal [`PdMotion`].
     ///
     /// # Panics
     /// If the ring cannot be planned (no slaves, or more than a 1 ms cycle holds).
     pub fn new(c: TestbedConfig) -> Self {
+        let motion = PdMotion::new(
+            c.slaves as usize,
+            c.peak_speed,
+            c.following_error_limit,
+            RESOLUTION,
+        );
+        Testbed::with_motion(c, Box::new(motion))
+    }
+
+    /// A ring at rest at time 0 whose master runs `motion` (with `c.slaves` axes; the
+    /// encoders have 2^20 counts per revolution: [`RESOLUTION`]).
+    ///
+    /// # Panics
+    /// If the ring cannot be planned (no slaves, or more than a 1 ms cycle holds).
+    pub fn with_motion(c: TestbedConfig, motion: Box<dyn Motion>) -> Self {
         let n = c.slaves as usize;
         let plan = CyclePlan::new(&RingParams {
             slaves: c.slaves,
             ..RingParams::default()
         })
         .unwrap_or_else(|e| panic!("testbed ring of {n} slaves: {e}"));
-        let resolution = std::f64::consts::TAU / f64::from(1u32 << 20);
-        let mut cfg = MasterConfig::from_plan(
-            &plan,
-            Duration::ZERO,
-            vec![resolution; n],
-            c.following_error_limit,
-        );
+        let resolution = RESOLUTION;
+        let mut cfg = MasterConfig::from_plan(&plan, Duration::ZERO, vec![resolution; n]);
         cfg.watchdog_cycles = c.watchdog_cycles;
-        let law = Pd::new(Gains::uniform(n, 3.182, 1.591, 0.0), false)
-            .unwrap_or_else(|e| panic!("testbed law: {e}"));
-        let traj = Cosine::with_peak_speed(c.peak_speed, 2.0)
-            .unwrap_or_else(|e| panic!("testbed trajectory: {e}"));
-        let master = Master::new(
-            cfg,
-            Box::new(law),
-            VelocitySource::Reported,
-            vec![AxisTrajectory::Cosine(traj); n],
-        );
+        let master = Master::new(cfg, motion);
         let t_cyc = plan.params.t_cyc;
         let p2p_start = master.config().p2p_start;
         let slaves = (1..=n)

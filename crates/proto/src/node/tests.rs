@@ -1,8 +1,7 @@
 //! The nodes driven by hand: a test owns time and carries every frame itself, with no
 //! delay on the links (the simulator tests the timing; these test what the nodes decide).
 
-use ringsync_control::{AxisTrajectory, Cosine, Gains, Pd, VelocitySource};
-
+use super::testbed::PdMotion;
 use super::*;
 use crate::plan::{CyclePlan, RingParams};
 use crate::time::Duration;
@@ -18,15 +17,8 @@ fn ring(n: u32, lead: Duration) -> (Master, Vec<Slave>) {
     })
     .expect("plan");
     let n = n as usize;
-    let cfg = MasterConfig::from_plan(&plan, Duration::ZERO, vec![RES; n], 1e9);
-    let law = Pd::new(Gains::uniform(n, 3.182, 1.591, 0.0), false).expect("pd");
-    let traj = Cosine::with_peak_speed(15.12, 2.0).expect("cosine");
-    let master = Master::new(
-        cfg,
-        Box::new(law),
-        VelocitySource::Reported,
-        vec![AxisTrajectory::Cosine(traj); n],
-    );
+    let cfg = MasterConfig::from_plan(&plan, Duration::ZERO, vec![RES; n]);
+    let master = Master::new(cfg, Box::new(PdMotion::new(n, 15.12, 1e9, RES)));
     let slaves = (0..n)
         .map(|i| {
             Slave::new(SlaveConfig {
