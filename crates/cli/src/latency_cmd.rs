@@ -54,7 +54,7 @@ pub(crate) fn latency(args: &LatencyArgs) -> Result<Outcome, CliError> {
             "busy_us": us(args.busy.as_ns()),
             "lateness_us": pct(&r.lateness),
             "stalls_us": pct(&r.stalls),
-            "stall_threshold_us": us(ringsync_rt::run::STALL),
+            "stall_threshold_us": us(ringsync_rt::timing::STALL),
             "cycles_stalled": r.cycles_stalled,
             "cycles_stalled_at_least_us": r.over.iter().map(|(th, c)| json!({"us": us(*th), "cycles": c})).collect::<Vec<_>>(),
             "longest_stalled_run": r.longest_stalled_run,
@@ -84,7 +84,7 @@ pub(crate) fn latency(args: &LatencyArgs) -> Result<Outcome, CliError> {
     text.pop();
     text += &format!(
         "\n  longest run of cycles stalled {:.0} µs or more: {}\n",
-        us(ringsync_rt::run::STALL),
+        us(ringsync_rt::timing::STALL),
         r.longest_stalled_run
     );
     if let Some(p) = &args.json {

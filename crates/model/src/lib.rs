@@ -1,18 +1,32 @@
 //! What both drivers of a ring share, the simulator (`ringsync-sim`) and the real-time
-//! runtime (`ringsync-rt`): the [scenario](scenario) (schema, validation, building), the
-//! ring it builds ([`nodes`]: the nodes' configurations, oscillators, servo axes, where a
-//! ring broke), the per-cycle [recorder](record), the [results](result), the seeded
-//! [random streams](rng) and the stability [check].
+//! runtime (`ringsync-rt`):
 //!
-//! The scenario's reference is `paper-2015` (docs/system.md, "The reference scenario").
+//! - the [scenario](scenario) (schema, validation) and the ring it builds, a [`Spec`](spec::Spec);
+//! - the one driver kit, [`Devices`](devices::Devices): master, slaves, their oscillators,
+//!   the [axes](axes) and the [recorder](record), with [observers](observer) that watch the
+//!   run as it goes;
+//! - the master's [motion](motion) application (the control law, supervision, the group
+//!   stop) behind `ringsync-proto`'s `Motion` trait;
+//! - the [results](result) (the trace in columns), where a ring [broke](locate), the seeded
+//!   [random streams](rng), the [oscillators](oscillator) and the stability [check].
+//!
+//! The reference scenario is `paper-2015` (docs/system.md, "The reference scenario").
 
+pub mod axes;
 pub mod check;
+pub mod devices;
+pub mod locate;
 pub mod motion;
-pub mod nodes;
+pub mod observer;
+pub mod oscillator;
 pub mod record;
 pub mod result;
 pub mod rng;
 pub mod scenario;
+pub mod spec;
 
+pub use devices::Devices;
+pub use observer::Observer;
 pub use result::RunResult;
 pub use scenario::{Scenario, ScenarioError, builtin, builtin_names};
+pub use spec::Spec;

@@ -6,11 +6,13 @@
 use ringsync_control::{Coupling, Metrics};
 use ringsync_proto::Duration;
 use ringsync_proto::node::{
-    CycleRecord, MasterCounters, MasterEvent, OffReason, SafeState, SlaveCounters, StopOrder,
-    StopReason, TorqueOffCause,
+    CycleRecord, MasterCounters, OffReason, SafeState, SlaveCounters, StopOrder, StopReason,
+    TorqueOffCause,
 };
 
-use crate::result::{Captured, LinkCounters, PassageLog, RunResult, TraceRow};
+use crate::locate::RingBreak;
+use crate::observer::Observer;
+use crate::result::{Captured, LinkCounters, PassageLog, RunResult, Trace};
 
 /// One axis at a cycle start, as the driver observes it.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -98,7 +100,7 @@ pub struct FaultEvent {
     pub step: FaultStep,
 }
 
-/// The per-cycle recorder.
+/// The per-cycle recorder: an [`Observer`] that makes a run's [`RunResult`].
 #[derive(Debug)]
 pub struct Recorder {
     n: usize,
@@ -113,22 +115,24 @@ pub struct Recorder {
     apply_time: Vec<f64>,
     coupling: Option<Coupling>,
     metrics: Metrics,
-    trace: Vec<TraceRow>,
-    pending: Vec<TraceRow>,
+    trace: Trace,
+    /// Rows of the last computed cycle wait for their apply times until the next cycle
+    /// starts (or the run ends): from this row on.
+    pending: Option<usize>,
     clock_max: Vec<f64>,
     clock_sq: Vec<f64>,
     clock_count: u64,
+    sent_max: Vec<f64>,
+    applied_max: Vec<f64>,
     watchdog: Vec<(usize, f64)>,
     group_stop: Option<(f64, StopReason)>,
     faults: Vec<FaultEvent>,
-    ring_break: Option<crate::nodes::RingBreak>,
+    ring_break: Option<RingBreak>,
 }
 
 impl Recorder {
-    /// A recorder for `n` axes over `cycles` cycles of `t_cyc` [s]; `trace` keeps the rows.
-    /// The rows of the whole run are reserved here, so that recording never reallocates
-    /// mid-run (in the real-time runtime a growing trace stalled the loop by up to 0.4 ms
-    /// at each doubling).
+    /// A recorder for `n` axes over `cycles` cycles of `t_cyc` [s]; `trace` keeps the
+    /// trace (reserved for the whole run).
     pub fn new(n: usize, cycles: i64, t_cyc: f64, trace: bool) -> Self {
         let zero = AxisProbe {
             x: 0.0,
@@ -136,6 +140,11 @@ impl Recorder {
             clock_error_ns: 0.0,
             u: 0.0,
             saturated: false,
+        };
+        let groups = if trace {
+            usize::try_from(cycles.max(0)).unwrap_or(0) + 1
+        } else {
+            0
         };
         Recorder {
             n,
@@ -150,15 +159,13 @@ impl Recorder {
             apply_time: vec![f64::NAN; n],
             coupling: Coupling::new(n, 0.0).ok(),
             metrics: Metrics::new(n),
-            trace: Vec::with_capacity(if trace {
-                n.saturating_mul(usize::try_from(cycles.max(0)).unwrap_or(0) + 1)
-            } else {
-                0
-            }),
-            pending: Vec::with_capacity(n),
+            trace: Trace::with_capacity(n, groups),
+            pending: None,
             clock_max: vec![0.0; n],
             clock_sq: vec![0.0; n],
             clock_count: 0,
+            sent_max: vec![0.0; n],
+            applied_max: vec![0.0; n],
             watchdog: Vec::new(),
             group_stop: None,
             faults: Vec::new(),
@@ -166,110 +173,17 @@ impl Recorder {
         }
     }
 
-    /// Moves the waiting rows to the trace with the apply times seen since.
+    /// Gives the waiting rows the apply times seen since.
     fn flush_trace(&mut self) {
-        for mut row in self.pending.drain(..) {
-            row.apply_time = self.apply_time[row.axis - 1];
-            self.trace.push(row);
-        }
-    }
-
-    /// Cycle k starts: `axis(i)` gives axis i's state (0-based). Clock errors count over the
-    /// second half of the run.
-    pub fn probe(&mut self, k: i64, mut axis: impl FnMut(usize) -> AxisProbe) {
-        self.flush_trace();
-        for i in 0..self.n {
-            let p = axis(i);
-            self.probe[i] = p;
-            self.e[i] = p.x_d - p.x;
-            self.u[i] = p.u;
-            self.sat[i] = p.saturated;
-        }
-        let _ = self.metrics.push(&self.e, &self.u, &self.sat);
-        if 2 * k >= self.cycles {
-            self.clock_count += 1;
-            for i in 0..self.n {
-                let c = self.probe[i].clock_error_ns;
-                self.clock_max[i] = self.clock_max[i].max(c.abs());
-                self.clock_sq[i] += c * c;
+        if let Some(from) = self.pending.take() {
+            for (r, a) in self.trace.apply_time[from..].iter_mut().enumerate() {
+                *a = self.apply_time[r % self.n.max(1)];
             }
-        }
-        if let Some(c) = &self.coupling {
-            let _ = c.sync_errors(&self.e, &mut self.eps);
-        }
-    }
-
-    /// The master computed cycle k's commands (`r` is its record).
-    pub fn computed(&mut self, k: i64, r: &CycleRecord) {
-        if !self.trace_on {
-            return;
-        }
-        let t = k as f64 * self.t_cyc;
-        self.apply_time.fill(f64::NAN);
-        for i in 0..self.n {
-            let p = self.probe[i];
-            self.pending.push(TraceRow {
-                t,
-                axis: i + 1,
-                x_d: p.x_d,
-                x: p.x,
-                e: p.x_d - p.x,
-                eps: self.eps[i],
-                u: r.u[i],
-                sample_time: r.sample_time[i],
-                apply_time: f64::NAN,
-                clock_error_ns: p.clock_error_ns,
-            });
-        }
-    }
-
-    /// Axis i (0-based) took a command at true time `t` [s].
-    pub fn applied(&mut self, i: usize, t: f64) {
-        self.apply_time[i] = t;
-    }
-
-    /// Slave `slave` (1-based) went to its safe state at true time `t` [s].
-    pub fn watchdog(&mut self, slave: usize, t: f64) {
-        self.watchdog.push((slave, t));
-    }
-
-    /// The master stopped the group at `t` [s] (the first stop counts).
-    pub fn group_stop(&mut self, t: f64, reason: StopReason) {
-        if self.group_stop.is_none() {
-            self.group_stop = Some((t, reason));
-        }
-    }
-
-    /// A fault-reaction step on axis `axis` (1-based) at true time `t` [s].
-    pub fn fault(&mut self, t: f64, axis: usize, step: FaultStep) {
-        self.faults.push(FaultEvent { t, axis, step });
-    }
-
-    /// What the master reported, from the driver's loop: the law's figures go to the
-    /// trace, the stop and its torque-off orders to the fault log.
-    pub fn master_event(&mut self, ev: MasterEvent, record: &CycleRecord) {
-        match ev {
-            MasterEvent::Computed { k } => self.computed(k, record),
-            MasterEvent::GroupStop { at, reason } => {
-                let t = at.as_ns() as f64 * 1e-9;
-                self.group_stop(t, reason);
-                self.fault(t, reason.axis() + 1, FaultStep::GroupStop(reason));
-            }
-            MasterEvent::Order {
-                at,
-                axis,
-                order,
-                why,
-            } => self.fault(
-                at.as_ns() as f64 * 1e-9,
-                axis + 1,
-                FaultStep::Ordered(order, why),
-            ),
         }
     }
 
     /// Where the ring broke, located when the group stopped (the first located counts).
-    pub fn ring_break(&mut self, b: crate::nodes::RingBreak) {
+    pub fn ring_break(&mut self, b: RingBreak) {
         self.ring_break.get_or_insert(b);
     }
 
@@ -303,9 +217,76 @@ impl Recorder {
             group_stop: self.group_stop,
             faults: self.faults,
             ring_break: self.ring_break,
+            command_max: (self.sent_max, self.applied_max),
             trace: self.trace,
             passages,
             captured,
         }
+    }
+}
+
+impl Observer for Recorder {
+    /// Cycle k starts: each axis's state. Clock errors count over the second half of the
+    /// run.
+    fn cycle(&mut self, k: i64, _t: f64, axes: &[AxisProbe]) {
+        self.flush_trace();
+        for (i, p) in axes.iter().enumerate().take(self.n) {
+            self.probe[i] = *p;
+            self.e[i] = p.x_d - p.x;
+            self.u[i] = p.u;
+            self.sat[i] = p.saturated;
+        }
+        let _ = self.metrics.push(&self.e, &self.u, &self.sat);
+        if 2 * k >= self.cycles {
+            self.clock_count += 1;
+            for i in 0..self.n {
+                let c = self.probe[i].clock_error_ns;
+                self.clock_max[i] = self.clock_max[i].max(c.abs());
+                self.clock_sq[i] += c * c;
+            }
+        }
+        if let Some(c) = &self.coupling {
+            let _ = c.sync_errors(&self.e, &mut self.eps);
+        }
+    }
+
+    fn computed(&mut self, k: i64, r: &CycleRecord) {
+        for (m, u) in self.sent_max.iter_mut().zip(&r.u) {
+            *m = m.max(u.abs());
+        }
+        if !self.trace_on {
+            return;
+        }
+        self.apply_time.fill(f64::NAN);
+        let tr = &mut self.trace;
+        self.pending = Some(tr.len());
+        tr.t.push(k as f64 * self.t_cyc);
+        for i in 0..self.n {
+            let p = self.probe[i];
+            tr.x_d.push(p.x_d);
+            tr.x.push(p.x);
+            tr.e.push(p.x_d - p.x);
+            tr.eps.push(self.eps[i]);
+            tr.u.push(r.u[i]);
+            tr.sample_time.push(r.sample_time[i]);
+            tr.apply_time.push(f64::NAN);
+            tr.clock_error_ns.push(p.clock_error_ns);
+        }
+    }
+
+    fn applied(&mut self, axis: usize, t: f64, u: f64) {
+        self.apply_time[axis] = t;
+        self.applied_max[axis] = self.applied_max[axis].max(u.abs());
+    }
+
+    fn fault(&mut self, ev: &FaultEvent) {
+        match ev.step {
+            FaultStep::Watchdog(_) => self.watchdog.push((ev.axis, ev.t)),
+            FaultStep::GroupStop(reason) if self.group_stop.is_none() => {
+                self.group_stop = Some((ev.t, reason));
+            }
+            _ => {}
+        }
+        self.faults.push(*ev);
     }
 }

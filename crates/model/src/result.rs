@@ -6,7 +6,7 @@ use ringsync_proto::Instant;
 use ringsync_proto::node::{MasterCounters, SlaveCounters, StopReason};
 use ringsync_proto::plan::{FrameRef, Node};
 
-use crate::nodes::RingBreak;
+use crate::locate::RingBreak;
 use crate::record::FaultEvent;
 
 /// Assumptions behind a run's figures that the paper does not state (the model of the ring
@@ -72,6 +72,86 @@ pub struct TraceRow {
     pub clock_error_ns: f64,
 }
 
+/// A run's trace, stored by column: one group of rows per cycle the master computed, one
+/// row per axis in each group. [`Trace::rows`] reads it row by row (as `trace.csv` does);
+/// the columns are what arrays for numpy or a columnar file want.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Trace {
+    /// Number of axes n (rows per group).
+    pub axes: usize,
+    /// Cycle start of each group [s].
+    pub t: Vec<f64>,
+    /// Desired position at the cycle start [rad], group-major (n per group).
+    pub x_d: Vec<f64>,
+    /// True position at the cycle start [rad].
+    pub x: Vec<f64>,
+    /// e = x_d − x [rad].
+    pub e: Vec<f64>,
+    /// ε [rad].
+    pub eps: Vec<f64>,
+    /// Command computed in the cycle [V].
+    pub u: Vec<f64>,
+    /// Sampling instant of the sample the command used [s].
+    pub sample_time: Vec<f64>,
+    /// When the cycle's command took effect at the slave [s] (NaN if it never arrived).
+    pub apply_time: Vec<f64>,
+    /// Slave clock minus true time at the cycle start [ns].
+    pub clock_error_ns: Vec<f64>,
+}
+
+impl Trace {
+    /// An empty trace of `axes` axes with room for `groups` cycles (reserved up front, so
+    /// that recording never reallocates mid-run: in the real-time runtime a growing trace
+    /// stalled the loop by up to 0.4 ms at each doubling).
+    pub fn with_capacity(axes: usize, groups: usize) -> Self {
+        let cells = axes.saturating_mul(groups);
+        Trace {
+            axes,
+            t: Vec::with_capacity(groups),
+            x_d: Vec::with_capacity(cells),
+            x: Vec::with_capacity(cells),
+            e: Vec::with_capacity(cells),
+            eps: Vec::with_capacity(cells),
+            u: Vec::with_capacity(cells),
+            sample_time: Vec::with_capacity(cells),
+            apply_time: Vec::with_capacity(cells),
+            clock_error_ns: Vec::with_capacity(cells),
+        }
+    }
+
+    /// Number of rows (groups × axes).
+    pub fn len(&self) -> usize {
+        self.x.len()
+    }
+
+    /// Whether there is no row.
+    pub fn is_empty(&self) -> bool {
+        self.x.is_empty()
+    }
+
+    /// Row `r` (group r / n, axis r mod n + 1).
+    pub fn row(&self, r: usize) -> TraceRow {
+        let n = self.axes.max(1);
+        TraceRow {
+            t: self.t[r / n],
+            axis: r % n + 1,
+            x_d: self.x_d[r],
+            x: self.x[r],
+            e: self.e[r],
+            eps: self.eps[r],
+            u: self.u[r],
+            sample_time: self.sample_time[r],
+            apply_time: self.apply_time[r],
+            clock_error_ns: self.clock_error_ns[r],
+        }
+    }
+
+    /// Every row in order: cycle by cycle, axis by axis.
+    pub fn rows(&self) -> impl Iterator<Item = TraceRow> + '_ {
+        (0..self.len()).map(|r| self.row(r))
+    }
+}
+
 /// Link-level counters.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct LinkCounters {
@@ -110,10 +190,13 @@ pub struct RunResult {
     pub faults: Vec<FaultEvent>,
     /// Where the ring broke, located from the nodes' own counters when the group stopped.
     pub ring_break: Option<RingBreak>,
-    /// Trace rows (with [`RunOptions::trace`]).
-    pub trace: Vec<TraceRow>,
-    /// Frame passages (with [`RunOptions::log_cycles`]).
+    /// The largest |command| the master sent to each axis, and the largest each drive
+    /// applied [V]: a drive applies only what the master sent.
+    pub command_max: (Vec<f64>, Vec<f64>),
+    /// The trace (when the driver was asked to keep it).
+    pub trace: Trace,
+    /// Frame passages (when the simulator was asked to log them).
     pub passages: Vec<PassageLog>,
-    /// Frames sent (with [`RunOptions::capture`]).
+    /// Frames sent (when the driver was asked to capture them).
     pub captured: Vec<Captured>,
 }

@@ -132,7 +132,7 @@ pub fn trace_csv(r: &RunResult) -> String {
     o.push_str(
         "t_s,axis,x_d_rad,x_rad,e_rad,eps_rad,u_v,sample_time_s,apply_time_s,clock_error_ns\n",
     );
-    for row in &r.trace {
+    for row in r.trace.rows() {
         let _ = writeln!(
             o,
             "{:.6},{},{:.9},{:.9},{:.9},{:.9},{:.6},{:.9},{:.9},{:.0}",
@@ -275,7 +275,7 @@ pub fn repro_figures(
         colour: PALETTE[0],
         points: sync
             .trace
-            .iter()
+            .rows()
             .filter(|r| r.axis == 1)
             .map(|r| (r.t, r.x_d))
             .collect(),
@@ -470,9 +470,9 @@ fn per_axis(
             colour: PALETTE[(a - 1) % PALETTE.len()],
             points: r
                 .trace
-                .iter()
+                .rows()
                 .filter(|row| row.axis == a)
-                .map(|row| (row.t, f(row)))
+                .map(|row| (row.t, f(&row)))
                 .collect(),
         })
         .collect()

@@ -10,9 +10,9 @@ use ringsync_wire::{
     CommandRepr, Common, FeedbackSlot, Frame, FrameKind, LumpedRepr, ResponseRepr, Status,
 };
 
-use crate::run::STALL;
 use crate::stats::Percentiles;
 use crate::sys::now_ns;
+use crate::timing::STALL;
 use crate::transport::{MAX_PDU, Port};
 
 /// The measured delays [ns].

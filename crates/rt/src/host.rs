@@ -16,10 +16,10 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use ringsync_proto::Duration;
 
+use crate::clock::Clock;
 use crate::realtime::{Applied, Realtime};
-use crate::run::STALL;
 use crate::stats::Percentiles;
-use crate::sys;
+use crate::timing::STALL;
 
 /// How to probe.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -127,39 +127,23 @@ pub fn probe(opts: &HostOptions, stop: &AtomicBool) -> Result<HostLatency, HostE
     let mut lateness = Vec::with_capacity(cycles);
     let mut stalls = Vec::with_capacity(cycles);
     let (mut run, mut longest) = (0u64, 0u64);
-    let t0 = sys::now_ns() + 2_000_000;
-    let mut last = sys::now_ns();
+    let mut clock = Clock::start_in(2_000_000);
     let mut interrupted = false;
     for k in 0..cycles as i64 {
         if stop.load(Ordering::Relaxed) {
             interrupted = true;
             break;
         }
-        let deadline = t0 + k * t_cyc;
-        let mut stall = 0;
+        let deadline = k * t_cyc;
         let wake = deadline - spin;
-        if sys::now_ns() < wake {
-            sys::sleep_until(wake);
-            let t = sys::now_ns();
-            stall = stall.max(t - wake);
-            last = t;
+        if clock.now() < wake {
+            clock.sleep_until(wake);
         }
-        let mut t;
-        loop {
-            t = sys::now_ns();
-            stall = stall.max(t - last);
-            last = t;
-            if t >= deadline {
-                break;
-            }
-        }
+        let t = clock.spin_until(deadline);
         lateness.push(t - deadline);
-        stall = stall.max(t - deadline);
-        while t < deadline + busy {
-            t = sys::now_ns();
-            stall = stall.max(t - last);
-            last = t;
-        }
+        clock.note_stall(t - deadline);
+        clock.spin_until(deadline + busy);
+        let stall = clock.take_stall();
         stalls.push(stall);
         if stall >= STALL {
             run += 1;

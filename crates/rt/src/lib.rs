@@ -1,21 +1,31 @@
 //! The real-time runtime of ringsync: the same sans-IO master and slaves as the simulator,
-//! driven by the monotonic clock and real sockets. Transports: UDP on loopback, and raw
-//! Ethernet (EtherType 0x88B5) on a ring of veth pairs between network namespaces. The
-//! slaves' axes are simulated in real time. See `docs/runtime.md`.
+//! driven through the same `Devices` by the monotonic clock and real sockets. Transports:
+//! UDP on loopback, and raw Ethernet (EtherType 0x88B5) on a ring of veth pairs between
+//! network namespaces. The slaves' axes are simulated in real time. See `docs/runtime.md`.
+//!
+//! The rooms: [`run`] (options, results, the steps of a run), [`transport`] (ports and
+//! [`TransportKind::open`]), [`calibrate`], [`schedule`], [`ring`] (the loop), [`timing`],
+//! [`clock`] (the clock and wait discipline the loop shares with [`host`], the probe behind
+//! `ringsync latency`), [`inject`] (faults), [`realtime`] (CPU, priority, memory), [`netns`].
 
 pub mod calibrate;
+pub mod clock;
 pub mod host;
 pub mod inject;
 pub mod netns;
 pub mod realtime;
+pub mod ring;
 pub mod run;
+pub mod schedule;
 pub mod stats;
 mod sys;
+pub mod timing;
 pub mod transport;
 
 pub use inject::{Flap, Forgery};
 pub use realtime::{Applied, CpuClaim, Pin, Realtime};
-pub use run::{Kill, RtError, RtOptions, RtResult, Timing, run};
+pub use run::{Kill, RtError, RtOptions, RtResult, run, run_observed};
+pub use timing::Timing;
 pub use transport::TransportKind;
 
 /// Installs the Ctrl-C (SIGINT), SIGTERM and SIGHUP (terminal closed) handler: the returned

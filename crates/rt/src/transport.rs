@@ -5,11 +5,13 @@
 use std::io;
 use std::net::{SocketAddr, UdpSocket};
 use std::os::fd::{AsRawFd, OwnedFd, RawFd};
+use std::sync::Arc;
 
 use ringsync_wire::ethernet::{ETH_HEADER_LEN, ETHERTYPE, EthernetFrame, emit_header};
 use ringsync_wire::{CRC_LEN, HEADER_LEN};
 
 use crate::netns::VethRing;
+use crate::run::RtError;
 use crate::sys;
 
 /// Largest PDU the runtime handles [bytes] (an Ethernet payload).
@@ -48,6 +50,45 @@ impl TransportKind {
             TransportKind::Veth => "veth",
         }
     }
+
+    /// Opens a ring of `nodes` ports (index 0 the master) on this transport: UDP sockets on
+    /// loopback, or a ring of veth pairs between fresh network namespaces (removed when the
+    /// last holder of [`OpenRing::veth`] drops it, after the ports are closed).
+    pub fn open(self, nodes: usize) -> Result<OpenRing, RtError> {
+        let io = |context: &str| {
+            let context = context.to_string();
+            move |source| RtError::Io { context, source }
+        };
+        Ok(match self {
+            TransportKind::Veth => {
+                let ring = Arc::new(VethRing::create(nodes)?);
+                let ports = (0..nodes)
+                    .map(|i| VethPort::open(&ring, i).map(|p| Box::new(p) as Box<dyn Port>))
+                    .collect::<io::Result<_>>()
+                    .map_err(io("opening raw sockets in the namespaces"))?;
+                OpenRing {
+                    ports,
+                    veth: Some(ring),
+                }
+            }
+            TransportKind::Udp => OpenRing {
+                ports: udp_ring(nodes)
+                    .map_err(io("opening UDP sockets on 127.0.0.1"))?
+                    .into_iter()
+                    .map(|p| Box::new(p) as Box<dyn Port>)
+                    .collect(),
+                veth: None,
+            },
+        })
+    }
+}
+
+/// A ring of open ports.
+pub struct OpenRing {
+    /// Node i's port at index i (0 the master).
+    pub ports: Vec<Box<dyn Port>>,
+    /// The namespaces and links behind a veth ring.
+    pub veth: Option<Arc<VethRing>>,
 }
 
 /// A node's UDP socket and the next node's address.

@@ -6,7 +6,7 @@ use std::sync::atomic::AtomicBool;
 use std::sync::{Mutex, OnceLock};
 
 use ringsync_model::Scenario;
-use ringsync_model::nodes::RingBreak;
+use ringsync_model::locate::RingBreak;
 use ringsync_model::record::FaultStep;
 use ringsync_proto::Duration;
 use ringsync_proto::node::Reject;
@@ -195,7 +195,8 @@ fn matches_simulator(r: &RtResult) {
 
     assert_eq!(
         r.timing.latches_late, 0,
-        "latches after their axis moved on"
+        "latches after their axis moved on; stalls {:?}, faults {:?}",
+        r.timing.stalls, r.run.faults
     );
     // With the sampling lead every latch comes before its lumped frame. A sample goes round
     // twice only after the host froze the loop for about a cycle: the loop then takes the
@@ -344,7 +345,7 @@ fn forged_frames_are_refused_and_change_nothing() {
             "{name}: {slaves:?}"
         );
         assert!(r.run.master.rejected.get(Reject::WrongCycle) + 5 >= future + burst);
-        let (sent, applied) = &r.command_max;
+        let (sent, applied) = &r.run.command_max;
         for (i, (s, a)) in sent.iter().zip(applied).enumerate() {
             assert!(
                 a <= &(s + 1e-5),

@@ -1,7 +1,9 @@
 //! The deterministic co-simulator of ringsync: the sans-IO nodes of `ringsync-proto`, built
-//! from a scenario by `ringsync-model`, driven by an event queue on modelled links and
-//! oscillators. Same scenario and seed: identical results.
+//! from a scenario by `ringsync-model`, driven by an event queue (`kernel`) on modelled
+//! links (`link`) and oscillators. Same scenario and seed: identical results.
 
+mod kernel;
+mod link;
 pub mod predict;
 pub mod run;
 pub mod sweep;
@@ -9,4 +11,4 @@ pub mod sweep;
 pub use predict::{SimPrediction, predict};
 pub use ringsync_model::result::RunResult;
 pub use ringsync_model::{Scenario, ScenarioError, builtin, builtin_names};
-pub use run::{RunOptions, run, run_with_progress};
+pub use run::{RunOptions, run, run_with_progress, simulate};

@@ -184,7 +184,7 @@ fn a_silent_slave_stops_the_group_within_w_cycles() {
     // drive still runs (its encoder latches go on): the link into it, from slave 2.
     assert_eq!(
         r.ring_break,
-        Some(ringsync_model::nodes::RingBreak::Link { from: 2, to: 3 })
+        Some(ringsync_model::locate::RingBreak::Link { from: 2, to: 3 })
     );
     // Silent from cycle 500; W = 5 missed cycles, detected at the next law run.
     assert!(t > 0.5 && t <= 0.5 + 7.0 * 1e-3, "stopped at {t}");
@@ -209,7 +209,7 @@ fn a_broken_ring_leaves_no_axis_driven_blind() {
     let (t_stop, _) = r.group_stop.expect("the group stopped");
     let at = |t: f64, axis: usize| {
         r.trace
-            .iter()
+            .rows()
             .find(|row| row.axis == axis && row.t >= t - 1e-9)
             .expect("a trace row")
     };
@@ -217,7 +217,7 @@ fn a_broken_ring_leaves_no_axis_driven_blind() {
         // Every command from one cycle after the stop is 0 V.
         assert!(
             r.trace
-                .iter()
+                .rows()
                 .filter(|row| row.axis == axis && row.t > t_stop + 1e-3)
                 .all(|row| row.u == 0.0),
             "axis {axis} still commanded after the stop"

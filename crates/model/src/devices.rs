@@ -1,0 +1,329 @@
+//! The one driver kit: a ring's master, slaves, the slaves' oscillators, the axes and the
+//! recorder, as every driver of a ring drives them. The simulator (an event queue on modelled
+//! links) and the runtime (a real-time loop on real sockets) own time and the wire; this owns
+//! everything else, so that the glue around the nodes is written once.
+//!
+//! Times in the calls are true (master) time in ns; a slave's local time is its
+//! oscillator's reading of it. Frames a node sends go out through the driver's `send`
+//! closure, `send(from, at, bytes)`: from node `from` (0 = the master, i = slave i), first bit
+//! at true time `at`. The master's frames leave when it handles its timeout (or a frame);
+//! a slave's responses at their own time, after its response delay.
+//!
+//! ```
+//! use ringsync_model::Scenario;
+//! use ringsync_model::devices::Devices;
+//! let spec = Scenario::default().build().unwrap();
+//! let mut d = Devices::new(&spec, 10, false).unwrap();
+//! // The master's first deadline: the cycle start, where it sends the lumped frame.
+//! assert_eq!(d.master_deadline(), 0);
+//! let mut sent = Vec::new();
+//! d.master_timeout(0, &mut |from, at, bytes| sent.push((from, at, bytes.len())));
+//! assert_eq!(sent, vec![(0, 0, 108)]);
+//! ```
+
+use ringsync_proto::Instant;
+use ringsync_proto::node::{FrameOutcome, Master, MasterEvent, SafeState, Slave, SlaveEvent};
+use ringsync_wire::Status;
+
+use crate::axes::{Axes, ServoAxes};
+use crate::locate::locate_break_of;
+use crate::observer::Observer;
+use crate::oscillator::Oscillator;
+use crate::record::{AxisProbe, FaultEvent, FaultStep, Recorder};
+use crate::result::{Captured, LinkCounters, PassageLog, RunResult};
+use crate::scenario::ScenarioError;
+use crate::spec::{Spec, scenario_err};
+
+/// What happened at the master in one call, for a driver's own bookkeeping.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct MasterNews {
+    /// The law ran (a cycle's commands are computed).
+    pub computed: bool,
+    /// The group stop began.
+    pub stopped: bool,
+}
+
+/// A ring's devices (see the module docs).
+pub struct Devices {
+    /// The master.
+    pub master: Master,
+    /// Slave i at index i − 1.
+    pub slaves: Vec<Slave>,
+    /// Slave i's oscillator at index i − 1.
+    pub osc: Vec<Oscillator>,
+    /// The axes, advanced by true time.
+    pub axes: Box<dyn Axes>,
+    rec: Recorder,
+    observers: Vec<Box<dyn Observer>>,
+    safe: Vec<SafeState>,
+    probe: Vec<AxisProbe>,
+}
+
+impl std::fmt::Debug for Devices {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Devices")
+            .field("slaves", &self.slaves.len())
+            .field("observers", &self.observers.len())
+            .finish_non_exhaustive()
+    }
+}
+
+impl Devices {
+    /// The devices of `spec`'s ring at rest at true time 0, recording `cycles` cycles (and
+    /// keeping the trace with `trace`).
+    pub fn new(spec: &Spec, cycles: i64, trace: bool) -> Result<Self, ScenarioError> {
+        let s = &spec.scenario;
+        let (master, slaves) = spec.nodes()?;
+        let axes = ServoAxes::for_scenario(s).map_err(|e| scenario_err("axis", e))?;
+        let n = slaves.len();
+        let zero = AxisProbe {
+            x: 0.0,
+            x_d: 0.0,
+            clock_error_ns: 0.0,
+            u: 0.0,
+            saturated: false,
+        };
+        Ok(Devices {
+            master,
+            safe: slaves.iter().map(|s| s.config().safe_state).collect(),
+            slaves,
+            osc: Oscillator::for_scenario(s),
+            axes: Box::new(axes),
+            rec: Recorder::new(n, cycles, s.ring.cycle.secs(), trace),
+            observers: Vec::new(),
+            probe: vec![zero; n],
+        })
+    }
+
+    /// Adds an observer: it is told what the recorder is told, as the run goes.
+    pub fn observe(&mut self, o: Box<dyn Observer>) {
+        self.observers.push(o);
+    }
+
+    /// Number of slaves n.
+    pub fn len(&self) -> usize {
+        self.slaves.len()
+    }
+
+    /// Whether the ring has no slave.
+    pub fn is_empty(&self) -> bool {
+        self.slaves.is_empty()
+    }
+
+    /// The recorder (its group stop so far, for instance).
+    pub fn recorder(&self) -> &Recorder {
+        &self.rec
+    }
+
+    fn each(&mut self, mut f: impl FnMut(&mut dyn Observer)) {
+        f(&mut self.rec);
+        for o in &mut self.observers {
+            f(o.as_mut());
+        }
+    }
+
+    fn fault(&mut self, t: f64, axis: usize, step: FaultStep) {
+        let ev = FaultEvent { t, axis, step };
+        self.each(|o| o.fault(&ev));
+    }
+
+    /// When the master next needs [`Devices::master_timeout`] [true ns].
+    pub fn master_deadline(&self) -> i64 {
+        self.master.poll_timeout().as_ns()
+    }
+
+    /// Runs the master's timeout at true time `now`.
+    pub fn master_timeout(
+        &mut self,
+        now: i64,
+        send: &mut dyn FnMut(usize, i64, Vec<u8>),
+    ) -> MasterNews {
+        self.master.handle_timeout(Instant::from_ns(now));
+        self.drain_master(send)
+    }
+
+    /// A frame received completely by the master at true time `now`.
+    pub fn master_frame(
+        &mut self,
+        now: i64,
+        bytes: &[u8],
+        send: &mut dyn FnMut(usize, i64, Vec<u8>),
+    ) -> MasterNews {
+        self.master.handle_frame(Instant::from_ns(now), bytes);
+        self.drain_master(send)
+    }
+
+    fn drain_master(&mut self, send: &mut dyn FnMut(usize, i64, Vec<u8>)) -> MasterNews {
+        let mut news = MasterNews::default();
+        while let Some(tx) = self.master.poll_transmit() {
+            send(0, tx.at.as_ns(), tx.bytes);
+        }
+        while let Some(ev) = self.master.poll_event() {
+            match ev {
+                MasterEvent::Computed { k } => {
+                    news.computed = true;
+                    let Devices {
+                        master,
+                        rec,
+                        observers,
+                        ..
+                    } = self;
+                    let r = master.record();
+                    rec.computed(k, r);
+                    for o in observers.iter_mut() {
+                        o.computed(k, r);
+                    }
+                }
+                MasterEvent::GroupStop { at, reason } => {
+                    news.stopped = true;
+                    // Where the ring broke, from what each node last took.
+                    self.rec
+                        .ring_break(locate_break_of(&self.master, &self.slaves));
+                    let t = at.as_ns() as f64 * 1e-9;
+                    self.fault(t, reason.axis() + 1, FaultStep::GroupStop(reason));
+                }
+                MasterEvent::Order {
+                    at,
+                    axis,
+                    order,
+                    why,
+                } => self.fault(
+                    at.as_ns() as f64 * 1e-9,
+                    axis + 1,
+                    FaultStep::Ordered(order, why),
+                ),
+            }
+        }
+        news
+    }
+
+    /// The true time of slave `i`'s (0-based) next encoder latch [ns].
+    pub fn latch_at(&self, i: usize) -> i64 {
+        self.osc[i].true_at(self.slaves[i].poll_timeout())
+    }
+
+    /// Takes slave `i`'s next encoder latch at its own instant `at` (the
+    /// [`Devices::latch_at`] a driver scheduled), with the axis moved on to that instant;
+    /// returns whether the axis had already moved past it (a driver that gets to a latch
+    /// late).
+    pub fn latch(&mut self, i: usize, at: i64, send: &mut dyn FnMut(usize, i64, Vec<u8>)) -> bool {
+        // (The first cycle's latches fall before the run's start, when the axis is at rest
+        // where it starts.)
+        let late = self.axes.time(i) > at.max(0);
+        self.axes.advance(i, at);
+        let counts = self.axes.counts(i);
+        self.slaves[i].handle_sample(self.osc[i].local(at), counts);
+        self.drain_slave(i, at, send);
+        late
+    }
+
+    /// A frame whose first bit reached slave `i` (0-based) at true time `rx_start` and last
+    /// bit at `rx_end`. A lumped frame is modified in place; on [`FrameOutcome::Forward`] the
+    /// driver forwards `bytes`.
+    pub fn slave_frame(
+        &mut self,
+        i: usize,
+        rx_start: i64,
+        rx_end: i64,
+        bytes: &mut [u8],
+        send: &mut dyn FnMut(usize, i64, Vec<u8>),
+    ) -> FrameOutcome {
+        let (ls, le) = (self.osc[i].local(rx_start), self.osc[i].local(rx_end));
+        let outcome = self.slaves[i].handle_frame(ls, le, bytes);
+        self.drain_slave(i, rx_end, send);
+        outcome
+    }
+
+    /// Hands a frame buffer back to node `node` (0 = master) for its next sends.
+    pub fn recycle(&mut self, node: usize, bytes: Vec<u8>) {
+        match node {
+            0 => self.master.recycle(bytes),
+            i => self.slaves[i - 1].recycle(bytes),
+        }
+    }
+
+    /// Acts on what slave `i` reported at true time `t`: a command or the drive's own brake
+    /// changes the held command, torque off holds 0 V; every fault step is recorded. Its
+    /// responses go to `send` at their own true time.
+    fn drain_slave(&mut self, i: usize, t: i64, send: &mut dyn FnMut(usize, i64, Vec<u8>)) {
+        while let Some(ev) = self.slaves[i].poll_event() {
+            self.axes.advance(i, t);
+            let ts = t as f64 * 1e-9;
+            match ev {
+                SlaveEvent::Apply { u } => {
+                    self.axes.set_command(i, u);
+                    self.each(|o| o.applied(i, ts, u));
+                }
+                SlaveEvent::Brake { u } => self.axes.set_command(i, u),
+                SlaveEvent::WatchdogExpired => {
+                    self.axes.set_command(i, 0.0);
+                    self.fault(ts, i + 1, FaultStep::Watchdog(self.safe[i]));
+                }
+                SlaveEvent::TorqueOff { cause } => {
+                    self.axes.set_command(i, 0.0);
+                    self.fault(ts, i + 1, FaultStep::TorqueOff(cause));
+                }
+                SlaveEvent::Relocked { step } => self.fault(ts, i + 1, FaultStep::Relocked(step)),
+                SlaveEvent::Braking { ordered } => {
+                    self.fault(ts, i + 1, FaultStep::Braking { ordered })
+                }
+            }
+        }
+        while let Some(tx) = self.slaves[i].poll_transmit() {
+            let at = self.osc[i].true_at(tx.at);
+            send(i + 1, at, tx.bytes);
+        }
+    }
+
+    /// Cycle `k` starts at true time `t` [ns]: every axis's true state then, to the recorder
+    /// and the observers. Returns how many axes had already moved past `t` (a driver that
+    /// gets to a cycle start late).
+    pub fn probe(&mut self, k: i64, t: i64) -> usize {
+        let ts = t as f64 * 1e-9;
+        let mut late = 0;
+        for i in 0..self.slaves.len() {
+            if self.axes.time(i) > t {
+                late += 1;
+            }
+            self.axes.advance(i, t);
+            let sync = self.slaves[i].clock().to_sync(self.osc[i].local(t));
+            self.probe[i] = AxisProbe {
+                x: self.axes.position(i),
+                x_d: self.master.desired(i, ts).x,
+                clock_error_ns: (sync.as_ns() - t) as f64,
+                u: self.axes.command(i),
+                saturated: self.slaves[i].status().contains(Status::SATURATED),
+            };
+        }
+        let Devices {
+            rec,
+            observers,
+            probe,
+            ..
+        } = self;
+        rec.cycle(k, ts, probe);
+        for o in observers.iter_mut() {
+            o.cycle(k, ts, probe);
+        }
+        late
+    }
+
+    /// The run's result: the recorder's, with every node's counters and the driver's own
+    /// link counters, frame passages and captured frames.
+    pub fn finish(
+        self,
+        scenario: &str,
+        links: LinkCounters,
+        passages: Vec<PassageLog>,
+        captured: Vec<Captured>,
+    ) -> RunResult {
+        self.rec.finish(
+            scenario,
+            self.master.counters(),
+            self.slaves.iter().map(|s| s.counters()).collect(),
+            links,
+            passages,
+            captured,
+        )
+    }
+}

@@ -1,0 +1,32 @@
+//! Watching a run as it goes: an [`Observer`] is told every cycle start (the axes' true
+//! states), every law run (what the master computed), every command a drive took and every
+//! step of a fault reaction. The [recorder](crate::record::Recorder) that makes a run's
+//! result is one observer; a streaming writer, a live scope or arrays for Python are others
+//! ([`Devices::observe`](crate::devices::Devices::observe)).
+
+use ringsync_proto::node::CycleRecord;
+
+use crate::record::{AxisProbe, FaultEvent};
+
+/// What a run tells those who watch it. Every method has an empty default: implement what
+/// you need. Times are true (master) time; axes are 0-based in the calls (1-based in
+/// [`FaultEvent`], as in summary.json).
+pub trait Observer: Send {
+    /// Cycle `k` begins at true time `t` [s]; `axes[i]` is axis i's true state then.
+    fn cycle(&mut self, k: i64, t: f64, axes: &[AxisProbe]) {
+        let _ = (k, t, axes);
+    }
+    /// The master's law ran for cycle `k`: what it computed (in the lumped-only plan: what
+    /// the slaves applied, as the returning frame tells).
+    fn computed(&mut self, k: i64, record: &CycleRecord) {
+        let _ = (k, record);
+    }
+    /// Axis `axis`'s drive took the command `u` [V] at true time `t` [s].
+    fn applied(&mut self, axis: usize, t: f64, u: f64) {
+        let _ = (axis, t, u);
+    }
+    /// One step of a fault reaction.
+    fn fault(&mut self, event: &FaultEvent) {
+        let _ = event;
+    }
+}

@@ -1,0 +1,102 @@
+//! A slave's oscillator: the local clock its hardware timestamps read, offset and drifting
+//! against true (master) time, truncated to the timestamp resolution.
+
+use ringsync_proto::Instant;
+
+use crate::rng::Rng;
+use crate::scenario::Scenario;
+
+/// A slave's oscillator: its local clock reads offset + t·rate, truncated to the timestamp
+/// resolution, where t is true (master) time.
+#[derive(Debug, Clone, Copy)]
+pub struct Oscillator {
+    /// Local reading at true time 0 [ns].
+    pub offset: f64,
+    /// Local nanoseconds per true nanosecond (1 + drift).
+    pub rate: f64,
+    /// Timestamp resolution [ns], at least 1.
+    pub res: i64,
+}
+
+impl Oscillator {
+    /// The scenario's oscillators: slave i's offset and drift drawn uniformly within the
+    /// scenario's bounds from its own seeded stream.
+    pub fn for_scenario(s: &Scenario) -> Vec<Oscillator> {
+        (0..s.axes_count())
+            .map(|i| {
+                let mut r = Rng::stream(s.seed, 1_000 + i as u64);
+                Oscillator {
+                    offset: r.symmetric(s.clock.initial_offset.0.as_ns() as f64),
+                    rate: 1.0 + r.symmetric(s.clock.drift_ppm) * 1e-6,
+                    res: s.clock.timestamp_resolution.0.as_ns().max(1),
+                }
+            })
+            .collect()
+    }
+
+    /// The local clock's reading at true time `t` [ns].
+    pub fn local(&self, t: i64) -> Instant {
+        let l = floor_i64(self.offset + t as f64 * self.rate);
+        if self.res == 1 {
+            return Instant::from_ns(l);
+        }
+        if self.res & (self.res - 1) == 0 {
+            // A power of two (8 ns, the reference): clearing the low bits rounds down in
+            // two's complement exactly as rem_euclid does, without a division.
+            return Instant::from_ns(l & !(self.res - 1));
+        }
+        Instant::from_ns(l - l.rem_euclid(self.res))
+    }
+
+    /// The first true time [ns] at which the local clock reads at least `l`.
+    pub fn true_at(&self, l: Instant) -> i64 {
+        let mut t = -floor_i64((self.offset - l.as_ns() as f64) / self.rate);
+        while self.local(t) < l {
+            t += 1;
+        }
+        t
+    }
+}
+
+/// ⌊y⌋ as an integer, for |y| < 2⁶³ (simulated times are far below), without a libm call.
+pub(crate) fn floor_i64(y: f64) -> i64 {
+    let l = y as i64;
+    if (l as f64) > y { l - 1 } else { l }
+}
+
+#[cfg(test)]
+mod tests {
+
+    #[test]
+    fn integer_floor_matches_libm_floor() {
+        let mut r = crate::rng::Rng::stream(7, 7);
+        for _ in 0..100_000 {
+            let y = r.symmetric(1e13);
+            assert_eq!(super::floor_i64(y), y.floor() as i64, "{y}");
+            let z = y.round();
+            assert_eq!(super::floor_i64(z), z as i64, "{z}");
+        }
+        for y in [-1.0, -0.5, -0.0, 0.0, 0.5, 1.0, -1e-300, 4e15 + 0.5] {
+            assert_eq!(super::floor_i64(y), y.floor() as i64, "{y}");
+        }
+    }
+
+    /// The oscillator's truncation to a power-of-two resolution (a mask) against rem_euclid,
+    /// for negative readings too.
+    #[test]
+    fn power_of_two_resolution_truncates_like_rem_euclid() {
+        use super::Oscillator;
+        let mut r = crate::rng::Rng::stream(5, 9);
+        for k in 0..100_000 {
+            let res = [2i64, 8, 64, 1024][k % 4];
+            let o = Oscillator {
+                offset: r.symmetric(1e9),
+                rate: 1.0 + r.symmetric(1e-4),
+                res,
+            };
+            let t = r.symmetric(1e12) as i64;
+            let l = super::floor_i64(o.offset + t as f64 * o.rate);
+            assert_eq!(o.local(t).as_ns(), l - l.rem_euclid(res), "{o:?} t = {t}");
+        }
+    }
+}

@@ -1,0 +1,554 @@
+//! The real-time loop: one thread serves every node's port and runs the ring's
+//! [`Devices`] (the same master, slaves, oscillators, axes and recorder the simulator
+//! drives) from the monotonic [`Clock`].
+//!
+//! Per pass the loop (1) runs the timers that are due other than the master's: a cycle-start
+//! probe of the true axis states, a slave's encoder latch, a slave's pending response; (2)
+//! reads every frame waiting on any node's port (a slave forwards at once, in software,
+//! where the paper's FPGA forwards after a fixed residence); (3) runs the master's timeout
+//! if due. Between timers it sleeps (to an absolute deadline, or in `ppoll` on the ports
+//! while the master awaits frames) until `spin` before the next deadline, then spins.
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicI64, Ordering};
+use std::thread::JoinHandle;
+
+use ringsync_model::Spec;
+use ringsync_model::devices::Devices;
+use ringsync_model::observer::Observer;
+use ringsync_model::result::{Captured, LinkCounters, RunResult};
+use ringsync_proto::Duration;
+use ringsync_proto::node::{ClockFilter, FrameOutcome};
+use ringsync_wire::Frame;
+
+use crate::clock::Clock;
+use crate::netns::VethRing;
+use crate::run::{Kill, RtError, RtOptions, io_err, rejected_line};
+use crate::sys;
+use crate::timing::{Timing, TimingLog};
+use crate::transport::{MAX_PDU, Port};
+
+/// Busy-wait before a deadline that is not the master's [ns] (see
+/// [`Realtime::spin`](crate::Realtime::spin) for the master's): a spin before every latch and
+/// probe kept the loop on its CPU most of each cycle, and a loop that never sleeps starves
+/// the CPU's other tasks until the kernel takes the CPU away from it for tens of ms
+/// (measured: docs/runtime.md).
+const SPIN_OTHER: i64 = 20_000;
+
+/// After a receive error (a link went down) a port is read again this much later [ns]: a
+/// link flap costs the cycles it lasts, not the run.
+pub const RX_RETRY: i64 = 1_000_000;
+
+/// The slave clock servo for software timestamps (see the runtime's assumptions).
+const RT_CLOCK_FILTER: ClockFilter = ClockFilter {
+    offset_gain: 0.25,
+    rate_gain: 0.25,
+    outlier_limit: Some(Duration::from_us(50)),
+    max_skips: 20,
+    rate_interval: Duration::from_ms(100),
+    max_rate_error: ringsync_proto::node::clock::MAX_RATE_ERROR,
+};
+
+/// What a loop is for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Mode {
+    /// The warm-up: the real nodes on the real loop, measuring each slave's path delay as
+    /// the running loop sees it; nothing recorded.
+    WarmUp,
+    /// The run: recorded, with the trace and the frames sent when asked.
+    Run {
+        /// Keep the trace.
+        trace: bool,
+        /// Keep every frame sent.
+        capture: bool,
+    },
+}
+
+/// What a finished loop hands back.
+pub(crate) struct Finished {
+    /// The recorder's result.
+    pub run: RunResult,
+    /// The ring's timing.
+    pub timing: Timing,
+    /// Per node: frames read, and when it last read one [s].
+    pub nodes_rx: Vec<(u64, Option<f64>)>,
+    /// Cycles from the removal of a slave to the group stop.
+    pub detection_cycles: Option<i64>,
+}
+
+/// Frames the nodes send, waiting for the loop: the devices' `send` closure borrows this
+/// alone.
+#[derive(Default)]
+struct Outbox {
+    /// The master's, to go out now.
+    now: Vec<Vec<u8>>,
+    /// Slave transmissions waiting for their time: (true ns, slave 0-based, bytes).
+    pending: Vec<(i64, usize, Vec<u8>)>,
+}
+
+impl Outbox {
+    fn send(&mut self, from: usize, at: i64, bytes: Vec<u8>) {
+        if from == 0 {
+            self.now.push(bytes);
+        } else {
+            self.pending.push((at, from - 1, bytes));
+        }
+    }
+}
+
+/// The running ring.
+pub(crate) struct Ring {
+    dev: Devices,
+    /// Each slave's next latch [true ns], kept as the devices tell it after each call.
+    latch_due: Vec<i64>,
+    out: Outbox,
+    /// Per node (0 = master): still in the ring.
+    alive: Vec<bool>,
+    /// Per port: read again from this time on after a receive error [ns, true time].
+    rx_paused: Vec<Option<i64>>,
+    /// The set of ports to wait on changed.
+    fds_dirty: bool,
+    /// The nodes' ports (index 0 the master); a port taken out is `None`.
+    pub ports: Vec<Option<Box<dyn Port>>>,
+    /// Last frame read per node [s], and frames read per node.
+    last_rx: Vec<Option<f64>>,
+    rx_frames: Vec<u64>,
+    /// A link flap over UDP: frames sent on it in [from, to) [ns] are dropped.
+    flap: Option<(usize, i64, i64)>,
+    /// CLOCK_MONOTONIC at true time 0, for the injectors' threads [ns].
+    pub t0_shared: Arc<AtomicI64>,
+    captured: Option<Vec<Captured>>,
+    clock: Clock,
+    /// End of the run [ns, true time].
+    end: i64,
+    t_cyc: i64,
+    log: TimingLog,
+    /// With `Some`, the delay from the master's send to each slave's read of every lumped
+    /// frame [ns] (the warm-up's measurement).
+    delays: Option<Vec<Vec<i64>>>,
+    /// Cycles started at the removal of a slave, and at the group stop.
+    kill_cycle: Option<i64>,
+    stop_cycle: Option<i64>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+enum Due {
+    Probe,
+    Latch(usize),
+    Pending(usize),
+}
+
+/// Reads and discards whatever is waiting on the ports.
+pub(crate) fn drain(ports: &mut [Option<Box<dyn Port>>]) {
+    let mut buf = vec![0u8; MAX_PDU];
+    for p in ports.iter_mut().flatten() {
+        while let Ok(Some(_)) = p.recv(&mut buf) {}
+    }
+}
+
+impl Ring {
+    /// The ring `spec` describes on `ports` for `cycles` cycles, `observers` watching.
+    pub fn new(
+        spec: &Spec,
+        ports: Vec<Option<Box<dyn Port>>>,
+        cycles: i64,
+        mode: Mode,
+        observers: Vec<Box<dyn Observer>>,
+    ) -> Result<Ring, RtError> {
+        let n = spec.axes();
+        let (trace, capture) = match mode {
+            Mode::WarmUp => (false, false),
+            Mode::Run { trace, capture } => (trace, capture),
+        };
+        let mut dev = Devices::new(spec, cycles, trace)?;
+        for sl in &mut dev.slaves {
+            sl.clock_mut().set_filter(RT_CLOCK_FILTER);
+        }
+        for o in observers {
+            dev.observe(o);
+        }
+        let latch_due = (0..n).map(|i| dev.latch_at(i)).collect();
+        Ok(Ring {
+            dev,
+            latch_due,
+            out: Outbox::default(),
+            alive: vec![true; n + 1],
+            rx_paused: vec![None; n + 1],
+            fds_dirty: false,
+            ports,
+            last_rx: vec![None; n + 1],
+            rx_frames: vec![0; n + 1],
+            flap: None,
+            t0_shared: Arc::new(AtomicI64::new(0)),
+            // Every send: the lumped frame's n + 1 hops and each slice's n + 1 (command and
+            // response), so that capturing never reallocates mid-run.
+            captured: capture.then(|| {
+                Vec::with_capacity(usize::try_from(cycles.max(0)).unwrap_or(0) * (n + 1) * (n + 2))
+            }),
+            clock: Clock::start_in(0),
+            t_cyc: spec.scenario.ring.cycle.0.as_ns(),
+            end: cycles * spec.scenario.ring.cycle.0.as_ns(),
+            log: TimingLog::new(cycles),
+            delays: (mode == Mode::WarmUp).then(|| vec![Vec::new(); n]),
+            kill_cycle: None,
+            stop_cycle: None,
+        })
+    }
+
+    /// The slaves' path delays as the warm-up measured them (median per slave) [ns].
+    pub fn measured_path_delays(&self) -> Vec<Option<i64>> {
+        self.delays
+            .iter()
+            .flatten()
+            .map(|v| (!v.is_empty()).then(|| crate::stats::Percentiles::of(v).p50))
+            .collect()
+    }
+
+    fn send(&mut self, node: usize, t: i64, bytes: &[u8]) {
+        if let Some(c) = &mut self.captured {
+            c.push(Captured {
+                t,
+                node,
+                bytes: bytes.to_vec(),
+            });
+        }
+        if let Some((link, from, to)) = self.flap
+            && link == node
+            && (from..to).contains(&t)
+        {
+            self.log.timing.flap_dropped += 1;
+            return;
+        }
+        if let Some(p) = self.ports[node].as_mut()
+            && self.alive[node]
+            && p.send(bytes).is_err()
+        {
+            self.log.timing.send_errors += 1;
+        }
+    }
+
+    /// Sends what the master queued at `now` and hands the buffers back.
+    fn flush_master(&mut self, now: i64) {
+        let mut out = std::mem::take(&mut self.out.now);
+        for bytes in out.drain(..) {
+            self.send(0, now, &bytes);
+            self.dev.recycle(0, bytes);
+        }
+        self.out.now = out;
+    }
+
+    fn on_frame(&mut self, node: usize, now: i64, bytes: &mut [u8]) {
+        self.last_rx[node] = Some(now as f64 * 1e-9);
+        self.rx_frames[node] += 1;
+        let Ring { dev, out, .. } = self;
+        if node == 0 {
+            self.log.master_rx(now);
+            let news = dev.master_frame(now, bytes, &mut |f, at, b| out.send(f, at, b));
+            self.master_news(news, now);
+            return;
+        }
+        let i = node - 1;
+        if let Some(d) = self.delays.as_mut()
+            && let Some(sent) = Frame::new_checked(&bytes[..])
+                .ok()
+                .and_then(|f| f.lumped().ok().map(|p| p.master_time_ns()))
+        {
+            d[i].push(now - sent as i64);
+        }
+        self.latch_due(i, now);
+        let Ring { dev, out, .. } = self;
+        let outcome = dev.slave_frame(i, now, now, bytes, &mut |f, at, b| out.send(f, at, b));
+        if outcome == FrameOutcome::Forward {
+            self.send(node, now, bytes);
+        }
+        self.latch_due[i] = self.dev.latch_at(i);
+    }
+
+    fn master_news(&mut self, news: ringsync_model::devices::MasterNews, now: i64) {
+        if news.computed {
+            self.log.computed(now);
+        }
+        if news.stopped {
+            self.stop_cycle.get_or_insert(self.log.timing.cycles);
+        }
+        self.flush_master(now);
+    }
+
+    /// Takes slave i's encoder latches due by `t`, each at its own instant with the axis
+    /// state of that instant, however late the loop gets to them (as a hardware latch). Runs
+    /// before anything that advances the axis past them: a frame read at `t` whose command
+    /// moved the axis on first would make the latch read a later position (at a 500 µs cycle
+    /// the velocity window's opening latch fell inside axis 4's time slice, and its velocity
+    /// read up to 25 % high).
+    fn latch_due(&mut self, i: usize, t: i64) {
+        while self.alive[i + 1] && self.latch_due[i] <= t {
+            let at = self.latch_due[i];
+            let Ring { dev, out, .. } = self;
+            if dev.latch(i, at, &mut |f, at, b| out.send(f, at, b)) {
+                self.log.timing.latches_late += 1;
+            }
+            self.latch_due[i] = self.dev.latch_at(i);
+        }
+    }
+
+    /// The earliest timer other than the master's and its true time [ns].
+    fn next_local(&self, probe_at: i64) -> (i64, Due) {
+        let mut best = (probe_at, Due::Probe);
+        for (i, &t) in self.latch_due.iter().enumerate() {
+            if self.alive[i + 1] && t < best.0 {
+                best = (t, Due::Latch(i));
+            }
+        }
+        for (j, p) in self.out.pending.iter().enumerate() {
+            if p.0 < best.0 {
+                best = (p.0, Due::Pending(j));
+            }
+        }
+        best
+    }
+
+    /// Runs a timer other than the master's.
+    fn run_local(&mut self, due: Due, due_at: i64, now: i64, probe_k: &mut i64) {
+        match due {
+            Due::Probe => {
+                if self.dev.probe(*probe_k, due_at) > 0 {
+                    self.log.timing.probes_late += 1;
+                }
+                *probe_k += 1;
+            }
+            Due::Latch(i) => self.latch_due(i, due_at),
+            Due::Pending(j) => {
+                let (_, i, bytes) = self.out.pending.swap_remove(j);
+                if self.alive[i + 1] {
+                    self.send(i + 1, now, &bytes);
+                }
+                self.dev.recycle(i + 1, bytes);
+            }
+        }
+    }
+
+    /// Reads every frame waiting on any node's port; a frame forwarded in this pass is read
+    /// at the next node in the same pass. Whether any was read.
+    fn receive_all(&mut self, buf: &mut [u8]) -> bool {
+        let mut got = false;
+        for node in 0..self.ports.len() {
+            if let Some(until) = self.rx_paused[node] {
+                if self.clock.last() < until {
+                    continue;
+                }
+                self.rx_paused[node] = None;
+                self.fds_dirty = true;
+            }
+            while let Some(p) = self.ports[node].as_mut() {
+                let len = match p.recv(buf) {
+                    Ok(Some(len)) => len,
+                    Ok(None) => break,
+                    Err(_) => {
+                        // A link gone down: the socket reports an error (and would keep the
+                        // poll awake). Read it again a little later: a flap shorter than W
+                        // cycles costs those cycles, not the run.
+                        self.log.timing.receive_errors += 1;
+                        self.rx_paused[node] = Some(self.clock.last() + RX_RETRY);
+                        self.fds_dirty = true;
+                        break;
+                    }
+                };
+                got = true;
+                let now = self.clock.now();
+                self.on_frame(node, now, &mut buf[..len]);
+            }
+        }
+        got
+    }
+
+    fn take_out(&mut self, k: Kill, veth: &Option<Arc<VethRing>>) -> JoinHandle<()> {
+        self.alive[k.slave] = false;
+        // Closing a raw socket waits for an RCU grace period in the kernel (milliseconds):
+        // the helper thread closes it, not the loop.
+        let port = self.ports[k.slave].take();
+        let v = veth.clone();
+        std::thread::spawn(move || {
+            sys::set_normal();
+            drop(port);
+            if let Some(v) = v {
+                let _ = v.take_down(k.slave);
+            }
+        })
+    }
+
+    /// Runs the ring until its end or `stop`: (interrupted, the slave taken out and when).
+    pub fn run_loop(
+        &mut self,
+        opts: &RtOptions,
+        stop: &AtomicBool,
+        kill: Option<Kill>,
+        veth: &Option<Arc<VethRing>>,
+        killer: &mut Option<JoinHandle<()>>,
+    ) -> Result<(bool, Option<(usize, f64)>), RtError> {
+        let t_cyc = self.t_cyc;
+        let spin = opts.realtime.spin.as_ns();
+        let end = self.end;
+        let mut buf = vec![0u8; MAX_PDU];
+        let fds_of =
+            |ports: &[Option<Box<dyn Port>>], paused: &[Option<i64>]| -> Vec<libc::pollfd> {
+                ports
+                    .iter()
+                    .zip(paused)
+                    .filter(|(_, p)| p.is_none())
+                    .filter_map(|(p, _)| p.as_ref().map(|p| sys::pollfd(p.rx_fd())))
+                    .collect()
+            };
+        let mut fds = fds_of(&self.ports, &self.rx_paused);
+        let (mut probe_k, mut cycle_k) = (0i64, 0i64);
+        let mut kill = kill;
+        let mut killed = None;
+        let mut next_progress = 1_000_000_000;
+        // Start 2 ms from now, so that the first cycle starts on time.
+        self.clock = Clock::start_in(2_000_000);
+        self.t0_shared.store(self.clock.t0(), Ordering::SeqCst);
+        self.flap = opts
+            .flap
+            .filter(|_| veth.is_none())
+            .map(|f| (f.from, f.at.as_ns(), f.at.as_ns() + f.down_for.as_ns()));
+        loop {
+            if stop.load(Ordering::Relaxed) {
+                return Ok((true, killed));
+            }
+            let mut now = self.clock.now();
+            if now >= end {
+                return Ok((false, killed));
+            }
+            if let Some(k) = kill
+                && now >= k.at.as_ns()
+            {
+                kill = None;
+                *killer = Some(self.take_out(k, veth));
+                fds = fds_of(&self.ports, &self.rx_paused);
+                killed = Some((k.slave, now as f64 * 1e-9));
+                self.kill_cycle = Some(cycle_k);
+                if opts.verbose {
+                    eprintln!(
+                        "ringsync rt: slave {} taken out at {:.3} s",
+                        k.slave,
+                        now as f64 * 1e-9
+                    );
+                }
+            }
+            // 1. Latches, probes and responses that are due: they happen at their instants
+            //    in the devices, before any frame the loop has yet to read.
+            loop {
+                let (at, due) = self.next_local(probe_k * t_cyc);
+                if at > now || at >= end {
+                    break;
+                }
+                if now - at > 1_000_000 {
+                    self.log.timing.late_timers += 1;
+                }
+                self.run_local(due, at, now, &mut probe_k);
+                now = self.clock.now();
+            }
+            // 2. Every frame waiting anywhere.
+            let got = self.receive_all(&mut buf);
+            if std::mem::take(&mut self.fds_dirty) {
+                fds = fds_of(&self.ports, &self.rx_paused);
+            }
+            // 3. The master, once per pass, so that a late master never runs its next step
+            //    before the frames of its last one have gone round.
+            let m = self.dev.master_deadline();
+            now = self.clock.now();
+            if m <= now && m < end {
+                if now - m > 1_000_000 {
+                    self.log.timing.late_timers += 1;
+                }
+                if m == cycle_k * t_cyc {
+                    // A cycle starts: the account of the last one closes.
+                    let c = self.dev.master.counters();
+                    let stall = self.clock.take_stall();
+                    let late = self.log.cycle_start(
+                        cycle_k,
+                        now,
+                        m,
+                        c.lumped_lost + c.commands_lost,
+                        stall,
+                    );
+                    self.clock.note_stall(late);
+                    cycle_k += 1;
+                }
+                let Ring { dev, out, .. } = self;
+                let news = dev.master_timeout(now, &mut |f, at, b| out.send(f, at, b));
+                self.master_news(news, now);
+                continue;
+            }
+            if got {
+                continue;
+            }
+            if opts.verbose && now >= next_progress {
+                next_progress += 1_000_000_000;
+                let p = self.log.lateness();
+                eprintln!(
+                    "ringsync rt: {:5.1} s  {cycle_k} cycles  overruns {}  cycle-start lateness p50 {:.1} µs, p99 {:.1} µs  rejected {}",
+                    now as f64 * 1e-9,
+                    self.log.timing.overruns,
+                    p.p50 as f64 * 1e-3,
+                    p.p99 as f64 * 1e-3,
+                    rejected_line(&self.dev.master, &self.dev.slaves)
+                );
+            }
+            // Wait for the next deadline, or for a frame while the master awaits one. Only
+            // the master's deadlines (the cycle start, the P2P start) are worth `spin` of
+            // busy-waiting; a latch is taken at its instant whenever the loop gets to it,
+            // and a slave's response goes out when its command has been read.
+            let mut wake = self.next_local(probe_k * t_cyc).0.min(m).min(end);
+            if let Some(k) = kill {
+                wake = wake.min(k.at.as_ns());
+            }
+            let lead = if wake >= m || wake == probe_k * t_cyc {
+                spin
+            } else {
+                spin.min(SPIN_OTHER)
+            };
+            if wake - now > lead {
+                if self.dev.master.awaiting_frames() || !self.out.pending.is_empty() {
+                    self.clock
+                        .wait_readable_until(&mut fds, wake - lead)
+                        .map_err(io_err("waiting for frames"))?;
+                } else {
+                    self.clock.sleep_until(wake - lead);
+                }
+            }
+        }
+    }
+
+    /// The run's result and timing; the ports stay with the caller (to close before the
+    /// namespaces go).
+    pub fn finish(self, scenario: &str) -> (Finished, Vec<Option<Box<dyn Port>>>) {
+        let Ring {
+            dev,
+            ports,
+            log,
+            last_rx,
+            rx_frames,
+            captured,
+            kill_cycle,
+            stop_cycle,
+            ..
+        } = self;
+        let timing = log.finish(&dev.master.counters());
+        let mut run = dev.finish(
+            scenario,
+            LinkCounters::default(),
+            Vec::new(),
+            captured.unwrap_or_default(),
+        );
+        run.cycles = timing.cycles;
+        (
+            Finished {
+                run,
+                timing,
+                nodes_rx: rx_frames.into_iter().zip(last_rx).collect(),
+                detection_cycles: kill_cycle.zip(stop_cycle).map(|(k, s)| s - k),
+            },
+            ports,
+        )
+    }
+}

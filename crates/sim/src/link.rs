@@ -1,0 +1,205 @@
+//! The simulator's links: every hop adds the PHY tx + cable + PHY rx time of the cycle plan
+//! (L), a uniform random jitter in [0, jitter], and may lose or corrupt the frame; forwarding
+//! slaves are cut-through (first bit out T_t after first bit in). A frame that slaves only
+//! forward costs no event per hop: its arrival at the node that processes it next is
+//! computed at once, every hop's draws included.
+//!
+//! `loss` and `corruption` are probabilities per full trip round the ring (n + 1 hops): a
+//! hop loses a frame with 1 − (1 − loss)^(1/(n+1)), or flips one of its bits (its CRC then
+//! fails where it is checked) likewise.
+
+use ringsync_model::Spec;
+use ringsync_model::result::{Captured, LinkCounters};
+use ringsync_model::rng::Rng;
+use ringsync_wire::{Frame, Route};
+
+/// What became of a frame sent.
+pub(crate) enum Delivery {
+    /// Its last bit reaches `node` (0 = the master) at true time `at` [ns], its first at
+    /// `rx_start`.
+    Arrive {
+        node: usize,
+        rx_start: i64,
+        at: i64,
+        bytes: Vec<u8>,
+    },
+    /// A hop lost it: the buffer goes back to the sender.
+    Lost(Vec<u8>),
+    /// It went nowhere (not a frame, or a dead slave on its way).
+    Gone,
+}
+
+/// The ring's links (see the module docs).
+pub(crate) struct Link {
+    n: usize,
+    hop: i64,
+    residence: i64,
+    jitter: i64,
+    /// Wire time of a lumped, command, response and lumped-only frame [ns].
+    frame_ns: [i64; 4],
+    hop_loss: f64,
+    hop_corruption: f64,
+    /// Loss and corruption probabilities over h hops (index h, 0 ..= n + 1).
+    over_hops: Vec<(f64, f64)>,
+    /// One random stream per sending node.
+    rng: Vec<Rng>,
+    /// The slave (1-based) that goes silent, and from when [ns].
+    silent: Option<(usize, i64)>,
+    /// Link counters (loss, corruption; the driver counts events).
+    pub counters: LinkCounters,
+    /// Frames sent before `end`, when capturing.
+    pub captured: Option<Vec<Captured>>,
+    end: i64,
+}
+
+impl Link {
+    /// The links of `spec`'s ring over a run ending at true time `end` [ns].
+    pub fn new(spec: &Spec, end: i64, capture: bool) -> Self {
+        let s = &spec.scenario;
+        let plan = &spec.plan;
+        let n = spec.axes();
+        let per_hop = |p: f64| 1.0 - (1.0 - p).powf(1.0 / (n + 1) as f64);
+        let (hop_loss, hop_corruption) = (per_hop(s.faults.loss), per_hop(s.faults.corruption));
+        let over = |p: f64, h: usize| 1.0 - (1.0 - p).powi(h as i32);
+        Link {
+            n,
+            hop: plan.hop.as_ns(),
+            residence: s.ring.residence.0.as_ns(),
+            jitter: s.ring.jitter.0.as_ns(),
+            frame_ns: [
+                plan.lumped.frame_time[0].as_ns(),
+                plan.t_cmf.as_ns(),
+                plan.t_rmf.as_ns(),
+                plan.lumped_only.lumped.frame_time[0].as_ns(),
+            ],
+            hop_loss,
+            hop_corruption,
+            over_hops: (0..=n + 1)
+                .map(|h| (over(hop_loss, h), over(hop_corruption, h)))
+                .collect(),
+            rng: (0..=n).map(|h| Rng::stream(s.seed, h as u64)).collect(),
+            silent: (s.faults.silent_slave != 0).then(|| {
+                (
+                    s.faults.silent_slave as usize,
+                    s.faults.silent_from.0.as_ns(),
+                )
+            }),
+            counters: LinkCounters::default(),
+            captured: capture.then(Vec::new),
+            end,
+        }
+    }
+
+    /// Slave residence time T_t: first bit in to first bit out [ns].
+    pub fn residence(&self) -> i64 {
+        self.residence
+    }
+
+    /// Whether `node` (1-based slave) has gone silent by true time `t` [ns]: it neither
+    /// forwards nor answers.
+    pub fn is_silent(&self, node: usize, t: i64) -> bool {
+        self.silent.is_some_and(|(s, from)| node == s && t >= from)
+    }
+
+    /// Sends `bytes` from node `from` (0 = master), first bit out at true `t_tx` [ns], along
+    /// the ring to the first node that processes it: a command's target, each slave whose
+    /// slot a lumped frame carries, and the master for everything that comes back round.
+    pub fn send(&mut self, from: usize, t_tx: i64, mut bytes: Vec<u8>) -> Delivery {
+        if let Some(c) = &mut self.captured
+            && t_tx < self.end
+        {
+            c.push(Captured {
+                t: t_tx,
+                node: from,
+                bytes: bytes.clone(),
+            });
+        }
+        let Ok(f) = Frame::new_checked(&bytes[..]) else {
+            return Delivery::Gone;
+        };
+        let route = f.route().ok();
+        let ring = self.n + 1;
+        // The node (0 = master) that processes the frame next.
+        let stop = match route {
+            Some(Route::Command { target }) if from == 0 => usize::from(target).min(self.n),
+            Some(
+                Route::Lumped {
+                    first_slot,
+                    slot_count,
+                }
+                | Route::LumpedOnly {
+                    first_slot,
+                    slot_count,
+                },
+            ) => {
+                // Slots f..f+m belong to slaves f+1..=f+m.
+                let (first, count) = (usize::from(first_slot), usize::from(slot_count));
+                let next = from + 1;
+                if next <= first {
+                    (first + 1).min(ring) % ring
+                } else if next <= first + count && next <= self.n {
+                    next
+                } else {
+                    0
+                }
+            }
+            _ => 0,
+        };
+        let dur = self.frame_ns[match route {
+            Some(Route::Lumped { .. }) => 0,
+            Some(Route::Command { .. }) => 1,
+            Some(Route::LumpedOnly { .. }) => 3,
+            _ => 2,
+        }];
+        let stop = if stop == 0 && from == 0 { ring } else { stop };
+        let hops = ((stop + ring - from) % ring).max(1) as i64;
+        let stop = stop % ring;
+        let rng = &mut self.rng[from];
+        let mut rx = t_tx + hops * self.hop + (hops - 1) * self.residence;
+        let mut corrupted = false;
+        if self.jitter > 0 {
+            // Per hop: jitter, loss and corruption draws hop by hop.
+            for _ in 0..hops {
+                rx += (rng.unit() * (self.jitter + 1) as f64) as i64;
+                if rng.chance(self.hop_loss) {
+                    self.counters.lost += 1;
+                    return Delivery::Lost(bytes);
+                }
+                if rng.chance(self.hop_corruption) {
+                    corrupted = true;
+                }
+            }
+        } else {
+            // No jitter: one draw each with the probability over all hops (same distribution).
+            let (loss, corruption) = self.over_hops[hops as usize];
+            if rng.chance(loss) {
+                self.counters.lost += 1;
+                return Delivery::Lost(bytes);
+            }
+            corrupted = rng.chance(corruption);
+        }
+        if corrupted {
+            let bit = (rng.next_u64() % (bytes.len() as u64 * 8)) as usize;
+            bytes[bit / 8] ^= 1 << (bit % 8);
+            self.counters.corrupted += 1;
+        }
+        // A dead slave between sender and receiver forwards nothing.
+        if let Some((silent, _)) = self.silent
+            && silent != stop
+        {
+            let d = (silent + ring - from) % ring;
+            if d > 0 && (d as i64) < hops {
+                let at = t_tx + d as i64 * self.hop + (d as i64 - 1) * self.residence;
+                if self.is_silent(silent, at) {
+                    return Delivery::Gone;
+                }
+            }
+        }
+        Delivery::Arrive {
+            node: stop,
+            rx_start: rx,
+            at: rx + dur,
+            bytes,
+        }
+    }
+}
