@@ -1,4 +1,7 @@
 use super::*;
+use error::plant_error;
+use ringsync_plant::SignModel;
+use ringsync_proto::{Duration, RingParams};
 
 fn err(text: &str) -> String {
     Scenario::from_toml(text, "test.toml")

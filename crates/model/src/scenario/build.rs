@@ -1,0 +1,178 @@
+//! Making a run's objects from a scenario's values: the ring parameters of the planner, the
+//! gains, the control law, the desired motion and the axes' plant models.
+
+use ringsync_control::{
+    AxisTrajectory, ControlError, ControlLaw, Cosine, Gains, Pd, RingCoupled, Sequence, Sign,
+    SyncController, SyncParams, Trapezoid, VelocitySource,
+};
+use ringsync_plant::{AxisModel, Friction, PlantError, SignModel, TorqueAxis, VelocityAxis};
+use ringsync_proto::RingParams;
+
+use super::schema::{
+    AxisKind, AxisSpec, CoulombSign, LawKind, PerAxis, Scenario, TrajectorySpec, VelocityKind,
+};
+
+impl Scenario {
+    /// Number of axes n (= slaves).
+    pub fn axes_count(&self) -> usize {
+        self.ring.slaves as usize
+    }
+
+    /// The cycle-plan parameters of the ring.
+    pub fn ring_params(&self) -> RingParams {
+        let r = &self.ring;
+        RingParams {
+            slaves: r.slaves,
+            bit_rate_bps: r.bit_rate.0,
+            phy_rx: r.phy_rx.0,
+            phy_tx: r.phy_tx.0,
+            cable_m: r.cable_m,
+            propagation_ns_per_m: r.propagation_ns_per_m,
+            residence: r.residence.0,
+            response_delay: r.response_delay.0,
+            t_rest: r.t_rest.0,
+            t_cyc: r.cycle.0,
+            ..RingParams::default()
+        }
+    }
+
+    /// The gains of all n axes.
+    pub fn gains(&self) -> Gains {
+        let n = self.axes_count();
+        let c = &self.control;
+        Gains {
+            kp: c.kp.expand(n),
+            kd: c.kd.expand(n),
+            ke: c.ke.expand(n),
+            kh: c.kh.expand(n),
+            kc: c.kc.expand(n),
+            // NaN without [[axis]] tables: Gains::validate rejects it.
+            u_max: (0..n)
+                .map(|i| self.axis_spec(i).map_or(f64::NAN, |a| a.u_max))
+                .collect(),
+        }
+    }
+
+    /// The `[[axis]]` table of axis `i` (0-based): the tables are used in turn; `None`
+    /// when there is none.
+    pub fn axis_spec(&self, i: usize) -> Option<&AxisSpec> {
+        self.axis.get(i % self.axis.len().max(1))
+    }
+
+    /// Whether standard PD adds the feed-forward K_H·ẍ^d + K_C·ẋ^d: when any K_H or K_C is
+    /// not zero.
+    pub fn pd_feed_forward(&self) -> bool {
+        let g = |p: &PerAxis| match p {
+            PerAxis::One(v) => *v != 0.0,
+            PerAxis::Each(v) => v.iter().any(|v| *v != 0.0),
+        };
+        g(&self.control.kh) || g(&self.control.kc)
+    }
+
+    /// The controller's name in outputs: the law's, `pd+ff` for standard PD with
+    /// feed-forward.
+    pub fn law_name(&self) -> &'static str {
+        match self.control.law {
+            LawKind::Pd if self.pd_feed_forward() => "pd+ff",
+            other => other.name(),
+        }
+    }
+
+    /// The sync controller's parameters.
+    pub fn sync_params(&self) -> SyncParams {
+        let c = &self.control;
+        SyncParams {
+            alpha: c.alpha,
+            delta_h: c.delta_h,
+            delta_c: c.delta_c,
+            sign: if c.boundary_layer == 0.0 {
+                Sign::Exact
+            } else {
+                Sign::BoundaryLayer(c.boundary_layer)
+            },
+            estimator: c.estimator,
+            extrapolate_own: c.extrapolate_own,
+        }
+    }
+
+    /// The control law, checked.
+    pub fn law(&self) -> Result<Box<dyn ControlLaw>, ControlError> {
+        let g = self.gains();
+        Ok(match self.control.law {
+            LawKind::Pd => Box::new(Pd::new(g, self.pd_feed_forward())?),
+            LawKind::Sync => Box::new(SyncController::new(g, self.sync_params())?),
+            LawKind::RingCoupled => Box::new(RingCoupled::new(
+                g,
+                self.control.alpha,
+                self.control.estimator,
+            )?),
+        })
+    }
+
+    /// Where ė comes from.
+    pub fn velocity_source(&self) -> VelocitySource {
+        match self.control.velocity {
+            VelocityKind::Reported => VelocitySource::Reported,
+            VelocityKind::Differenced => VelocitySource::Differenced,
+        }
+    }
+
+    /// The plant model of every axis; on error, the axis index and the error.
+    pub fn axis_models(&self) -> Result<Vec<AxisModel>, (usize, PlantError)> {
+        (0..self.axes_count())
+            .map(|i| {
+                let k = i % self.axis.len().max(1);
+                let a = self.axis.get(k).ok_or((
+                    k,
+                    PlantError::InvalidParameter {
+                        name: "axis",
+                        value: 0.0,
+                        expected: "at least one [[axis]] table",
+                    },
+                ))?;
+                let model = match a.model {
+                    AxisKind::Torque => {
+                        let ka = a.rated_torque / a.u_max;
+                        let friction = Friction {
+                            viscous: a.viscous,
+                            coulomb: a.coulomb_fraction * a.rated_torque,
+                            sign: match a.coulomb_sign {
+                                CoulombSign::Exact => SignModel::Exact,
+                                CoulombSign::Smooth => SignModel::Smooth {
+                                    v_s: a.coulomb_velocity_scale,
+                                },
+                            },
+                        };
+                        TorqueAxis::new(a.j_over_ka * ka, ka, friction, a.u_max)
+                            .map(AxisModel::Torque)
+                    }
+                    AxisKind::Velocity => {
+                        VelocityAxis::new(a.velocity_gain, a.time_constant.secs(), a.u_max)
+                            .map(AxisModel::Velocity)
+                    }
+                };
+                model.map_err(|e| (k, e))
+            })
+            .collect()
+    }
+
+    /// The desired motion of every axis.
+    pub fn trajectories(&self) -> Result<Vec<AxisTrajectory>, ControlError> {
+        let one = match &self.trajectory {
+            TrajectorySpec::Cosine { peak_speed, period } => {
+                AxisTrajectory::Cosine(Cosine::with_peak_speed(*peak_speed, period.secs())?)
+            }
+            TrajectorySpec::Trapezoid {
+                distance,
+                v_max,
+                a_max,
+            } => AxisTrajectory::Trapezoid(Trapezoid::new(0.0, *distance, *v_max, *a_max, 0.0)?),
+            TrajectorySpec::Sequence {
+                targets,
+                v_max,
+                a_max,
+            } => AxisTrajectory::Sequence(Sequence::new(0.0, targets, *v_max, *a_max, 0.0)?),
+        };
+        Ok(vec![one; self.axes_count()])
+    }
+}

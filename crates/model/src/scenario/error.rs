@@ -1,0 +1,139 @@
+//! What is wrong with a scenario: one error type whose messages name the key, the value and
+//! what is allowed, and the maps from the control and plant layers' errors back to the
+//! scenario keys they came from.
+
+use std::fmt;
+
+use ringsync_control::ControlError;
+use ringsync_plant::PlantError;
+
+/// What is wrong with a scenario.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ScenarioError {
+    /// The text is not valid TOML, or a value has the wrong type, or a key is unknown.
+    #[error("{origin}: {message}")]
+    Syntax {
+        /// File name or scenario name.
+        origin: String,
+        /// One line: where and what.
+        message: String,
+    },
+    /// A value out of its range.
+    #[error("{key} = {value} is out of range: allowed {allowed}")]
+    OutOfRange {
+        /// Dotted key, e.g. `ring.slaves` or `axis[2].viscous`.
+        key: String,
+        /// The value given.
+        value: String,
+        /// The allowed range, with units.
+        allowed: String,
+    },
+    /// A name that is not a built-in scenario or a readable file.
+    #[error("unknown scenario '{0}': not a built-in scenario ({1}) and no such file")]
+    Unknown(String, String),
+    /// The file could not be read.
+    #[error("cannot read {path}: {reason}")]
+    Io {
+        /// Path given.
+        path: String,
+        /// The operating system's reason.
+        reason: String,
+    },
+}
+
+pub(crate) fn out_of_range(
+    key: impl Into<String>,
+    value: impl fmt::Display,
+    allowed: impl Into<String>,
+) -> ScenarioError {
+    ScenarioError::OutOfRange {
+        key: key.into(),
+        value: value.to_string(),
+        allowed: allowed.into(),
+    }
+}
+
+/// `text` cut to at most `max_chars` characters, with an ellipsis where it was cut: values
+/// and source lines echoed in error messages stay readable.
+pub fn clip(text: &str, max_chars: usize) -> std::borrow::Cow<'_, str> {
+    match text.char_indices().nth(max_chars) {
+        None => text.into(),
+        Some((at, _)) => format!("{}…", &text[..at]).into(),
+    }
+}
+
+/// `text` cut in the middle to at most about `max_chars` characters: the start and the last
+/// 60 characters stay, so a message that echoes a long value still ends with what was
+/// expected.
+pub fn clip_middle(text: &str, max_chars: usize) -> std::borrow::Cow<'_, str> {
+    const TAIL: usize = 60;
+    let n = text.chars().count();
+    if n <= max_chars {
+        return text.into();
+    }
+    let head: String = text.chars().take(max_chars.saturating_sub(TAIL)).collect();
+    let tail: String = text.chars().skip(n - TAIL.min(max_chars)).collect();
+    format!("{head}…{tail}").into()
+}
+
+/// Longest echo of a source line or value in a [`ScenarioError`] [characters].
+pub const ECHO_CHARS: usize = 120;
+
+/// Maps a control-layer error to the scenario key it came from.
+pub(crate) fn control_error(e: &ControlError) -> ScenarioError {
+    match e {
+        ControlError::InvalidParameter {
+            name,
+            value,
+            expected,
+        } => {
+            // Gains are reported as kp[2]: in the scenario that is control.kp (axis 2).
+            let key = match name.split_once('[') {
+                Some((g, rest)) => format!("control.{g} (axis {})", rest.trim_end_matches(']')),
+                None => format!("control.{name}"),
+            };
+            out_of_range(key, value, *expected)
+        }
+        other => out_of_range("control", "?", other.to_string()),
+    }
+}
+
+pub(crate) fn plant_error(axis: usize, e: &PlantError) -> ScenarioError {
+    match e {
+        PlantError::InvalidParameter {
+            name,
+            value,
+            expected,
+        } => {
+            if *name == "axis" {
+                return out_of_range("axis", "[]", *expected);
+            }
+            let key = match *name {
+                "inertia" | "torque_constant" => "j_over_ka, rated_torque or u_max",
+                "viscous_friction" => "viscous",
+                "coulomb_friction" => "coulomb_fraction",
+                "velocity_gain" => "velocity_gain",
+                other => other,
+            };
+            out_of_range(format!("axis[{axis}].{key}"), value, *expected)
+        }
+        other => out_of_range(format!("axis[{axis}]"), "?", other.to_string()),
+    }
+}
+
+impl ScenarioError {
+    pub(crate) fn prefixed(self, section: &str) -> ScenarioError {
+        match self {
+            ScenarioError::OutOfRange {
+                key,
+                value,
+                allowed,
+            } => ScenarioError::OutOfRange {
+                key: key.replacen("control.", &format!("{section}."), 1),
+                value,
+                allowed,
+            },
+            other => other,
+        }
+    }
+}

@@ -1,0 +1,111 @@
+//! Reading scenarios: the built-in ones by name, files by path (at most 1 MiB of UTF-8),
+//! TOML text with syntax errors placed by line and column, and the hash that names the
+//! exact input in every output.
+
+use super::error::{ECHO_CHARS, ScenarioError, clip, clip_middle};
+use super::schema::Scenario;
+
+/// Largest scenario file read [bytes]: 1 MiB.
+pub const MAX_SCENARIO_BYTES: u64 = 1 << 20;
+
+/// The built-in scenarios: (name, TOML text).
+const BUILTIN: &[(&str, &str)] = &[(
+    "paper-2015",
+    include_str!("../../../../scenarios/paper-2015.toml"),
+)];
+
+/// Names of the built-in scenarios.
+pub fn builtin_names() -> impl Iterator<Item = &'static str> {
+    BUILTIN.iter().map(|(n, _)| *n)
+}
+
+/// The commented TOML text of a built-in scenario.
+pub fn builtin(name: &str) -> Option<&'static str> {
+    BUILTIN.iter().find(|(n, _)| *n == name).map(|(_, t)| *t)
+}
+
+/// "line L, column C" of byte offset `at` in `text`.
+fn line_col(text: &str, at: usize) -> (usize, usize) {
+    let before = &text[..at.min(text.len())];
+    let line = before.matches('\n').count() + 1;
+    let col = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
+    (line, col)
+}
+
+impl Scenario {
+    /// Parses and validates a scenario from TOML text; `origin` names it in errors.
+    pub fn from_toml(text: &str, origin: &str) -> Result<Self, ScenarioError> {
+        let s: Scenario = toml::from_str(text).map_err(|e| {
+            let msg = e.message().trim().replace('\n', " ");
+            let msg = clip_middle(&msg, 2 * ECHO_CHARS);
+            let message = match e.span() {
+                Some(span) => {
+                    let (l, c) = line_col(text, span.start);
+                    let src = text.lines().nth(l - 1).unwrap_or("").trim();
+                    format!("line {l}, column {c} ({}): {msg}", clip(src, ECHO_CHARS))
+                }
+                None => msg.into_owned(),
+            };
+            ScenarioError::Syntax {
+                origin: clip(origin, ECHO_CHARS).into_owned(),
+                message,
+            }
+        })?;
+        s.validate()?;
+        Ok(s)
+    }
+
+    /// A built-in scenario by name, or a scenario file by path.
+    pub fn load(name_or_path: &str) -> Result<Self, ScenarioError> {
+        Scenario::load_with_hash(name_or_path).map(|(s, _)| s)
+    }
+
+    /// [`Scenario::load`], with the FNV-1a 64-bit hash of the scenario's text (it names the
+    /// exact input in every output).
+    pub fn load_with_hash(name_or_path: &str) -> Result<(Self, u64), ScenarioError> {
+        let text = Scenario::text(name_or_path)?;
+        let s = Scenario::from_toml(&text, name_or_path)?;
+        Ok((s, fnv1a(text.as_bytes())))
+    }
+
+    /// The TOML text of a built-in scenario or a scenario file.
+    pub fn text(name_or_path: &str) -> Result<String, ScenarioError> {
+        if let Some(text) = builtin(name_or_path) {
+            return Ok(text.to_string());
+        }
+        use std::io::Read as _;
+        let path = std::path::Path::new(name_or_path);
+        let shown = clip(name_or_path, ECHO_CHARS).into_owned();
+        if !path.exists() {
+            let names: Vec<&str> = builtin_names().collect();
+            return Err(ScenarioError::Unknown(shown, names.join(", ")));
+        }
+        let io = |reason: String| ScenarioError::Io {
+            path: shown.clone(),
+            reason,
+        };
+        // At most 1 MiB + 1 byte: /dev/zero or an endless pipe ends here, not in memory.
+        let mut bytes = Vec::new();
+        std::fs::File::open(path)
+            .and_then(|f| f.take(MAX_SCENARIO_BYTES + 1).read_to_end(&mut bytes))
+            .map_err(|e| io(e.to_string()))?;
+        if bytes.len() as u64 > MAX_SCENARIO_BYTES {
+            return Err(io(format!(
+                "larger than 1 MiB ({MAX_SCENARIO_BYTES} bytes), the limit for a scenario file"
+            )));
+        }
+        String::from_utf8(bytes).map_err(|e| {
+            io(format!(
+                "not UTF-8 text (invalid byte at offset {})",
+                e.utf8_error().valid_up_to()
+            ))
+        })
+    }
+}
+
+/// FNV-1a, 64 bits.
+pub fn fnv1a(bytes: &[u8]) -> u64 {
+    bytes.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &b| {
+        (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3)
+    })
+}

@@ -1,0 +1,466 @@
+//! The scenario's schema: every table and key of a scenario file with its default (the
+//! reference scenario `paper-2015`), as plain data. Checking the values is
+//! [`validate`](super::validate)'s job; making the run's objects from them is
+//! [`build`](super::build)'s.
+
+use std::fmt;
+use std::str::FromStr;
+
+use ringsync_control::EstimatorKind;
+use ringsync_proto::node::SafeState;
+use ringsync_proto::plan::parse_bit_rate;
+use ringsync_proto::{Duration, PlanKind, RingParams};
+use serde::{Deserialize, Deserializer};
+
+/// A duration written with a unit, e.g. `"1ms"`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Dur(pub Duration);
+
+impl Dur {
+    /// In seconds.
+    pub fn secs(self) -> f64 {
+        self.0.as_ns() as f64 * 1e-9
+    }
+}
+
+impl fmt::Display for Dur {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "\"{}\"", self.0)
+    }
+}
+
+impl<'de> Deserialize<'de> for Dur {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let s = String::deserialize(d)?;
+        Duration::from_str(&s)
+            .map(Dur)
+            .map_err(serde::de::Error::custom)
+    }
+}
+
+/// A bit rate written as `"100M"` or a number of bit/s.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct BitRate(pub u64);
+
+impl<'de> Deserialize<'de> for BitRate {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        #[derive(Deserialize)]
+        #[serde(untagged)]
+        enum Raw {
+            Number(u64),
+            Text(String),
+        }
+        match Raw::deserialize(d)? {
+            Raw::Number(n) => Ok(BitRate(n)),
+            Raw::Text(s) => parse_bit_rate(&s)
+                .map(BitRate)
+                .map_err(serde::de::Error::custom),
+        }
+    }
+}
+
+/// One value for every axis, or one per axis.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(untagged)]
+pub enum PerAxis {
+    /// The same on every axis.
+    One(f64),
+    /// One per axis (used in turn if shorter than the ring).
+    Each(Vec<f64>),
+}
+
+impl PerAxis {
+    /// The value for axis `i`.
+    pub fn get(&self, i: usize) -> f64 {
+        match self {
+            PerAxis::One(v) => *v,
+            PerAxis::Each(v) if v.is_empty() => f64::NAN,
+            PerAxis::Each(v) => v[i % v.len()],
+        }
+    }
+    /// The values for `n` axes.
+    pub fn expand(&self, n: usize) -> Vec<f64> {
+        (0..n).map(|i| self.get(i)).collect()
+    }
+}
+
+/// `[ring]`: the network and the cycle plan.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Ring {
+    /// Number of slaves n.
+    pub slaves: u32,
+    /// Cycle time T_cyc.
+    pub cycle: Dur,
+    /// Communication plan.
+    #[serde(deserialize_with = "plan_kind")]
+    pub plan: PlanKind,
+    /// Link bit rate [bit/s].
+    pub bit_rate: BitRate,
+    /// PHY receive latency.
+    pub phy_rx: Dur,
+    /// PHY transmit latency.
+    pub phy_tx: Dur,
+    /// Cable per hop [m].
+    pub cable_m: f64,
+    /// Propagation [ns/m].
+    pub propagation_ns_per_m: f64,
+    /// Residence T_t.
+    pub residence: Dur,
+    /// Response delay T_ti.
+    pub response_delay: Dur,
+    /// T_rest.
+    pub t_rest: Dur,
+    /// Extra random delay per hop, uniform in [0, jitter].
+    pub jitter: Dur,
+}
+
+fn plan_kind<'de, D: Deserializer<'de>>(d: D) -> Result<PlanKind, D::Error> {
+    let s = String::deserialize(d)?;
+    s.parse().map_err(serde::de::Error::custom)
+}
+
+impl Default for Ring {
+    fn default() -> Self {
+        let p = RingParams::default();
+        Ring {
+            slaves: p.slaves,
+            cycle: Dur(p.t_cyc),
+            plan: PlanKind::P2pLumped,
+            bit_rate: BitRate(p.bit_rate_bps),
+            phy_rx: Dur(p.phy_rx),
+            phy_tx: Dur(p.phy_tx),
+            cable_m: p.cable_m,
+            propagation_ns_per_m: p.propagation_ns_per_m,
+            residence: Dur(p.residence),
+            response_delay: Dur(p.response_delay),
+            t_rest: Dur(p.t_rest),
+            jitter: Dur(Duration::ZERO),
+        }
+    }
+}
+
+/// `[clock]`: the slaves' oscillators and clock synchronisation.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ClockSpec {
+    /// Whether slaves synchronise to the master.
+    pub sync: bool,
+    /// Largest oscillator error [ppm]; each slave draws uniformly in ±drift_ppm.
+    pub drift_ppm: f64,
+    /// Largest initial clock offset; each slave draws uniformly in ±initial_offset.
+    pub initial_offset: Dur,
+    /// Hardware timestamp resolution.
+    pub timestamp_resolution: Dur,
+    /// Sampling lead: slaves latch their encoders this long before each cycle start
+    /// (EtherCAT's "input shift"); 0 samples at the cycle start, as in the paper.
+    pub sample_lead: Dur,
+}
+
+impl Default for ClockSpec {
+    fn default() -> Self {
+        ClockSpec {
+            sync: true,
+            drift_ppm: 50.0,
+            initial_offset: Dur(Duration::from_us(10)),
+            timestamp_resolution: Dur(Duration::from_ns(8)),
+            sample_lead: Dur(Duration::ZERO),
+        }
+    }
+}
+
+/// `[faults]`: loss, corruption and the safety limits.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Faults {
+    /// Probability that a frame is lost on one trip round the ring (spread over its n + 1
+    /// hops).
+    pub loss: f64,
+    /// Probability that a frame is corrupted on one trip round the ring.
+    pub corruption: f64,
+    /// W: cycles without a valid command before a slave goes to its safe state.
+    pub watchdog_cycles: u32,
+    /// Following-error limit [rad].
+    pub following_error_limit: f64,
+    /// A slave (1-based) that stops answering at `silent_from`; 0 for none.
+    pub silent_slave: u32,
+    /// When the silent slave goes silent.
+    pub silent_from: Dur,
+    /// What a slave does with its axis when it loses the master (no valid command for W
+    /// cycles): "brake" damps the axis to standstill, then cuts torque; "torque-off" cuts
+    /// torque at once.
+    #[serde(deserialize_with = "safe_state")]
+    pub safe_state: SafeState,
+    /// K_b of the brake reaction u = −K_b·v (the safe state "brake", or a brake the master
+    /// orders) [V·s/rad].
+    pub brake_gain: f64,
+}
+
+fn safe_state<'de, D: Deserializer<'de>>(d: D) -> Result<SafeState, D::Error> {
+    let s = String::deserialize(d)?;
+    s.parse().map_err(serde::de::Error::custom)
+}
+
+impl Default for Faults {
+    fn default() -> Self {
+        Faults {
+            loss: 0.0,
+            corruption: 0.0,
+            watchdog_cycles: 5,
+            following_error_limit: 1.0,
+            silent_slave: 0,
+            silent_from: Dur(Duration::ZERO),
+            safe_state: SafeState::Brake,
+            brake_gain: 1.591,
+        }
+    }
+}
+
+/// Which control law.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum LawKind {
+    /// Standard PD.
+    Pd,
+    /// The paper's sync controller.
+    Sync,
+    /// The ring-coupled baseline.
+    RingCoupled,
+}
+
+impl LawKind {
+    /// The name used in outputs.
+    pub fn name(self) -> &'static str {
+        match self {
+            LawKind::Pd => "pd",
+            LawKind::Sync => "sync",
+            LawKind::RingCoupled => "ring-coupled",
+        }
+    }
+}
+
+/// Where ė comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum VelocityKind {
+    /// From the slave's reported velocity.
+    Reported,
+    /// From successive position samples.
+    Differenced,
+}
+
+/// `[control]`: law, estimator and gains.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ControlSpec {
+    /// The law.
+    pub law: LawKind,
+    /// The estimator.
+    #[serde(deserialize_with = "estimator_kind")]
+    pub estimator: EstimatorKind,
+    /// Source of ė.
+    pub velocity: VelocityKind,
+    /// K_P [V/rad].
+    pub kp: PerAxis,
+    /// K_D [V·s/rad].
+    pub kd: PerAxis,
+    /// K_E [V·s/rad].
+    pub ke: PerAxis,
+    /// K_H [V·s²/rad].
+    pub kh: PerAxis,
+    /// K_C [V·s/rad].
+    pub kc: PerAxis,
+    /// α.
+    pub alpha: f64,
+    /// Δ_H [V·s²/rad].
+    pub delta_h: f64,
+    /// Δ_C [V·s/rad].
+    pub delta_c: f64,
+    /// φ [rad/s]; 0 selects the exact sign.
+    pub boundary_layer: f64,
+    /// Extrapolate the own sample too.
+    pub extrapolate_own: bool,
+}
+
+fn estimator_kind<'de, D: Deserializer<'de>>(d: D) -> Result<EstimatorKind, D::Error> {
+    let s = String::deserialize(d)?;
+    s.parse().map_err(serde::de::Error::custom)
+}
+
+impl Default for ControlSpec {
+    fn default() -> Self {
+        ControlSpec {
+            law: LawKind::Sync,
+            estimator: EstimatorKind::Paper,
+            velocity: VelocityKind::Reported,
+            kp: PerAxis::One(3.182),
+            kd: PerAxis::One(1.591),
+            ke: PerAxis::One(0.75),
+            kh: PerAxis::One(0.0),
+            kc: PerAxis::One(0.0),
+            alpha: 0.5,
+            delta_h: 0.0,
+            delta_c: 0.0,
+            boundary_layer: 0.01,
+            extrapolate_own: false,
+        }
+    }
+}
+
+/// `[trajectory]`: the desired motion of every axis.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
+pub enum TrajectorySpec {
+    /// x^d = A·(1 − cos(2πt/P)), A = peak_speed·P/(2π).
+    Cosine {
+        /// Peak speed [rad/s].
+        peak_speed: f64,
+        /// Period P.
+        period: Dur,
+    },
+    /// One trapezoidal move from 0.
+    Trapezoid {
+        /// Signed distance [rad].
+        distance: f64,
+        /// v_max [rad/s].
+        v_max: f64,
+        /// a_max [rad/s²].
+        a_max: f64,
+    },
+    /// Moves through `targets` = [[position rad, dwell s], …] from 0.
+    Sequence {
+        /// Targets and dwell times.
+        targets: Vec<(f64, f64)>,
+        /// v_max [rad/s].
+        v_max: f64,
+        /// a_max [rad/s²].
+        a_max: f64,
+    },
+}
+
+impl Default for TrajectorySpec {
+    fn default() -> Self {
+        TrajectorySpec::Cosine {
+            peak_speed: 15.12,
+            period: Dur(Duration::from_ms(2000)),
+        }
+    }
+}
+
+/// Drive mode of an axis.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum AxisKind {
+    /// Torque mode: J·ẍ = K_a·sat(u) − b·ẋ − T_c·sgn(ẋ).
+    Torque,
+    /// Velocity mode: ẍ = (k_v·sat(u) − ẋ)/τ_v.
+    Velocity,
+}
+
+/// Sign model of Coulomb friction.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum CoulombSign {
+    /// Exact sign with stiction.
+    Exact,
+    /// tanh(ẋ/v_s).
+    Smooth,
+}
+
+/// One `[[axis]]` table.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct AxisSpec {
+    /// Drive mode.
+    pub model: AxisKind,
+    /// Rated torque [N·m] (torque mode): ±u_max = ± rated torque.
+    pub rated_torque: f64,
+    /// J/K_a [s²·V/rad] (torque mode).
+    pub j_over_ka: f64,
+    /// Viscous friction b [N·m·s/rad] (torque mode).
+    pub viscous: f64,
+    /// Coulomb friction as a fraction of rated torque (torque mode).
+    pub coulomb_fraction: f64,
+    /// Sign model of the Coulomb friction.
+    pub coulomb_sign: CoulombSign,
+    /// v_s of the smooth sign [rad/s].
+    pub coulomb_velocity_scale: f64,
+    /// k_v [rad/(s·V)] (velocity mode).
+    pub velocity_gain: f64,
+    /// τ_v (velocity mode).
+    pub time_constant: Dur,
+    /// Drive range [V].
+    pub u_max: f64,
+    /// Encoder resolution, 2^bits counts per revolution.
+    pub encoder_bits: u32,
+    /// Velocity measured by encoder difference over this window.
+    pub velocity_window: Dur,
+}
+
+impl Default for AxisSpec {
+    fn default() -> Self {
+        AxisSpec {
+            model: AxisKind::Torque,
+            rated_torque: ringsync_plant::reference::RATED_TORQUE[0],
+            j_over_ka: ringsync_plant::reference::J_OVER_KA[0],
+            viscous: ringsync_plant::reference::VISCOUS[0],
+            coulomb_fraction: ringsync_plant::reference::COULOMB_FRACTION,
+            coulomb_sign: CoulombSign::Exact,
+            coulomb_velocity_scale: 1e-3,
+            velocity_gain: 1.5,
+            time_constant: Dur(Duration::from_ms(5)),
+            u_max: ringsync_plant::reference::U_MAX,
+            encoder_bits: 20,
+            velocity_window: Dur(Duration::from_us(125)),
+        }
+    }
+}
+
+/// A whole scenario.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Scenario {
+    /// Name, used in outputs.
+    pub name: String,
+    /// One line on what it is.
+    pub description: String,
+    /// Simulated time.
+    pub duration: Dur,
+    /// Seed of every random draw.
+    pub seed: u64,
+    /// Network and plan.
+    pub ring: Ring,
+    /// Oscillators and clock sync.
+    pub clock: ClockSpec,
+    /// Faults and limits.
+    pub faults: Faults,
+    /// Law and gains.
+    pub control: ControlSpec,
+    /// Desired motion.
+    pub trajectory: TrajectorySpec,
+    /// Axes, used in turn.
+    pub axis: Vec<AxisSpec>,
+}
+
+impl Default for Scenario {
+    /// The reference scenario `paper-2015` (docs/system.md, "The reference scenario").
+    fn default() -> Self {
+        let r = ringsync_plant::reference::RATED_TORQUE;
+        let j = ringsync_plant::reference::J_OVER_KA;
+        let b = ringsync_plant::reference::VISCOUS;
+        Scenario {
+            name: "paper-2015".into(),
+            description: "4 servo axes on a 100 Mbit/s ring, 1 ms cycle, cosine command, PD vs sync controller".into(),
+            duration: Dur(Duration::from_ms(4000)),
+            seed: 1,
+            ring: Ring::default(),
+            clock: ClockSpec::default(),
+            faults: Faults::default(),
+            control: ControlSpec::default(),
+            trajectory: TrajectorySpec::default(),
+            axis: (0..4)
+                .map(|i| AxisSpec { rated_torque: r[i], j_over_ka: j[i], viscous: b[i], ..AxisSpec::default() })
+                .collect(),
+        }
+    }
+}

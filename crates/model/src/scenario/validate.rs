@@ -1,0 +1,280 @@
+//! Checking a scenario's values: every key against its range, the cross-key rules (the
+//! cycle holds the ring, the encoder resolution fits the wire, the brake's loop is stable),
+//! with errors that name the first bad key.
+
+use ringsync_proto::PlanKind;
+
+use super::error::{ScenarioError, control_error, out_of_range, plant_error};
+use super::schema::{AxisKind, Dur, LawKind, PerAxis, Scenario, TrajectorySpec};
+
+/// Fewest encoder bits: the plant's encoder needs at least 4 counts per revolution.
+pub const MIN_ENCODER_BITS: u32 = 2;
+
+/// Velocities on the wire must hold this multiple of the trajectory's peak speed (room for
+/// overshoot and the stop ramp) when the encoder resolution is checked.
+pub const VELOCITY_MARGIN: f64 = 2.0;
+
+/// The encoder resolutions a scenario's trajectory allows, and why not more.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct EncoderBits {
+    /// Allowed `encoder_bits` (empty when the motion is too large for any resolution).
+    pub range: std::ops::RangeInclusive<u32>,
+    /// The wire limit that bounds it from above, in words.
+    pub reason: String,
+}
+
+impl EncoderBits {
+    /// The allowed range in words, for an error about `value`.
+    pub fn allowed(&self, value: u32) -> String {
+        let (lo, hi) = (self.range.start(), self.range.end());
+        if self.range.is_empty() {
+            format!("none for this trajectory: {}", self.reason)
+        } else if value < *lo {
+            format!("{lo} ..= {hi}: an encoder needs at least 4 counts per revolution ({lo} bits)")
+        } else {
+            format!("{lo} ..= {hi} for this trajectory: {}", self.reason)
+        }
+    }
+}
+
+impl Scenario {
+    /// Checks every value; the error names the first bad key.
+    pub fn validate(&self) -> Result<(), ScenarioError> {
+        let ns = |d: Dur| d.0.as_ns();
+        if ns(self.duration) <= 0 || ns(self.duration) > 3_600_000_000_000 {
+            return Err(out_of_range("duration", self.duration, "1 ns ..= 3600 s"));
+        }
+        // The ring: the planner's own checks, with scenario key names.
+        let plan = ringsync_proto::CyclePlan::new(&self.ring_params()).map_err(|e| match e {
+            ringsync_proto::PlanError::OutOfRange {
+                field,
+                value,
+                allowed,
+            } => {
+                let key = match field {
+                    "t_cyc" => "cycle",
+                    "slot_bytes" | "lumped_only_slot_bytes" | "mtu" => field,
+                    other => other,
+                };
+                out_of_range(format!("ring.{key}"), value, allowed)
+            }
+            other => out_of_range("ring", "?", other.to_string()),
+        })?;
+        plan.check_fits_for(self.ring.plan)
+            .map_err(|e| out_of_range("ring.cycle", self.ring.cycle, e.to_string()))?;
+        if ns(self.ring.jitter) < 0 || self.ring.jitter.0 > self.ring.cycle.0 {
+            return Err(out_of_range(
+                "ring.jitter",
+                self.ring.jitter,
+                "0 ..= ring.cycle",
+            ));
+        }
+        let c = &self.clock;
+        if !(c.drift_ppm.is_finite() && (0.0..=1000.0).contains(&c.drift_ppm)) {
+            return Err(out_of_range(
+                "clock.drift_ppm",
+                c.drift_ppm,
+                "0 ..= 1000 ppm",
+            ));
+        }
+        if ns(c.initial_offset) < 0 || ns(c.initial_offset) > 1_000_000_000 {
+            return Err(out_of_range(
+                "clock.initial_offset",
+                c.initial_offset,
+                "0 ..= 1 s",
+            ));
+        }
+        if ns(c.timestamp_resolution) < 1 || ns(c.timestamp_resolution) > 1_000_000 {
+            return Err(out_of_range(
+                "clock.timestamp_resolution",
+                c.timestamp_resolution,
+                "1 ns ..= 1 ms",
+            ));
+        }
+        if ns(c.sample_lead) < 0 || c.sample_lead.0 * 2 > self.ring.cycle.0 {
+            return Err(out_of_range(
+                "clock.sample_lead",
+                c.sample_lead,
+                "0 ..= ring.cycle / 2",
+            ));
+        }
+        let f = &self.faults;
+        for (key, p) in [("faults.loss", f.loss), ("faults.corruption", f.corruption)] {
+            if !(p.is_finite() && (0.0..=1.0).contains(&p)) {
+                return Err(out_of_range(key, p, "0 ..= 1 (a probability)"));
+            }
+        }
+        if !(1..=100_000).contains(&f.watchdog_cycles) {
+            return Err(out_of_range(
+                "faults.watchdog_cycles",
+                f.watchdog_cycles,
+                "1 ..= 100000",
+            ));
+        }
+        if f.silent_slave > self.ring.slaves {
+            return Err(out_of_range(
+                "faults.silent_slave",
+                f.silent_slave,
+                "0 (none) ..= ring.slaves",
+            ));
+        }
+        if !(f.following_error_limit.is_finite() && f.following_error_limit > 0.0) {
+            return Err(out_of_range(
+                "faults.following_error_limit",
+                f.following_error_limit,
+                "> 0 rad",
+            ));
+        }
+        let n = self.axes_count();
+        let cap = ringsync_wire::lumped::slot_capacity(
+            <ringsync_wire::LumpedOnlySlot as ringsync_wire::SlotCodec>::LEN,
+        );
+        if self.ring.plan == PlanKind::LumpedOnly && n > cap {
+            return Err(out_of_range(
+                "ring.slaves",
+                n,
+                format!(
+                    "1 ..= {cap} with ring.plan = \"lumped-only\": one lumped frame carries at most {cap} slaves"
+                ),
+            ));
+        }
+        if self.control.law != LawKind::Pd && n < 2 {
+            return Err(out_of_range(
+                "ring.slaves",
+                n,
+                format!(
+                    "2 ..= 65535 with control.law = \"{}\" (coupling needs two axes)",
+                    self.control.law.name()
+                ),
+            ));
+        }
+        for (key, list) in [
+            ("control.kp", &self.control.kp),
+            ("control.kd", &self.control.kd),
+            ("control.ke", &self.control.ke),
+            ("control.kh", &self.control.kh),
+            ("control.kc", &self.control.kc),
+        ] {
+            if matches!(list, PerAxis::Each(v) if v.is_empty()) {
+                return Err(out_of_range(key, "[]", "a number or a non-empty list"));
+            }
+        }
+        // Before anything that uses the axes in turn (i % axis.len()).
+        if self.axis.is_empty() {
+            return Err(out_of_range("axis", "[]", "at least one [[axis]] table"));
+        }
+        self.law().map_err(|e| control_error(&e))?;
+        for (i, a) in self.axis.iter().enumerate() {
+            if ns(a.velocity_window) <= 0 || a.velocity_window.0 > self.ring.cycle.0 {
+                return Err(out_of_range(
+                    format!("axis[{i}].velocity_window"),
+                    a.velocity_window,
+                    "1 ns ..= ring.cycle",
+                ));
+            }
+        }
+        self.axis_models().map_err(|(i, e)| plant_error(i, &e))?;
+        self.trajectories()
+            .map_err(|e| control_error(&e).prefixed("trajectory"))?;
+        let bits = self.encoder_bits_range();
+        for (i, a) in self.axis.iter().enumerate() {
+            if !bits.range.contains(&a.encoder_bits) {
+                return Err(out_of_range(
+                    format!("axis[{i}].encoder_bits"),
+                    a.encoder_bits,
+                    bits.allowed(a.encoder_bits),
+                ));
+            }
+        }
+        self.check_brake()?;
+        Ok(())
+    }
+
+    /// A slave brakes its axis with u = −K_b·v, updated once a cycle (docs/safety.md):
+    /// that loop must be stable for every axis. For a torque axis,
+    /// v ← v·(1 − T·K_b/(J/K_a)), so T·K_b/(J/K_a) < 2; for a velocity axis (time constant
+    /// τ, gain k_v), v ← v·(a − (1 − a)·k_v·K_b) with a = e^(−T/τ), so
+    /// (1 − a)·k_v·K_b < 1 + a.
+    fn check_brake(&self) -> Result<(), ScenarioError> {
+        let t = self.ring.cycle.secs();
+        let k = self.faults.brake_gain;
+        if !(k.is_finite() && k > 0.0) {
+            return Err(out_of_range("faults.brake_gain", k, "> 0 V·s/rad"));
+        }
+        for i in 0..self.axes_count() {
+            let Some(a) = self.axis_spec(i) else { continue };
+            let (factor, bound) = match a.model {
+                AxisKind::Torque => (t * k / a.j_over_ka, 2.0),
+                AxisKind::Velocity => {
+                    let e = (-t / a.time_constant.secs()).exp();
+                    ((1.0 - e) * a.velocity_gain * k, 1.0 + e)
+                }
+            };
+            if factor >= bound {
+                return Err(out_of_range(
+                    "faults.brake_gain",
+                    k,
+                    format!(
+                        "a gain the slaves' brake (u = −K_b·v once a cycle) can use on axis[{}]: its loop factor is {factor:.3}, it must stay under {bound:.3}",
+                        i % self.axis.len().max(1)
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// The encoder resolutions this scenario's trajectory allows. The plant's encoder needs
+    /// at least 4 counts per revolution (2 bits). Positions travel as i32 counts and
+    /// velocities as i32 counts/s (docs/wire.md): the trajectory's reach plus 1 rad, and
+    /// [`VELOCITY_MARGIN`] × its peak speed (room for overshoot and the stop ramp), must fit.
+    pub fn encoder_bits_range(&self) -> EncoderBits {
+        let reach = self.trajectory_reach() + 1.0;
+        let speed = VELOCITY_MARGIN * self.trajectory_peak_speed();
+        let limit = f64::from(i32::MAX);
+        let counts = |x: f64, bits: u32| x / std::f64::consts::TAU * f64::from(1u32 << bits);
+        let fits_x = |b: u32| counts(reach, b) < limit;
+        let fits_v = |b: u32| counts(speed, b) < limit;
+        let max = (MIN_ENCODER_BITS..=31)
+            .rev()
+            .find(|&b| fits_x(b) && fits_v(b));
+        let next = max.map_or(MIN_ENCODER_BITS, |m| m + 1);
+        // The constraint that the next resolution up breaks (velocity first: it binds first
+        // for any motion faster than about 1 rad/s).
+        let binding = if next <= 31 && fits_v(next) {
+            format!("positions up to {reach:.1} rad must fit the wire's i32 counts")
+        } else {
+            format!(
+                "velocities up to {speed:.1} rad/s ({VELOCITY_MARGIN} × the peak speed, room for overshoot and the stop) must fit the wire's i32 counts/s"
+            )
+        };
+        EncoderBits {
+            range: MIN_ENCODER_BITS..=max.unwrap_or(MIN_ENCODER_BITS - 1),
+            reason: binding,
+        }
+    }
+
+    /// The largest |ẋ^d| the trajectory reaches [rad/s]: the cosine's peak speed, the
+    /// profiles' v_max (an upper bound when a move is too short to reach it).
+    pub fn trajectory_peak_speed(&self) -> f64 {
+        match &self.trajectory {
+            TrajectorySpec::Cosine { peak_speed, .. } => peak_speed.abs(),
+            TrajectorySpec::Trapezoid { v_max, .. } | TrajectorySpec::Sequence { v_max, .. } => {
+                v_max.abs()
+            }
+        }
+    }
+
+    /// The largest |x^d| the trajectory reaches [rad].
+    pub fn trajectory_reach(&self) -> f64 {
+        match &self.trajectory {
+            TrajectorySpec::Cosine { peak_speed, period } => {
+                2.0 * peak_speed * period.secs() / std::f64::consts::TAU
+            }
+            TrajectorySpec::Trapezoid { distance, .. } => distance.abs(),
+            TrajectorySpec::Sequence { targets, .. } => {
+                targets.iter().fold(0.0, |m, (x, _)| m.max(x.abs()))
+            }
+        }
+    }
+}
