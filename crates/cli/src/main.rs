@@ -1,8 +1,7 @@
 //! `ringsync`: plan, simulate and run a networked CNC ring with position synchronisation
-//! (Huang et al. 2015). Thin: parse, call the library crates, print.
+//! (Huang et al. 2015). Thin: parse the command line, call the `ringsync` library, print.
 
 mod latency_cmd;
-mod output;
 mod plan_cmd;
 mod rt_cmd;
 mod scenario_cmd;
@@ -58,12 +57,16 @@ enum CliError {
     /// The user's input is wrong: one line, exit status 2.
     Usage(String),
     /// The work failed: exit status 1.
-    Failure(anyhow::Error),
+    Failure(String),
 }
 
-impl From<anyhow::Error> for CliError {
-    fn from(e: anyhow::Error) -> Self {
-        CliError::Failure(e)
+impl From<ringsync::Error> for CliError {
+    fn from(e: ringsync::Error) -> Self {
+        if e.is_usage() {
+            CliError::Usage(e.to_string())
+        } else {
+            CliError::Failure(e.to_string())
+        }
     }
 }
 
@@ -114,16 +117,16 @@ pub(crate) fn out(text: &str) -> Result<Outcome, CliError> {
     {
         Ok(()) => Ok(Outcome::Done),
         Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(Outcome::Done),
-        Err(e) => Err(CliError::Failure(
-            anyhow::Error::new(e).context("cannot write to standard output"),
-        )),
+        Err(e) => Err(CliError::Failure(format!(
+            "cannot write to standard output: {e}"
+        ))),
     }
 }
 
 /// `text` with every line cut to a readable length.
 fn readable(text: &str) -> String {
     text.lines()
-        .map(|l| ringsync_model::scenario::clip_middle(l, ERROR_LINE_CHARS))
+        .map(|l| ringsync::layers::model::scenario::clip_middle(l, ERROR_LINE_CHARS))
         .collect::<Vec<_>>()
         .join("\n")
 }
@@ -164,7 +167,7 @@ fn main() -> ExitCode {
             ExitCode::from(EXIT_USAGE)
         }
         Err(CliError::Failure(e)) => {
-            eprintln!("ringsync: error: {}", readable(&format!("{e:#}")));
+            eprintln!("ringsync: error: {}", readable(&e));
             ExitCode::from(EXIT_FAILURE)
         }
     }

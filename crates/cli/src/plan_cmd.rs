@@ -2,10 +2,11 @@
 
 use std::path::PathBuf;
 
-use anyhow::Context as _;
 use clap::Args;
-use ringsync_proto::plan::parse_bit_rate;
-use ringsync_proto::{CyclePlan, Duration, PlanError, PlanKind, RingParams};
+use ringsync::layers::proto::PlanError;
+use ringsync::layers::proto::plan::parse_bit_rate;
+use ringsync::layers::report::{MAX_SVG_SLAVES, plan_json, plan_table, timing_svg};
+use ringsync::{Duration, PlanKind, RingParams};
 
 use crate::{CliError, Outcome};
 
@@ -92,7 +93,10 @@ fn option_of(field: &str) -> &'static str {
     }
 }
 
-fn usage(e: PlanError) -> CliError {
+fn usage(e: ringsync::Error) -> CliError {
+    let ringsync::Error::Plan(e) = e else {
+        return e.into();
+    };
     CliError::Usage(match e {
         PlanError::OutOfRange {
             field,
@@ -151,27 +155,26 @@ impl PlanArgs {
 /// Runs `ringsync plan`.
 pub(crate) fn run(args: &PlanArgs) -> Result<Outcome, CliError> {
     let params = args.params()?;
-    let plan = CyclePlan::new(&params).map_err(usage)?;
-    plan.check_fits_for(args.plan).map_err(usage)?;
+    let plan = ringsync::plan(&params, args.plan).map_err(usage)?;
     if let Some(path) = &args.svg {
-        let svg = ringsync_report::timing_svg(&plan).ok_or_else(|| {
+        let svg = timing_svg(&plan).ok_or_else(|| {
             CliError::Usage(format!(
-                "--svg draws at most {} slaves, --slaves is {}",
-                ringsync_report::MAX_SVG_SLAVES,
+                "--svg draws at most {MAX_SVG_SLAVES} slaves, --slaves is {}",
                 params.slaves
             ))
         })?;
-        crate::output::write_file(path, svg)?;
+        ringsync::output::write_file(path, svg)?;
     }
     if args.json {
-        let v = ringsync_report::plan_json(&plan, args.plan, args.events);
-        let text = serde_json::to_string_pretty(&v).context("cannot format JSON")?;
+        let v = plan_json(&plan, args.plan, args.events);
+        let text = serde_json::to_string_pretty(&v)
+            .map_err(|e| CliError::Failure(format!("cannot format JSON: {e}")))?;
         crate::out(&format!("{text}\n"))?;
     } else {
         if args.events {
             return Err(CliError::Usage("--events goes with --json".into()));
         }
-        let mut text = ringsync_report::plan_table(&plan, args.plan);
+        let mut text = plan_table(&plan, args.plan);
         if let Some(path) = &args.svg {
             text.push_str(&format!(
                 "\nTiming diagram written to {}.\n",

@@ -2,20 +2,11 @@
 
 use std::path::PathBuf;
 
-use anyhow::Context as _;
 use clap::{Args, ValueEnum};
-use ringsync_model::scenario::Scenario;
-use ringsync_proto::Duration;
-use ringsync_report::sim::{summary_json, trace_csv};
-use ringsync_rt::run::ASSUMPTIONS;
-use ringsync_rt::stats::Percentiles;
-use ringsync_rt::{
-    Flap, Forgery, Kill, Pin, Realtime, RtError, RtOptions, RtResult, TransportKind,
-};
-use ringsync_sim::SimPrediction;
-use serde_json::{Value, json};
+use ringsync::Duration;
+use ringsync::layers::runtime::{Flap, Forgery, Pin, Realtime};
+use ringsync::{Kill, RtOptions, TransportKind};
 
-use crate::scenario_cmd::usage;
 use crate::sim_cmd::out_dir;
 use crate::{CliError, Outcome, out};
 
@@ -142,118 +133,11 @@ impl RealtimeArgs {
     }
 }
 
-fn rt_error(e: RtError) -> CliError {
-    match e {
-        RtError::Scenario(e) => usage(e),
-        RtError::Config(m) => CliError::Usage(m),
-        other => CliError::Failure(anyhow::Error::new(other)),
-    }
-}
-
-pub(crate) fn pct(p: &Percentiles) -> Value {
-    json!({
-        "p50": p.p50 as f64 * 1e-3, "p99": p.p99 as f64 * 1e-3,
-        "p999": p.p999 as f64 * 1e-3, "max": p.max as f64 * 1e-3, "count": p.count,
-    })
-}
-
-/// The nodes' own "last seen" counters: frames each read, when it last read one, and the
-/// last cycle whose lumped frame it took.
-fn nodes_json(r: &RtResult) -> Value {
-    r.nodes_rx
-        .iter()
-        .enumerate()
-        .map(|(i, (frames, last))| {
-            json!({
-                "node": if i == 0 { "master".to_string() } else { format!("slave {i}") },
-                "frames_read": frames,
-                "last_frame_s": last,
-            })
-        })
-        .collect()
-}
-
-/// summary.json of a real-time run: the simulator's fields plus the timing.
-fn rt_summary(
-    r: &RtResult,
-    hash: u64,
-    transport: &str,
-    prediction: Option<SimPrediction>,
-) -> Value {
-    let mut v = summary_json(&r.scenario, hash, &r.run);
-    let t = &r.timing;
-    let c = &r.calibration;
-    let mc = &r.run.master;
-    let extra = json!({
-        "transport": transport,
-        "cycles_planned": t.cycles_planned,
-        "overruns": t.overruns,
-        "stalls_us": pct(&t.stalls),
-        "stall_threshold_us": ringsync_rt::timing::STALL as f64 * 1e-3,
-        "cycles_stalled": t.cycles_stalled,
-        "overruns_stalled": t.overruns_stalled,
-        "longest_outage_cycles": t.longest_outage,
-        "lateness_us": pct(&t.lateness),
-        "p2p_phase_us": pct(&t.p2p),
-        "late_or_lost_responses": mc.slices_failed,
-        "retries": mc.retries,
-        "retries_ok": mc.retries_ok,
-        "commands_lost": t.commands_lost,
-        "lumped_lost": t.lumped_lost,
-        "late_timers": t.late_timers,
-        "probes_late": t.probes_late,
-        "latches_late": t.latches_late,
-        "send_errors": t.send_errors,
-        "receive_errors": t.receive_errors,
-        "residual_clock_error_ns": {
-            "max": r.run.clock_error_max_ns.iter().copied().fold(0.0, f64::max),
-            "rms": r.run.clock_error_rms_ns.clone(),
-        },
-        "sim_prediction": prediction.map(|p| json!({
-            "track_rmse": p.track_rmse, "sync_rmse": p.sync_rmse,
-            "sync_rmse_min": p.sync_rmse_range.0, "sync_rmse_max": p.sync_rmse_range.1,
-            "seeds": p.seeds,
-            "note": "means over the seeds: one run's Sync-RMSE moves by about ±10 % with the seed",
-        })),
-        "calibration": {
-            "rounds": c.rounds,
-            "rounds_repeated_after_host_stalls": c.repeated,
-            "path_delay_us": c.path.iter().map(|d| *d as f64 * 1e-3).collect::<Vec<_>>(),
-            "round_trip_us": pct(&c.round_trip),
-            "slice_us": c.slice.iter().map(pct).collect::<Vec<_>>(),
-            "p2p_start_us": r.schedule.p2p_start as f64 * 1e-3,
-            "slice_used_us": r.schedule.slice as f64 * 1e-3,
-            "response_timeout_us": r.schedule.response_timeout as f64 * 1e-3,
-        },
-        "realtime": r.realtime,
-        "killed": r.killed.map(|(s, t)| json!({"slave": s, "at_s": t, "detected_after_cycles": r.detection_cycles})),
-        "nodes": nodes_json(r),
-        "injected": {
-            "garbage": r.injected.garbage,
-            "garbage_counted_malformed": r.injected.counted_malformed,
-            "forged": r.injected.forged.iter().map(|(f, n)| json!({"kind": f.name(), "frames": n})).collect::<Vec<_>>(),
-        },
-        "flap": {
-            "dropped_by_runtime_udp": t.flap_dropped,
-            "link_down_ms": t.flap_down_ns.map(|d| d as f64 * 1e-6),
-        },
-        "commands": {
-            "max_sent_v": r.run.command_max.0,
-            "max_applied_v": r.run.command_max.1,
-        },
-        "interrupted": r.interrupted,
-        "runtime_assumptions": ASSUMPTIONS,
-    });
-    if let (Value::Object(m), Value::Object(e)) = (&mut v, extra) {
-        m.extend(e);
-    }
-    v
-}
-
 /// Runs `ringsync rt`: exit status 3 when the run ends in a group stop, 1 when it is
 /// interrupted (its partial results written all the same).
 pub(crate) fn rt(args: &RtArgs) -> Result<Outcome, CliError> {
-    let (s, hash): (Scenario, u64) = Scenario::load_with_hash(&args.scenario).map_err(usage)?;
+    let loaded = ringsync::load(&args.scenario)?;
+    let s = &loaded.scenario;
     if !(args.inject_garbage >= 0.0 && args.inject_garbage <= 100_000.0) {
         return Err(CliError::Usage(format!(
             "--inject-garbage {} is out of range (0 to 100000 frames/s)",
@@ -271,13 +155,12 @@ pub(crate) fn rt(args: &RtArgs) -> Result<Outcome, CliError> {
         _ => None,
     };
     // Before the ring runs: an --out that cannot be written fails now, not after the run.
-    let mut dir = out_dir(&args.out, &args.scenario)?;
-    let transport = match args.transport {
-        Transport::Udp => TransportKind::Udp,
-        Transport::Veth => TransportKind::Veth,
-    };
+    let mut dir = out_dir(&args.out, &loaded)?;
     let opts = RtOptions {
-        transport,
+        transport: match args.transport {
+            Transport::Udp => TransportKind::Udp,
+            Transport::Veth => TransportKind::Veth,
+        },
         duration: args.duration,
         cycle: args.cycle,
         watchdog_cycles: args.watchdog_cycles,
@@ -295,103 +178,25 @@ pub(crate) fn rt(args: &RtArgs) -> Result<Outcome, CliError> {
         verbose: true,
         ..RtOptions::default()
     };
-    let stop = ringsync_rt::stop_flag();
-    let r = ringsync_rt::run(&s, &opts, stop).map_err(rt_error)?;
+    let stop = ringsync::layers::runtime::stop_flag();
+    let r = ringsync::run_rt(s, &opts, stop, Vec::new())?;
     // The simulator's prediction for the scenario as run (after the overrides).
     let prediction = if args.no_sim_prediction {
         None
     } else {
-        Some(
-            ringsync_sim::predict(&r.scenario, 8)
-                .map_err(|e| CliError::Failure(anyhow::Error::new(e)))?,
-        )
+        Some(ringsync::predict(&r.scenario, 8)?)
     };
-    let summary = rt_summary(&r, hash, transport.name(), prediction);
-    let text = serde_json::to_string_pretty(&summary).context("cannot format JSON")?;
-    dir.write("summary.json", format!("{text}\n"))?;
-    dir.write("trace.csv", trace_csv(&r.run))?;
-    if let Some(p) = &args.pcap {
-        dir.write_file(
-            p,
-            ringsync_report::pcap::pcapng(&r.run.captured, r.scenario.axes_count()),
-        )?;
-    }
+    ringsync::rt::write_rt(&mut dir, &r, loaded.hash, prediction, args.pcap.as_deref())?;
     dir.commit()?;
-    let t = &r.timing;
-    let m = &r.run.summary;
-    let mut text = format!(
-        "{} over {}: {} cycles{}, {} overruns ({:.3} %), {} of them in the {} cycles in which the host held the loop off its CPU for {:.0} µs or more; longest outage {} cycles\n  loop stalls per cycle p50 {:.1} µs, p99 {:.1} µs, p99.9 {:.1} µs, max {:.1} µs\n  cycle-start lateness p50 {:.1} µs, p99 {:.1} µs, p99.9 {:.1} µs, max {:.1} µs\n  P2P phase p50 {:.1} µs, p99 {:.1} µs; late or lost responses {}, retries {}, stale samples {}\n  Track-RMSE {:.6} rad, Sync-RMSE {:.7} rad",
-        r.scenario.name,
-        transport.name(),
-        t.cycles,
-        if r.interrupted { " (interrupted)" } else { "" },
-        t.overruns,
-        100.0 * t.overruns as f64 / t.cycles.max(1) as f64,
-        t.overruns_stalled,
-        t.cycles_stalled,
-        ringsync_rt::timing::STALL as f64 * 1e-3,
-        t.longest_outage,
-        t.stalls.p50 as f64 * 1e-3,
-        t.stalls.p99 as f64 * 1e-3,
-        t.stalls.p999 as f64 * 1e-3,
-        t.stalls.max as f64 * 1e-3,
-        t.lateness.p50 as f64 * 1e-3,
-        t.lateness.p99 as f64 * 1e-3,
-        t.lateness.p999 as f64 * 1e-3,
-        t.lateness.max as f64 * 1e-3,
-        t.p2p.p50 as f64 * 1e-3,
-        t.p2p.p99 as f64 * 1e-3,
-        r.run.master.slices_failed,
-        r.run.master.retries,
-        r.run.master.samples_stale,
-        m.track_rmse,
-        m.sync_rmse,
-    );
-    if let Some(p) = prediction {
-        text += &format!(
-            "\n  simulator, mean of {} seeds: Track-RMSE {:.6} rad, Sync-RMSE {:.7} rad ({:.7} to {:.7})",
-            p.seeds, p.track_rmse, p.sync_rmse, p.sync_rmse_range.0, p.sync_rmse_range.1
-        );
-    }
-    text += &format!(
-        "\n  residual clock error ≤ {:.0} ns",
-        r.run.clock_error_max_ns.iter().copied().fold(0.0, f64::max)
-    );
-    if r.injected.garbage > 0 {
-        text += &format!(
-            "\n  injected {} garbage frames; the nodes refused {} malformed frames",
-            r.injected.garbage, r.injected.counted_malformed
-        );
-    }
-    for (f, frames) in &r.injected.forged {
-        text += &format!("\n  injected {frames} forged frames ({})", f.name());
-    }
-    text += &format!(
-        "\n  rejected by the nodes: {}",
-        ringsync_rt::run::rejected_summary(&r.run)
-    );
-    if let Some((t_stop, reason)) = r.run.group_stop {
-        text += &format!(
-            "\n  GROUP STOP at {t_stop:.3} s{}: {} on axis {}; failed: {}",
-            r.detection_cycles.map_or(String::new(), |c| format!(
-                ", {c} cycles after the slave was taken out"
-            )),
-            reason.name(),
-            reason.axis() + 1,
-            r.run
-                .ring_break
-                .map_or("not located".to_string(), |b| b.describe())
-        );
-    }
-    text += &format!(
-        "\n  wrote {}/summary.json and trace.csv\n",
+    out(&format!(
+        "{}  wrote {}/summary.json and trace.csv\n",
+        ringsync::rt::rt_text(&r, prediction),
         args.out.display()
-    );
-    out(&text)?;
+    ))?;
     if r.interrupted {
-        return Err(CliError::Failure(anyhow::anyhow!(
-            "interrupted; partial results written, namespaces and links removed"
-        )));
+        return Err(CliError::Failure(
+            "interrupted; partial results written, namespaces and links removed".into(),
+        ));
     }
     Ok(Outcome::flagged_if(r.run.group_stop.is_some()))
 }

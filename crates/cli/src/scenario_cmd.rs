@@ -1,7 +1,8 @@
 //! `ringsync scenario` and `ringsync check`.
 
 use clap::{Args, Subcommand};
-use ringsync_model::{Scenario, ScenarioError, builtin, builtin_names};
+use ringsync::layers::report::{check_json, check_text};
+use ringsync::{Verdict, builtin, builtin_names};
 
 use crate::{CliError, Outcome, out};
 
@@ -22,16 +23,12 @@ pub enum ScenarioCmd {
     },
 }
 
-pub(crate) fn usage(e: ScenarioError) -> CliError {
-    CliError::Usage(e.to_string())
-}
-
 pub(crate) fn run(cmd: &ScenarioCmd) -> Result<Outcome, CliError> {
     match cmd {
         ScenarioCmd::List => {
             let mut text = String::new();
             for name in builtin_names() {
-                let s = Scenario::load(name).map_err(usage)?;
+                let s = ringsync::load(name)?.scenario;
                 text.push_str(&format!("{name:<14} {}\n", s.description));
             }
             out(&text)
@@ -44,7 +41,7 @@ pub(crate) fn run(cmd: &ScenarioCmd) -> Result<Outcome, CliError> {
             ))),
         },
         ScenarioCmd::Validate { scenario } => {
-            let s = Scenario::load(scenario).map_err(usage)?;
+            let s = ringsync::load(scenario)?.scenario;
             out(&format!(
                 "{scenario}: ok ({}, {} axes)\n",
                 s.name,
@@ -69,19 +66,14 @@ pub struct CheckArgs {
 
 /// Runs `ringsync check`: exit status 3 unless the verdict is stable.
 pub(crate) fn check(args: &CheckArgs) -> Result<Outcome, CliError> {
-    let s = Scenario::load(&args.scenario).map_err(usage)?;
-    let r = ringsync_model::check::check(&s, args.points as usize).map_err(|e| match e {
-        ringsync_model::check::CheckError::Scenario(e) => usage(e),
-        other => CliError::Failure(other.into()),
-    })?;
+    let s = ringsync::load(&args.scenario)?.scenario;
+    let r = ringsync::check(&s, args.points as usize)?;
     if args.json {
-        let text = serde_json::to_string_pretty(&ringsync_report::check_json(&r))
-            .map_err(|e| CliError::Failure(e.into()))?;
+        let text = serde_json::to_string_pretty(&check_json(&r))
+            .map_err(|e| CliError::Failure(format!("cannot format JSON: {e}")))?;
         out(&format!("{text}\n"))?;
     } else {
-        out(&ringsync_report::check_text(&r))?;
+        out(&check_text(&r))?;
     }
-    Ok(Outcome::flagged_if(
-        r.verdict() != ringsync_model::check::Verdict::Stable,
-    ))
+    Ok(Outcome::flagged_if(r.verdict() != Verdict::Stable))
 }

@@ -1,18 +1,12 @@
-//! `ringsync sim` and `ringsync reproduce`.
+//! `ringsync sim`, `ringsync reproduce` and `ringsync sweep`.
 
+use std::io::IsTerminal as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant as WallClock;
 
-use anyhow::Context as _;
 use clap::Args;
-use ringsync_model::scenario::{LawKind, Scenario};
-use ringsync_report::sim::{
-    ReproRow, repro_figures, repro_html, repro_json, repro_table, summary_json, trace_csv,
-};
-use ringsync_sim::run::{RunError, RunOptions, run};
+use ringsync::{Loaded, OutDir, SimOptions};
 
-use crate::output::OutDir;
-use crate::scenario_cmd::usage;
 use crate::{CliError, Outcome, out};
 
 /// Options of `ringsync sim`.
@@ -32,40 +26,31 @@ pub struct SimArgs {
     pcap: Option<PathBuf>,
 }
 
-fn run_error(e: RunError) -> CliError {
-    match e {
-        RunError::Scenario(e) => usage(e),
-        RunError::Unsupported(m) => CliError::Usage(m),
-    }
-}
-
 /// The results directory for `--out`, which must not hold the scenario file: it is replaced.
-pub(crate) fn out_dir(out: &Path, scenario: &str) -> Result<OutDir, CliError> {
+pub(crate) fn out_dir(out: &Path, scenario: &Loaded) -> Result<OutDir, CliError> {
     let dir = OutDir::create("--out", out)?;
-    if ringsync_model::builtin(scenario).is_none() {
-        dir.keep_out(Path::new(scenario))?;
+    if !scenario.is_builtin() {
+        dir.keep_out(Path::new(&scenario.origin))?;
     }
     Ok(dir)
 }
 
 /// Runs `ringsync sim`: exit status 3 when the run ends in a group stop.
 pub(crate) fn sim(args: &SimArgs) -> Result<Outcome, CliError> {
-    let (mut s, hash) = Scenario::load_with_hash(&args.scenario).map_err(usage)?;
+    let loaded = ringsync::load(&args.scenario)?;
+    let mut s = loaded.scenario.clone();
     if let Some(seed) = args.seed {
         s.seed = seed;
     }
-    let mut dir = out_dir(&args.out, &args.scenario)?;
+    let mut dir = out_dir(&args.out, &loaded)?;
     let wall = WallClock::now();
-    let opts = RunOptions {
+    let opts = SimOptions {
         trace: true,
         capture: args.pcap.is_some(),
-        ..RunOptions::default()
+        ..SimOptions::default()
     };
     // A progress line on a terminal once the run has taken more than a second.
-    let tty = {
-        use std::io::IsTerminal as _;
-        std::io::stderr().is_terminal()
-    };
+    let tty = std::io::stderr().is_terminal();
     let mut shown = false;
     let cycle_s = s.ring.cycle.secs();
     let mut progress = |done: i64, total: i64| {
@@ -79,53 +64,16 @@ pub(crate) fn sim(args: &SimArgs) -> Result<Outcome, CliError> {
             );
         }
     };
-    let r = ringsync_sim::run_with_progress(&s, opts, &mut progress).map_err(run_error)?;
+    let r = ringsync::simulate_with(&s, &opts, Vec::new(), &mut progress)?;
     if shown {
         eprintln!();
     }
     let elapsed = wall.elapsed();
-    if let Some(p) = &args.pcap {
-        dir.write_file(
-            p,
-            ringsync_report::pcap::pcapng(&r.captured, s.axes_count()),
-        )?;
-    }
-    let summary = summary_json(&s, hash, &r);
-    let text = serde_json::to_string_pretty(&summary).context("cannot format JSON")?;
-    dir.write("summary.json", format!("{text}\n"))?;
-    dir.write("trace.csv", trace_csv(&r))?;
-    let timing = match s.ring.plan {
-        ringsync_proto::PlanKind::P2pLumped => ringsync_proto::CyclePlan::new(&s.ring_params())
-            .ok()
-            .and_then(|p| ringsync_report::timing_svg(&p)),
-        ringsync_proto::PlanKind::LumpedOnly => None,
-    };
-    let figures = ringsync_report::sim::run_figures(timing, &r);
-    for (name, svg) in &figures {
-        dir.write(name, svg)?;
-    }
-    dir.write(
-        "report.html",
-        ringsync_report::sim::run_html(&s, hash, &r, &figures),
-    )?;
+    ringsync::write_sim(&mut dir, &s, loaded.hash, &r, args.pcap.as_deref())?;
     dir.commit()?;
     out(&format!(
-        "{}: {} cycles of {} axes, {} controller, estimator {}\n  Track-RMSE {:.6} rad, Sync-RMSE {:.7} rad\n  frames: {} sent by the master, {} lost, {} retried; clock error ≤ {:.0} ns\n  {}\n  wrote {}/summary.json, trace.csv, report.html and the figures (*.svg) in {:.1} ms\n",
-        s.name,
-        r.cycles,
-        s.axes_count(),
-        s.law_name(),
-        s.control.estimator.name(),
-        r.summary.track_rmse,
-        r.summary.sync_rmse,
-        r.master.frames_sent,
-        r.links.lost,
-        r.master.retries,
-        r.clock_error_max_ns.iter().copied().fold(0.0, f64::max),
-        match r.group_stop {
-            Some((t, reason)) => format!("GROUP STOP at {t:.3} s: {reason:?}"),
-            None => "no group stop".to_string(),
-        },
+        "{}  wrote {}/summary.json, trace.csv, report.html and the figures (*.svg) in {:.1} ms\n",
+        ringsync::sim_text(&s, &r),
         args.out.display(),
         elapsed.as_secs_f64() * 1e3
     ))?;
@@ -146,90 +94,21 @@ pub struct ReproduceArgs {
 
 /// Runs `ringsync reproduce`: exit status 3 when any case ends in a group stop.
 pub(crate) fn reproduce(args: &ReproduceArgs) -> Result<Outcome, CliError> {
-    let base = Scenario::load(&args.scenario).map_err(usage)?;
-    let dir = out_dir(&args.out, &args.scenario)?;
+    let loaded = ringsync::load(&args.scenario)?;
+    let base = &loaded.scenario;
+    let dir = out_dir(&args.out, &loaded)?;
     let wall = WallClock::now();
-    let laws = [LawKind::Pd, LawKind::Sync, LawKind::RingCoupled];
-    let plans = [
-        ringsync_proto::PlanKind::P2pLumped,
-        ringsync_proto::PlanKind::LumpedOnly,
-    ];
-    let combos: Vec<(ringsync_proto::PlanKind, LawKind)> = plans
-        .iter()
-        .flat_map(|&p| laws.iter().map(move |&l| (p, l)))
-        .collect();
-    // One single-threaded simulation per case, the cases in parallel.
-    let results: Vec<Result<(ReproRow, ringsync_model::RunResult), CliError>> =
-        std::thread::scope(|scope| {
-            let handles: Vec<_> = combos
-                .iter()
-                .map(|&(plan, law)| {
-                    let mut s = base.clone();
-                    s.control.law = law;
-                    s.ring.plan = plan;
-                    let figures =
-                        plan == ringsync_proto::PlanKind::P2pLumped && law != LawKind::RingCoupled;
-                    scope.spawn(move || {
-                        let r = run(
-                            &s,
-                            RunOptions {
-                                trace: figures,
-                                ..RunOptions::default()
-                            },
-                        )
-                        .map_err(run_error)?;
-                        let row = ReproRow {
-                            plan: s.ring.plan.name(),
-                            controller: law.name(),
-                            track_rmse: r.summary.track_rmse,
-                            sync_rmse: r.summary.sync_rmse,
-                        };
-                        Ok((row, r))
-                    })
-                })
-                .collect();
-            handles
-                .into_iter()
-                .map(|h| {
-                    h.join().unwrap_or_else(|_| {
-                        Err(CliError::Failure(anyhow::anyhow!(
-                            "a simulation thread panicked"
-                        )))
-                    })
-                })
-                .collect()
-        });
-    let done = results.into_iter().collect::<Result<Vec<_>, _>>()?;
-    let rows: Vec<ReproRow> = done.iter().map(|(row, _)| row.clone()).collect();
-    let table = repro_table(&rows);
-    let plan = ringsync_proto::CyclePlan::new(&base.ring_params()).ok();
-    let timing = plan.as_ref().and_then(ringsync_report::timing_svg);
-    let figures = repro_figures(timing, &done[0].1, &done[1].1);
-    for (name, svg) in &figures {
-        dir.write(name, svg)?;
-    }
-    dir.write("report.html", repro_html(&base, &rows, &figures))?;
-    let json = serde_json::to_string_pretty(&repro_json(&rows)).context("cannot format JSON")?;
-    dir.write("summary.json", format!("{json}\n"))?;
-    dir.write(
-        "table.md",
-        format!(
-            "# Table 1 of Huang et al. (2015) beside ringsync's `{}`\n\n{table}",
-            base.name
-        ),
-    )?;
+    let r = ringsync::reproduce(base)?;
+    ringsync::write_reproduction(&dir, &r)?;
     dir.commit()?;
-    let stopped: Vec<String> = done
-        .iter()
-        .filter(|(_, r)| r.group_stop.is_some())
-        .map(|(row, _)| format!("{} on {}", row.controller, row.plan))
-        .collect();
+    let stopped = r.stopped();
     out(&format!(
-        "Scenario {} ({} axes, {} s, estimator {}), Table 1 [rad]:\n\n{table}\nAssumptions of the scenario: scenarios/{}.toml; of the simulator: summary.json of `ringsync sim`.\nWrote {}/summary.json, table.md, report.html and the figures (fig*.svg) in {:.1} ms.\n",
+        "Scenario {} ({} axes, {} s, estimator {}), Table 1 [rad]:\n\n{}\nAssumptions of the scenario: scenarios/{}.toml; of the simulator: summary.json of `ringsync sim`.\nWrote {}/summary.json, table.md, report.html and the figures (fig*.svg) in {:.1} ms.\n",
         base.name,
         base.axes_count(),
         base.duration.secs(),
         base.control.estimator.name(),
+        r.table(),
         base.name,
         args.out.display(),
         wall.elapsed().as_secs_f64() * 1e3
@@ -240,9 +119,6 @@ pub(crate) fn reproduce(args: &ReproduceArgs) -> Result<Outcome, CliError> {
     Ok(Outcome::flagged_if(!stopped.is_empty()))
 }
 
-/// The (key, value) pairs that name one case of a sweep.
-type Labels = Vec<(String, String)>;
-
 /// Options of `ringsync sweep`.
 #[derive(Args, Debug)]
 pub struct SweepArgs {
@@ -250,7 +126,7 @@ pub struct SweepArgs {
     scenario: String,
     /// A key and its values, e.g. `faults.loss=0,0.01,0.02`; several give their product.
     #[arg(long = "set", value_name = "KEY=V1,V2,…", required = true)]
-    set: Vec<ringsync_sim::sweep::SweepAxis>,
+    set: Vec<ringsync::sweep::SweepAxis>,
     /// Seeds per case (the scenario's seed, +1, …); means are over them.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=1000))]
     seeds: u32,
@@ -268,24 +144,14 @@ pub struct SweepArgs {
 
 /// Runs `ringsync sweep`: exit status 3 when any case ends in a group stop.
 pub(crate) fn sweep(args: &SweepArgs) -> Result<Outcome, CliError> {
-    use std::fmt::Write as _;
-    use std::io::IsTerminal as _;
-    let text = Scenario::text(&args.scenario).map_err(usage)?;
-    let cases = ringsync_sim::sweep::cases(
-        &text,
-        &args.scenario,
-        &args.set,
-        args.seeds,
-        args.auto_cycle,
-    )
-    .map_err(usage)?;
-    let dir = out_dir(&args.out, &args.scenario)?;
-    let jobs = args
-        .jobs
-        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    use ringsync::sweep::{Sweep, cases, run_cases, write_sweep};
+    let base = ringsync::load(&args.scenario)?;
+    let cases = cases(&base, &args.set, args.seeds, args.auto_cycle)?;
+    let dir = out_dir(&args.out, &base)?;
+    let jobs = args.jobs.unwrap_or_else(ringsync::sweep::default_jobs);
     let tty = std::io::stderr().is_terminal();
     let wall = WallClock::now();
-    let results = ringsync_sim::sweep::run_all(&cases, jobs, &|done, total| {
+    let results = run_cases(&cases, jobs, &|done, total| {
         if tty {
             eprint!("\r  case {done}/{total}");
         }
@@ -293,133 +159,14 @@ pub(crate) fn sweep(args: &SweepArgs) -> Result<Outcome, CliError> {
     if tty {
         eprintln!();
     }
-    let keys: Vec<&str> = args.set.iter().map(|a| a.key.as_str()).collect();
-    let mut csv = format!(
-        "{},seed,track_rmse,sync_rmse,lumped_lost,retries,commands_lost,clock_error_max_ns,group_stop_s\n",
-        keys.join(",")
-    );
-    for (c, r) in cases.iter().zip(&results) {
-        let vals: Vec<&str> = c.labels.iter().map(|(_, v)| v.as_str()).collect();
-        match r {
-            Ok(r) => {
-                let _ = writeln!(
-                    csv,
-                    "{},{},{:.9},{:.9},{},{},{},{:.0},{}",
-                    vals.join(","),
-                    c.seed,
-                    r.summary.track_rmse,
-                    r.summary.sync_rmse,
-                    r.master.lumped_lost,
-                    r.master.retries,
-                    r.master.commands_lost,
-                    r.clock_error_max_ns.iter().copied().fold(0.0, f64::max),
-                    r.group_stop
-                        .map_or(String::new(), |(t, _)| format!("{t:.4}"))
-                );
-            }
-            Err(e) => return Err(CliError::Usage(format!("case {}: {e}", vals.join(" ")))),
-        }
-    }
-    dir.write("sweep.csv", &csv)?;
-    // Means over seeds, per combination, in order.
-    let mut means: Vec<(Labels, Vec<(f64, f64)>)> = Vec::new();
-    for (c, r) in cases.iter().zip(&results) {
-        if let Ok(r) = r {
-            match means.last_mut() {
-                Some((l, v)) if *l == c.labels => {
-                    v.push((r.summary.track_rmse, r.summary.sync_rmse))
-                }
-                _ => means.push((
-                    c.labels.clone(),
-                    vec![(r.summary.track_rmse, r.summary.sync_rmse)],
-                )),
-            }
-        }
-    }
-    let mut mcsv = format!(
-        "{},runs,track_rmse_mean,sync_rmse_mean,sync_rmse_std\n",
-        keys.join(",")
-    );
-    let mut table = format!(
-        "| {} | runs | Track-RMSE [rad] | Sync-RMSE [rad] (± std over seeds) |\n|{}---:|---:|---:|\n",
-        keys.join(" | "),
-        "---|".repeat(keys.len())
-    );
-    for (labels, v) in &means {
-        let n = v.len() as f64;
-        let mt = v.iter().map(|x| x.0).sum::<f64>() / n;
-        let ms = v.iter().map(|x| x.1).sum::<f64>() / n;
-        let sd = (v.iter().map(|x| (x.1 - ms).powi(2)).sum::<f64>() / n).sqrt();
-        let vals: Vec<&str> = labels.iter().map(|(_, v)| v.as_str()).collect();
-        let _ = writeln!(
-            mcsv,
-            "{},{},{:.9},{:.9},{:.9}",
-            vals.join(","),
-            v.len(),
-            mt,
-            ms,
-            sd
-        );
-        let _ = writeln!(
-            table,
-            "| {} | {} | {:.5} | {:.7} ± {:.7} |",
-            vals.join(" | "),
-            v.len(),
-            mt,
-            ms,
-            sd
-        );
-    }
-    dir.write("means.csv", &mcsv)?;
-    // Figure: mean Sync-RMSE against the first key, one line per value of the others.
-    let mut groups: Vec<(String, Vec<(f64, f64)>)> = Vec::new();
-    for (k, (labels, v)) in means.iter().enumerate() {
-        let name = labels[1..]
-            .iter()
-            .map(|(k, v)| format!("{k}={v}"))
-            .collect::<Vec<_>>()
-            .join(", ");
-        let x = labels[0].1.parse::<f64>().unwrap_or(k as f64);
-        let ms = v.iter().map(|x| x.1).sum::<f64>() / v.len() as f64;
-        match groups.iter_mut().find(|(n, _)| *n == name) {
-            Some((_, pts)) => pts.push((x, ms)),
-            None => groups.push((name, vec![(x, ms)])),
-        }
-    }
-    let series: Vec<ringsync_report::plot::Series<'_>> = groups
-        .into_iter()
-        .enumerate()
-        .map(|(i, (name, points))| ringsync_report::plot::Series {
-            name: if name.is_empty() {
-                "Sync-RMSE".into()
-            } else {
-                name
-            },
-            colour: ringsync_report::plot::PALETTE[i % ringsync_report::plot::PALETTE.len()],
-            points,
-        })
-        .collect();
-    let svg = ringsync_report::plot::line_chart(
-        &format!(
-            "Sync-RMSE against {} ({}, mean of {} seed{})",
-            keys[0],
-            args.scenario,
-            args.seeds,
-            if args.seeds == 1 { "" } else { "s" }
-        ),
-        keys[0],
-        "Sync-RMSE [rad]",
-        &series,
-    );
-    dir.write("sweep.svg", &svg)?;
+    let n = cases.len();
+    let sw = Sweep::new(&base, &args.set, args.seeds, cases, results)?;
+    write_sweep(&dir, &sw)?;
     dir.commit()?;
-    let stopped = results
-        .iter()
-        .filter(|r| r.as_ref().is_ok_and(|r| r.group_stop.is_some()))
-        .count();
+    let stopped = sw.stopped();
     out(&format!(
-        "{table}\n{} runs on {jobs} threads in {:.2} s; wrote {}/sweep.csv, means.csv and sweep.svg\n{}",
-        cases.len(),
+        "{}\n{n} runs on {jobs} threads in {:.2} s; wrote {}/sweep.csv, means.csv and sweep.svg\n{}",
+        sw.table(),
         wall.elapsed().as_secs_f64(),
         args.out.display(),
         if stopped > 0 {

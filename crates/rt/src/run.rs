@@ -117,6 +117,8 @@ impl Default for RtOptions {
 pub struct RtResult {
     /// The scenario as run (with the overrides).
     pub scenario: Scenario,
+    /// The transport the frames travelled on.
+    pub transport: TransportKind,
     /// The same result a simulation gives: metrics, counters, trace, faults.
     pub run: RunResult,
     /// Timing statistics.
@@ -390,6 +392,7 @@ pub fn run_observed(
             .sum::<u64>();
     Ok(RtResult {
         scenario: spec.scenario,
+        transport: opts.transport,
         run,
         timing,
         calibration: cal,

@@ -6,7 +6,6 @@ mod kernel;
 mod link;
 pub mod predict;
 pub mod run;
-pub mod sweep;
 
 pub use predict::{SimPrediction, predict};
 pub use ringsync_model::result::RunResult;

@@ -13,16 +13,14 @@
 
 use std::path::{Path, PathBuf};
 
-use anyhow::Context as _;
-
-use crate::CliError;
+use crate::error::{Error, Result};
 
 /// Files at the top of a directory that mark it as ringsync's results, safe to replace.
 const RESULT_MARKERS: &[&str] = &["summary.json", "sweep.csv"];
 
 /// A results directory being written; see the module documentation.
 #[derive(Debug)]
-pub(crate) struct OutDir {
+pub struct OutDir {
     /// Where the results go (absolute, symbolic links resolved).
     path: PathBuf,
     /// Where they are written until [`OutDir::commit`].
@@ -39,15 +37,15 @@ fn sibling(path: &Path, what: &str, pid: u32) -> PathBuf {
     path.with_file_name(format!(".{name}.{what}-{pid}"))
 }
 
-fn failure(e: std::io::Error, what: String) -> CliError {
-    CliError::Failure(anyhow::Error::new(e).context(what))
+fn failure(e: std::io::Error, what: String) -> Error {
+    Error::io(what, e)
 }
 
 /// `path` made absolute with its longest existing ancestor's symbolic links resolved, so
 /// that two spellings of one place compare equal.
-fn resolved(path: &Path) -> Result<PathBuf, CliError> {
-    let abs =
-        std::path::absolute(path).with_context(|| format!("cannot resolve {}", path.display()))?;
+fn resolved(path: &Path) -> Result<PathBuf> {
+    let abs = std::path::absolute(path)
+        .map_err(|e| failure(e, format!("cannot resolve {}", path.display())))?;
     let mut rest = Vec::new();
     let mut at = abs.as_path();
     loop {
@@ -90,7 +88,7 @@ fn remove_stale(path: &Path) {
 }
 
 /// Whether an existing directory may be replaced: empty, or a ringsync result.
-fn replaceable(dir: &Path) -> Result<bool, CliError> {
+fn replaceable(dir: &Path) -> Result<bool> {
     let mut entries =
         std::fs::read_dir(dir).map_err(|e| failure(e, format!("cannot read {}", dir.display())))?;
     Ok(entries.next().is_none() || RESULT_MARKERS.iter().any(|m| dir.join(m).is_file()))
@@ -99,22 +97,22 @@ fn replaceable(dir: &Path) -> Result<bool, CliError> {
 impl OutDir {
     /// Checks `path` (`option` names it in errors) and creates the temporary directory
     /// beside it, creating missing parents.
-    pub(crate) fn create(option: &str, path: &Path) -> Result<Self, CliError> {
+    pub fn create(option: &str, path: &Path) -> Result<Self> {
         let shown = path.display();
         let path = resolved(path)?;
         if path.file_name().is_none() {
-            return Err(CliError::Usage(format!(
+            return Err(Error::Input(format!(
                 "{option} {shown} names no directory that could be replaced"
             )));
         }
         if path.exists() {
             if !path.is_dir() {
-                return Err(CliError::Usage(format!(
+                return Err(Error::Input(format!(
                     "{option} {shown} exists and is not a directory"
                 )));
             }
             if !replaceable(&path)? {
-                return Err(CliError::Usage(format!(
+                return Err(Error::Input(format!(
                     "{option} {shown} is not empty and holds no ringsync results (summary.json or sweep.csv): the run replaces {option} as a whole, so choose a new or empty directory"
                 )));
             }
@@ -135,7 +133,7 @@ impl OutDir {
     }
 
     /// Writes `bytes` as the file `name` of the results.
-    pub(crate) fn write(&self, name: &str, bytes: impl AsRef<[u8]>) -> Result<(), CliError> {
+    pub fn write(&self, name: &str, bytes: impl AsRef<[u8]>) -> Result<()> {
         let p = self.tmp.join(name);
         if let Some(dir) = p.parent() {
             std::fs::create_dir_all(dir)
@@ -151,14 +149,10 @@ impl OutDir {
 
     /// Writes `bytes` to the file `path` given by an option (e.g. `--pcap`): inside the
     /// results directory with the rest, elsewhere beside its place until [`OutDir::commit`].
-    pub(crate) fn write_file(
-        &mut self,
-        path: &Path,
-        bytes: impl AsRef<[u8]>,
-    ) -> Result<(), CliError> {
+    pub fn write_file(&mut self, path: &Path, bytes: impl AsRef<[u8]>) -> Result<()> {
         let full = resolved(path)?;
         if full == self.path {
-            return Err(CliError::Usage(format!(
+            return Err(Error::Input(format!(
                 "{} is the results directory, not a file beside it",
                 path.display()
             )));
@@ -177,9 +171,9 @@ impl OutDir {
 
     /// Refuses an input file (the scenario) inside the results directory, which the run
     /// would replace.
-    pub(crate) fn keep_out(&self, input: &Path) -> Result<(), CliError> {
+    pub fn keep_out(&self, input: &Path) -> Result<()> {
         if input.is_file() && resolved(input)?.starts_with(&self.path) {
-            return Err(CliError::Usage(format!(
+            return Err(Error::Input(format!(
                 "{} is inside the results directory, which the run replaces as a whole: move it out or choose another --out",
                 input.display()
             )));
@@ -189,7 +183,7 @@ impl OutDir {
 
     /// Replaces the results directory by the new one, then moves the files outside it into
     /// place.
-    pub(crate) fn commit(mut self) -> Result<(), CliError> {
+    pub fn commit(mut self) -> Result<()> {
         let old = sibling(&self.path, "old", std::process::id());
         let had_old = self.path.exists();
         if had_old {
@@ -230,7 +224,7 @@ impl Drop for OutDir {
 }
 
 /// Writes one file atomically: to `.NAME.tmp-<pid>` beside it, then renamed into place.
-pub(crate) fn write_file(path: &Path, bytes: impl AsRef<[u8]>) -> Result<(), CliError> {
+pub fn write_file(path: &Path, bytes: impl AsRef<[u8]>) -> Result<()> {
     let tmp = sibling(path, "tmp", std::process::id());
     let done = std::fs::write(&tmp, bytes).and_then(|()| std::fs::rename(&tmp, path));
     if let Err(e) = done {
@@ -325,9 +319,9 @@ mod tests {
         let base = scratch("guard");
         std::fs::write(base.join("notes.txt"), "mine").expect("write");
         let e = OutDir::create("--out", &base).expect_err("not a result");
-        assert!(matches!(e, CliError::Usage(m) if m.contains("holds no ringsync results")));
+        assert!(matches!(e, Error::Input(m) if m.contains("holds no ringsync results")));
         let e = OutDir::create("--out", &base.join("notes.txt")).expect_err("a file");
-        assert!(matches!(e, CliError::Usage(m) if m.contains("is not a directory")));
+        assert!(matches!(e, Error::Input(m) if m.contains("is not a directory")));
         assert_eq!(files(&base), ["notes.txt"]);
         // A temporary of a process that is gone is cleared by the next run.
         let stale = base.join(".run.tmp-4294967295");

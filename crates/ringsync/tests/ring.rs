@@ -5,14 +5,19 @@
 use std::sync::atomic::AtomicBool;
 use std::sync::{Mutex, OnceLock};
 
-use ringsync_model::Scenario;
-use ringsync_model::locate::RingBreak;
-use ringsync_model::record::FaultStep;
-use ringsync_proto::Duration;
-use ringsync_proto::node::Reject;
-use ringsync_rt::netns::ringsync_namespaces;
-use ringsync_rt::{Flap, Forgery, Kill, RtOptions, RtResult, TransportKind, run};
-use ringsync_sim::{SimPrediction, predict as sim_prediction};
+use ringsync::layers::model::locate::RingBreak;
+use ringsync::layers::proto::node::Reject;
+use ringsync::layers::runtime::netns::ringsync_namespaces;
+use ringsync::layers::runtime::{Flap, Forgery};
+use ringsync::{
+    Duration, FaultStep, Kill, RtOptions, RtResult, Scenario, SimPrediction, TransportKind,
+    predict as sim_prediction,
+};
+
+/// A real-time run through the front door.
+fn run(s: &Scenario, opts: &RtOptions, stop: &AtomicBool) -> ringsync::Result<RtResult> {
+    ringsync::run_rt(s, opts, stop, Vec::new())
+}
 
 static SERIAL: Mutex<()> = Mutex::new(());
 static PREDICTION: OnceLock<SimPrediction> = OnceLock::new();
@@ -72,7 +77,7 @@ fn run_undisturbed(opts: RtOptions) -> RtResult {
             t.stalls.max / 1_000,
             t.overruns_stalled,
             r.run.group_stop,
-            ringsync_rt::run::rejected_summary(&r.run)
+            ringsync::layers::runtime::run::rejected_summary(&r.run)
         );
         Some(format!(
             "outage of {} cycles, {unstarted} unstarted (W = {w}), host stall up to {} µs",
@@ -101,7 +106,7 @@ fn run_uncut(opts: RtOptions, cut: impl Fn(&RtResult) -> Option<String>) -> RtRe
                     r.timing.stalls,
                     r.run.group_stop,
                     r.run.ring_break,
-                    ringsync_rt::run::rejected_summary(&r.run)
+                    ringsync::layers::runtime::run::rejected_summary(&r.run)
                 );
                 why.push(w);
             }
@@ -154,7 +159,7 @@ fn matches_simulator(r: &RtResult) {
     // The reference as the runtime runs it: the default scenario with the runtime's
     // sampling lead and the W of a virtual machine.
     let mut reference = Scenario::default();
-    reference.clock.sample_lead.0 = ringsync_rt::run::SAMPLE_LEAD;
+    reference.clock.sample_lead.0 = ringsync::layers::runtime::run::SAMPLE_LEAD;
     reference.faults.watchdog_cycles = VM_W;
     assert_eq!(r.scenario, reference, "the prediction is for the reference");
     let m = &r.run.summary;
@@ -331,7 +336,7 @@ fn forged_frames_are_refused_and_change_nothing() {
         );
         let slaves = r.run.slaves.iter().fold(
             Default::default(),
-            |a: ringsync_proto::node::Rejections, c| a.plus(&c.rejected),
+            |a: ringsync::layers::proto::node::Rejections, c| a.plus(&c.rejected),
         );
         let n = r.run.slaves.len() as u64;
         // Every forged command reaches its target and is refused (a few may still be in a

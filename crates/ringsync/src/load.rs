@@ -1,0 +1,63 @@
+//! Loading a scenario: a built-in name (`paper-2015`), a file path, or TOML text. What comes
+//! back is validated, with the hash of its text that names the exact input in every output.
+
+use ringsync_model::Scenario;
+use ringsync_model::scenario::fnv1a;
+
+use crate::error::Result;
+
+/// A scenario as loaded.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Loaded {
+    /// The scenario, validated.
+    pub scenario: Scenario,
+    /// Where it came from: the built-in name, the path, or the origin given with the text.
+    pub origin: String,
+    /// Its TOML text (a sweep's cases are made from it).
+    pub text: String,
+    /// FNV-1a 64-bit hash of the text.
+    pub hash: u64,
+}
+
+impl Loaded {
+    /// Whether it is a built-in scenario (a file of that name is not looked at).
+    pub fn is_builtin(&self) -> bool {
+        ringsync_model::builtin(&self.origin).is_some()
+    }
+}
+
+/// Loads a built-in scenario by name or a scenario file by path.
+///
+/// ```
+/// let l = ringsync::load("paper-2015")?;
+/// assert_eq!(l.scenario.axes_count(), 4);
+/// assert!(l.is_builtin());
+/// // A missing file names the built-in scenarios.
+/// let e = ringsync::load("no-such-file.toml").unwrap_err();
+/// assert!(e.is_usage() && e.to_string().contains("paper-2015"));
+/// # Ok::<(), ringsync::Error>(())
+/// ```
+pub fn load(name_or_path: &str) -> Result<Loaded> {
+    let text = Scenario::text(name_or_path)?;
+    parse(&text, name_or_path)
+}
+
+/// Parses and validates TOML text; `origin` names it in errors and outputs. Every key is
+/// optional (a missing one takes the reference scenario's value).
+///
+/// ```
+/// let l = ringsync::parse("duration = \"0.5s\"\n[ring]\nslaves = 2\n", "inline")?;
+/// assert_eq!(l.scenario.axes_count(), 2);
+/// let e = ringsync::parse("[ring]\nslaves = 0\n", "inline").unwrap_err();
+/// assert!(e.to_string().contains("ring.slaves"), "{e}");
+/// # Ok::<(), ringsync::Error>(())
+/// ```
+pub fn parse(text: &str, origin: &str) -> Result<Loaded> {
+    let scenario = Scenario::from_toml(text, origin)?;
+    Ok(Loaded {
+        scenario,
+        origin: origin.to_string(),
+        hash: fnv1a(text.as_bytes()),
+        text: text.to_string(),
+    })
+}

@@ -1,0 +1,313 @@
+//! The real-time runtime through the front door: run a scenario's motion in real time over
+//! UDP on loopback or a veth ring, the simulator's prediction beside it, its results
+//! written; and the host probe behind `ringsync latency`.
+//!
+//! ```no_run
+//! use std::sync::atomic::AtomicBool;
+//! let s = ringsync::load("paper-2015")?.scenario;
+//! let opts = ringsync::RtOptions { transport: ringsync::TransportKind::Udp, ..Default::default() };
+//! let stop = AtomicBool::new(false); // raise it (e.g. from a signal handler) to end early
+//! let r = ringsync::run_rt(&s, &opts, &stop, Vec::new())?;
+//! println!("{}", ringsync::rt::rt_text(&r, None));
+//! # Ok::<(), ringsync::Error>(())
+//! ```
+
+use std::path::Path;
+use std::sync::atomic::AtomicBool;
+
+use ringsync_model::Scenario;
+use ringsync_model::observer::Observer;
+use ringsync_report::sim::{summary_json, trace_csv};
+use ringsync_rt::host::{HostError, HostLatency, HostOptions};
+use ringsync_rt::run::ASSUMPTIONS;
+use ringsync_rt::stats::Percentiles;
+use ringsync_rt::{RtOptions, RtResult};
+pub use ringsync_sim::SimPrediction;
+use serde_json::{Value, json};
+
+use crate::error::{Error, Result};
+use crate::output::OutDir;
+
+/// Runs `s` in real time; `stop` ends the run early when raised (its partial results come
+/// back with `interrupted` set); `observers` are told every cycle and event from the
+/// real-time loop (each call must be short: copy into a buffer, never block).
+pub fn run_rt(
+    s: &Scenario,
+    opts: &RtOptions,
+    stop: &AtomicBool,
+    observers: Vec<Box<dyn Observer>>,
+) -> Result<RtResult> {
+    Ok(ringsync_rt::run_observed(s, opts, stop, observers)?)
+}
+
+/// The simulator's prediction for `s`: means over `seeds` seeds from its own (one run's
+/// Sync-RMSE moves by about ±10 % with the seed; a real-time run is one more draw).
+///
+/// ```
+/// let mut s = ringsync::load("paper-2015")?.scenario;
+/// s.duration.0 = ringsync::Duration::from_ms(200);
+/// let p = ringsync::predict(&s, 3)?;
+/// assert_eq!(p.seeds, 3);
+/// assert!(p.sync_rmse_range.0 <= p.sync_rmse && p.sync_rmse <= p.sync_rmse_range.1);
+/// # Ok::<(), ringsync::Error>(())
+/// ```
+pub fn predict(s: &Scenario, seeds: u64) -> Result<SimPrediction> {
+    Ok(ringsync_sim::predict(s, seeds)?)
+}
+
+/// Writes a real-time run into `dir`: `summary.json` (the simulator's fields, the timing,
+/// the calibration, the prediction when given), `trace.csv`, and the frames sent as pcapng
+/// to `pcap` when given. `hash` is the scenario text's hash, `transport` its name.
+pub fn write_rt(
+    dir: &mut OutDir,
+    r: &RtResult,
+    hash: u64,
+    prediction: Option<SimPrediction>,
+    pcap: Option<&Path>,
+) -> Result<()> {
+    let summary = rt_summary(r, hash, r.transport.name(), prediction);
+    dir.write(
+        "summary.json",
+        format!("{}\n", serde_json::to_string_pretty(&summary)?),
+    )?;
+    dir.write("trace.csv", trace_csv(&r.run))?;
+    if let Some(p) = pcap {
+        dir.write_file(
+            p,
+            ringsync_report::pcap::pcapng(&r.run.captured, r.scenario.axes_count()),
+        )?;
+    }
+    Ok(())
+}
+
+/// Percentiles in µs as JSON: p50, p99, p99.9, max and the count.
+pub fn pct(p: &Percentiles) -> Value {
+    json!({
+        "p50": p.p50 as f64 * 1e-3, "p99": p.p99 as f64 * 1e-3,
+        "p999": p.p999 as f64 * 1e-3, "max": p.max as f64 * 1e-3, "count": p.count,
+    })
+}
+
+/// The nodes' own "last seen" counters: frames each read, when it last read one, and the
+/// last cycle whose lumped frame it took.
+fn nodes_json(r: &RtResult) -> Value {
+    r.nodes_rx
+        .iter()
+        .enumerate()
+        .map(|(i, (frames, last))| {
+            json!({
+                "node": if i == 0 { "master".to_string() } else { format!("slave {i}") },
+                "frames_read": frames,
+                "last_frame_s": last,
+            })
+        })
+        .collect()
+}
+
+/// summary.json of a real-time run: the simulator's fields plus the timing.
+fn rt_summary(
+    r: &RtResult,
+    hash: u64,
+    transport: &str,
+    prediction: Option<SimPrediction>,
+) -> Value {
+    let mut v = summary_json(&r.scenario, hash, &r.run);
+    let t = &r.timing;
+    let c = &r.calibration;
+    let mc = &r.run.master;
+    let extra = json!({
+        "transport": transport,
+        "cycles_planned": t.cycles_planned,
+        "overruns": t.overruns,
+        "stalls_us": pct(&t.stalls),
+        "stall_threshold_us": ringsync_rt::timing::STALL as f64 * 1e-3,
+        "cycles_stalled": t.cycles_stalled,
+        "overruns_stalled": t.overruns_stalled,
+        "longest_outage_cycles": t.longest_outage,
+        "lateness_us": pct(&t.lateness),
+        "p2p_phase_us": pct(&t.p2p),
+        "late_or_lost_responses": mc.slices_failed,
+        "retries": mc.retries,
+        "retries_ok": mc.retries_ok,
+        "commands_lost": t.commands_lost,
+        "lumped_lost": t.lumped_lost,
+        "late_timers": t.late_timers,
+        "probes_late": t.probes_late,
+        "latches_late": t.latches_late,
+        "send_errors": t.send_errors,
+        "receive_errors": t.receive_errors,
+        "residual_clock_error_ns": {
+            "max": r.run.clock_error_max_ns.iter().copied().fold(0.0, f64::max),
+            "rms": r.run.clock_error_rms_ns.clone(),
+        },
+        "sim_prediction": prediction.map(|p| json!({
+            "track_rmse": p.track_rmse, "sync_rmse": p.sync_rmse,
+            "sync_rmse_min": p.sync_rmse_range.0, "sync_rmse_max": p.sync_rmse_range.1,
+            "seeds": p.seeds,
+            "note": "means over the seeds: one run's Sync-RMSE moves by about ±10 % with the seed",
+        })),
+        "calibration": {
+            "rounds": c.rounds,
+            "rounds_repeated_after_host_stalls": c.repeated,
+            "path_delay_us": c.path.iter().map(|d| *d as f64 * 1e-3).collect::<Vec<_>>(),
+            "round_trip_us": pct(&c.round_trip),
+            "slice_us": c.slice.iter().map(pct).collect::<Vec<_>>(),
+            "p2p_start_us": r.schedule.p2p_start as f64 * 1e-3,
+            "slice_used_us": r.schedule.slice as f64 * 1e-3,
+            "response_timeout_us": r.schedule.response_timeout as f64 * 1e-3,
+        },
+        "realtime": r.realtime,
+        "killed": r.killed.map(|(s, t)| json!({"slave": s, "at_s": t, "detected_after_cycles": r.detection_cycles})),
+        "nodes": nodes_json(r),
+        "injected": {
+            "garbage": r.injected.garbage,
+            "garbage_counted_malformed": r.injected.counted_malformed,
+            "forged": r.injected.forged.iter().map(|(f, n)| json!({"kind": f.name(), "frames": n})).collect::<Vec<_>>(),
+        },
+        "flap": {
+            "dropped_by_runtime_udp": t.flap_dropped,
+            "link_down_ms": t.flap_down_ns.map(|d| d as f64 * 1e-6),
+        },
+        "commands": {
+            "max_sent_v": r.run.command_max.0,
+            "max_applied_v": r.run.command_max.1,
+        },
+        "interrupted": r.interrupted,
+        "runtime_assumptions": ASSUMPTIONS,
+    });
+    if let (Value::Object(m), Value::Object(e)) = (&mut v, extra) {
+        m.extend(e);
+    }
+    v
+}
+
+/// The run in a paragraph: cycles, overruns and the host's stalls, lateness, the P2P phase,
+/// the metrics beside the prediction, clock error, injections, rejections, the group stop.
+pub fn rt_text(r: &RtResult, prediction: Option<SimPrediction>) -> String {
+    let transport = r.transport;
+    let t = &r.timing;
+    let m = &r.run.summary;
+    let mut text = format!(
+        "{} over {}: {} cycles{}, {} overruns ({:.3} %), {} of them in the {} cycles in which the host held the loop off its CPU for {:.0} µs or more; longest outage {} cycles\n  loop stalls per cycle p50 {:.1} µs, p99 {:.1} µs, p99.9 {:.1} µs, max {:.1} µs\n  cycle-start lateness p50 {:.1} µs, p99 {:.1} µs, p99.9 {:.1} µs, max {:.1} µs\n  P2P phase p50 {:.1} µs, p99 {:.1} µs; late or lost responses {}, retries {}, stale samples {}\n  Track-RMSE {:.6} rad, Sync-RMSE {:.7} rad",
+        r.scenario.name,
+        transport.name(),
+        t.cycles,
+        if r.interrupted { " (interrupted)" } else { "" },
+        t.overruns,
+        100.0 * t.overruns as f64 / t.cycles.max(1) as f64,
+        t.overruns_stalled,
+        t.cycles_stalled,
+        ringsync_rt::timing::STALL as f64 * 1e-3,
+        t.longest_outage,
+        t.stalls.p50 as f64 * 1e-3,
+        t.stalls.p99 as f64 * 1e-3,
+        t.stalls.p999 as f64 * 1e-3,
+        t.stalls.max as f64 * 1e-3,
+        t.lateness.p50 as f64 * 1e-3,
+        t.lateness.p99 as f64 * 1e-3,
+        t.lateness.p999 as f64 * 1e-3,
+        t.lateness.max as f64 * 1e-3,
+        t.p2p.p50 as f64 * 1e-3,
+        t.p2p.p99 as f64 * 1e-3,
+        r.run.master.slices_failed,
+        r.run.master.retries,
+        r.run.master.samples_stale,
+        m.track_rmse,
+        m.sync_rmse,
+    );
+    if let Some(p) = prediction {
+        text += &format!(
+            "\n  simulator, mean of {} seeds: Track-RMSE {:.6} rad, Sync-RMSE {:.7} rad ({:.7} to {:.7})",
+            p.seeds, p.track_rmse, p.sync_rmse, p.sync_rmse_range.0, p.sync_rmse_range.1
+        );
+    }
+    text += &format!(
+        "\n  residual clock error ≤ {:.0} ns",
+        r.run.clock_error_max_ns.iter().copied().fold(0.0, f64::max)
+    );
+    if r.injected.garbage > 0 {
+        text += &format!(
+            "\n  injected {} garbage frames; the nodes refused {} malformed frames",
+            r.injected.garbage, r.injected.counted_malformed
+        );
+    }
+    for (f, frames) in &r.injected.forged {
+        text += &format!("\n  injected {frames} forged frames ({})", f.name());
+    }
+    text += &format!(
+        "\n  rejected by the nodes: {}",
+        ringsync_rt::run::rejected_summary(&r.run)
+    );
+    if let Some((t_stop, reason)) = r.run.group_stop {
+        text += &format!(
+            "\n  GROUP STOP at {t_stop:.3} s{}: {} on axis {}; failed: {}",
+            r.detection_cycles.map_or(String::new(), |c| format!(
+                ", {c} cycles after the slave was taken out"
+            )),
+            reason.name(),
+            reason.axis() + 1,
+            r.run
+                .ring_break
+                .map_or("not located".to_string(), |b| b.describe())
+        );
+    }
+    text.push('\n');
+    text
+}
+
+/// Probes what this host gives a real-time loop, without the ring (`ringsync latency`).
+pub fn latency(opts: &HostOptions, stop: &AtomicBool) -> Result<HostLatency> {
+    ringsync_rt::host::probe(opts, stop).map_err(|e| match e {
+        HostError::OutOfRange { name, value, range } => {
+            Error::Input(format!("--{name} {value} is out of range ({range})"))
+        }
+    })
+}
+
+/// The host probe's figures as JSON.
+pub fn latency_json(r: &HostLatency, opts: &HostOptions) -> Value {
+    let us = |ns: i64| ns as f64 * 1e-3;
+    json!({
+        "cycles": r.cycles,
+        "cycle_us": us(opts.cycle.as_ns()),
+        "busy_us": us(opts.busy.as_ns()),
+        "lateness_us": pct(&r.lateness),
+        "stalls_us": pct(&r.stalls),
+        "stall_threshold_us": us(ringsync_rt::timing::STALL),
+        "cycles_stalled": r.cycles_stalled,
+        "cycles_stalled_at_least_us": r.over.iter().map(|(th, c)| json!({"us": us(*th), "cycles": c})).collect::<Vec<_>>(),
+        "longest_stalled_run": r.longest_stalled_run,
+        "realtime": r.realtime,
+        "interrupted": r.interrupted,
+    })
+}
+
+/// The host probe's figures in a few lines.
+pub fn latency_text(r: &HostLatency, opts: &HostOptions) -> String {
+    let us = |ns: i64| ns as f64 * 1e-3;
+    let share = |c: u64| 100.0 * c as f64 / r.cycles.max(1) as f64;
+    let mut text = format!(
+        "host latency over {} cycles of {:.0} µs{}\n  cycle-start lateness p50 {:.1} µs, p99 {:.1} µs, p99.9 {:.1} µs, max {:.1} µs\n  stalls per cycle p50 {:.1} µs, p99 {:.1} µs, p99.9 {:.1} µs, max {:.1} µs\n  cycles with a stall of at least:",
+        r.cycles,
+        us(opts.cycle.as_ns()),
+        if r.interrupted { " (interrupted)" } else { "" },
+        us(r.lateness.p50),
+        us(r.lateness.p99),
+        us(r.lateness.p999),
+        us(r.lateness.max),
+        us(r.stalls.p50),
+        us(r.stalls.p99),
+        us(r.stalls.p999),
+        us(r.stalls.max),
+    );
+    for (th, c) in &r.over {
+        text += &format!(" {:.0} µs {} ({:.3} %);", us(*th), c, share(*c));
+    }
+    text.pop();
+    text += &format!(
+        "\n  longest run of cycles stalled {:.0} µs or more: {}\n",
+        us(ringsync_rt::timing::STALL),
+        r.longest_stalled_run
+    );
+    text
+}

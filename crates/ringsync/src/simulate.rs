@@ -1,0 +1,125 @@
+//! Simulating a scenario: the deterministic co-simulator (same scenario and seed, identical
+//! results), its results written as a directory of files, and a one-paragraph summary.
+
+use std::path::Path;
+
+use ringsync_model::observer::Observer;
+use ringsync_model::{RunResult, Scenario};
+use ringsync_proto::PlanKind;
+use ringsync_report::sim::{run_figures, run_html, summary_json, trace_csv};
+pub use ringsync_sim::RunOptions as SimOptions;
+
+use crate::error::Result;
+use crate::output::OutDir;
+
+/// Simulates `s`.
+///
+/// ```
+/// let mut s = ringsync::load("paper-2015")?.scenario;
+/// s.duration.0 = ringsync::Duration::from_ms(200);
+/// let r = ringsync::simulate(&s, &ringsync::SimOptions { trace: true, ..Default::default() })?;
+/// assert_eq!(r.cycles, 200);
+/// assert!(r.group_stop.is_none());
+/// // The trace in columns: one group of n rows per cycle the master computed.
+/// assert_eq!(r.trace.len(), r.trace.t.len() * 4);
+/// # Ok::<(), ringsync::Error>(())
+/// ```
+pub fn simulate(s: &Scenario, opts: &SimOptions) -> Result<RunResult> {
+    simulate_with(s, opts, Vec::new(), &mut |_, _| {})
+}
+
+/// [`simulate`], `observers` told every cycle, law run, applied command and fault step as
+/// the run goes, `progress(cycles done, cycles in all)` called every 100 cycles.
+///
+/// ```
+/// use ringsync::{Observer, AxisProbe};
+/// /// Counts the cycles and keeps the largest |e| seen on axis 1 [rad].
+/// #[derive(Default)]
+/// struct Peak(std::sync::Arc<std::sync::Mutex<(u64, f64)>>);
+/// impl Observer for Peak {
+///     fn cycle(&mut self, _k: i64, _t: f64, axes: &[AxisProbe]) {
+///         let mut p = self.0.lock().unwrap();
+///         p.0 += 1;
+///         p.1 = p.1.max((axes[0].x_d - axes[0].x).abs());
+///     }
+/// }
+/// let peak = Peak::default();
+/// let seen = peak.0.clone();
+/// let mut s = ringsync::load("paper-2015")?.scenario;
+/// s.duration.0 = ringsync::Duration::from_ms(100);
+/// let r = ringsync::simulate_with(&s, &Default::default(), vec![Box::new(peak)], &mut |_, _| {})?;
+/// let (cycles, max_e) = *seen.lock().unwrap();
+/// assert_eq!(cycles as i64, r.cycles); // every cycle start
+/// assert!(max_e > 0.0 && max_e <= r.summary.axes[0].max_e + 1e-12);
+/// # Ok::<(), ringsync::Error>(())
+/// ```
+pub fn simulate_with(
+    s: &Scenario,
+    opts: &SimOptions,
+    observers: Vec<Box<dyn Observer>>,
+    progress: &mut dyn FnMut(i64, i64),
+) -> Result<RunResult> {
+    let spec = s.build()?;
+    Ok(ringsync_sim::simulate(
+        &spec,
+        opts.clone(),
+        observers,
+        progress,
+    )?)
+}
+
+/// Writes a run's results into `dir`: `summary.json`, `trace.csv` (when the run kept its
+/// trace), the figures (`*.svg`), `report.html`; the frames it captured as pcapng to `pcap`
+/// when given. `s` is the scenario as run, `hash` its text's hash.
+pub fn write_sim(
+    dir: &mut OutDir,
+    s: &Scenario,
+    hash: u64,
+    r: &RunResult,
+    pcap: Option<&Path>,
+) -> Result<()> {
+    if let Some(p) = pcap {
+        dir.write_file(
+            p,
+            ringsync_report::pcap::pcapng(&r.captured, s.axes_count()),
+        )?;
+    }
+    let summary = serde_json::to_string_pretty(&summary_json(s, hash, r))?;
+    dir.write("summary.json", format!("{summary}\n"))?;
+    dir.write("trace.csv", trace_csv(r))?;
+    let timing = match s.ring.plan {
+        PlanKind::P2pLumped => ringsync_proto::CyclePlan::new(&s.ring_params())
+            .ok()
+            .and_then(|p| ringsync_report::timing_svg(&p)),
+        PlanKind::LumpedOnly => None,
+    };
+    let figures = run_figures(timing, r);
+    for (name, svg) in &figures {
+        dir.write(name, svg)?;
+    }
+    dir.write("report.html", run_html(s, hash, r, &figures))?;
+    Ok(())
+}
+
+/// A few lines on a run: cycles, controller, the two metrics (eq. 26-27), frames, clock
+/// error, the group stop if any.
+pub fn sim_text(s: &Scenario, r: &RunResult) -> String {
+    format!(
+        "{}: {} cycles of {} axes, {} controller, estimator {}\n  Track-RMSE {:.6} rad, Sync-RMSE {:.7} rad\n  frames: {} sent by the master, {} lost, {} retried; clock error ≤ {:.0} ns\n  {}\n",
+        s.name,
+        r.cycles,
+        s.axes_count(),
+        s.law_name(),
+        s.control.estimator.name(),
+        r.summary.track_rmse,
+        r.summary.sync_rmse,
+        r.master.frames_sent,
+        r.links.lost,
+        r.master.retries,
+        r.clock_error_max_ns.iter().copied().fold(0.0, f64::max),
+        match r.group_stop {
+            Some((t, reason)) => format!("GROUP STOP at {t:.3} s: {reason:?}"),
+            None => "no group stop".to_string(),
+        },
+    )
+}

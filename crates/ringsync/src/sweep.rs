@@ -1,0 +1,622 @@
+//! Parameter sweeps: the Cartesian product of values of any scenario keys, several seeds
+//! each. A [`Case`] is plain data (its scenario as TOML text) and [`run_case`] a pure
+//! function of it, so a case can be sent to another process or machine and run there;
+//! [`run_cases`] runs them on threads here. [`aggregate`] takes means over the seeds.
+//!
+//! ```
+//! use ringsync::sweep::{SweepAxis, aggregate, cases, run_cases};
+//! let base = ringsync::parse("duration = \"100ms\"\n", "short")?;
+//! let axes: Vec<SweepAxis> = vec!["control.estimator=hold,paper".parse()?];
+//! let cs = cases(&base, &axes, 2, false)?;
+//! assert_eq!(cs.len(), 4); // 2 values × 2 seeds
+//! // A case travels as text: JSON here, for a remote worker.
+//! let wire = serde_json::to_string(&cs[0]).unwrap();
+//! let back: ringsync::sweep::Case = serde_json::from_str(&wire).unwrap();
+//! assert_eq!(ringsync::run_case(&back)?, ringsync::run_case(&cs[0])?);
+//! let results = run_cases(&cs, 2, &|_, _| {});
+//! let results: Vec<_> = results.into_iter().collect::<Result<_, _>>()?;
+//! let means = aggregate(&cs, &results);
+//! assert_eq!((means.len(), means[0].runs), (2, 2));
+//! # Ok::<(), ringsync::Error>(())
+//! ```
+
+use std::fmt::Write as _;
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use serde::{Deserialize, Serialize};
+
+use ringsync_model::scenario::{ECHO_CHARS, Scenario, ScenarioError, clip, clip_middle};
+use ringsync_proto::{CyclePlan, Duration, PlanKind};
+
+use crate::error::{Error, Result};
+use crate::load::Loaded;
+use crate::output::OutDir;
+
+/// One swept key and its values, from `key=v1,v2,…`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SweepAxis {
+    /// Dotted scenario key, e.g. `faults.loss`.
+    pub key: String,
+    /// The values as written (TOML values; bare words are strings).
+    pub values: Vec<String>,
+}
+
+impl std::str::FromStr for SweepAxis {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self> {
+        let (key, values) = s.split_once('=').ok_or_else(|| {
+            Error::Input(format!(
+                "'{s}' is not KEY=V1,V2,…: e.g. faults.loss=0,0.01,0.02"
+            ))
+        })?;
+        let key = key.trim();
+        if key.is_empty()
+            || !key
+                .chars()
+                .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '.')
+        {
+            return Err(Error::Input(format!(
+                "'{key}' is not a scenario key like ring.slaves"
+            )));
+        }
+        let values: Vec<String> = values
+            .split(',')
+            .map(|v| v.trim().to_string())
+            .filter(|v| !v.is_empty())
+            .collect();
+        if values.is_empty() {
+            return Err(Error::Input(format!("'{s}' gives no values")));
+        }
+        Ok(SweepAxis {
+            key: key.to_string(),
+            values,
+        })
+    }
+}
+
+/// Parses `v` as a TOML value; a bare word is taken as a string.
+fn toml_value(v: &str) -> toml::Value {
+    toml::from_str::<toml::Table>(&format!("x = {v}"))
+        .ok()
+        .and_then(|mut t| t.remove("x"))
+        .unwrap_or_else(|| toml::Value::String(v.to_string()))
+}
+
+fn set(table: &mut toml::Table, key: &str, value: toml::Value) -> Result<(), ScenarioError> {
+    let mut parts: Vec<&str> = key.split('.').collect();
+    let last = parts.pop().unwrap_or(key);
+    let mut t = table;
+    for p in parts {
+        let entry = t
+            .entry(p.to_string())
+            .or_insert_with(|| toml::Value::Table(toml::Table::new()));
+        t = entry
+            .as_table_mut()
+            .ok_or_else(|| ScenarioError::OutOfRange {
+                key: key.to_string(),
+                value: "?".into(),
+                allowed: format!("a key inside a table; {p} is not a table"),
+            })?;
+    }
+    t.insert(last.to_string(), value);
+    Ok(())
+}
+
+/// The (key, value) pairs that name one case of a sweep.
+pub type Labels = Vec<(String, String)>;
+
+/// One case of a sweep: plain data, all a worker needs to run it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Case {
+    /// (key, value) for every swept key, as written.
+    pub labels: Labels,
+    /// The seed.
+    pub seed: u64,
+    /// The case's scenario as TOML text: the base with the swept values, the seed and (with
+    /// `auto_cycle`) the cycle set.
+    pub scenario: String,
+}
+
+impl Case {
+    /// The case's scenario, validated.
+    pub fn scenario(&self) -> Result<Scenario> {
+        Ok(Scenario::from_toml(&self.scenario, &self.name())?)
+    }
+
+    /// The case's name: its labels and seed, e.g. `faults.loss=0.01 seed=2`.
+    pub fn name(&self) -> String {
+        let mut n: Vec<String> = self
+            .labels
+            .iter()
+            .map(|(k, v)| format!("{k}={v}"))
+            .collect();
+        n.push(format!("seed={}", self.seed));
+        n.join(" ")
+    }
+}
+
+/// What a case gives: the metrics (eq. 26-27) and the counters a sweep compares.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct CaseResult {
+    /// Track-RMSE [rad].
+    pub track_rmse: f64,
+    /// Sync-RMSE [rad].
+    pub sync_rmse: f64,
+    /// Lumped frames the master lost.
+    pub lumped_lost: u64,
+    /// Commands the master sent again.
+    pub retries: u64,
+    /// Commands never acknowledged in their cycle.
+    pub commands_lost: u64,
+    /// Largest slave clock error over the second half of the run [ns].
+    pub clock_error_max_ns: f64,
+    /// When the group stopped [s], if it did.
+    pub group_stop_s: Option<f64>,
+}
+
+/// Every case: each combination of values, `seeds` seeds each (the scenario's seed, +1, …).
+/// With `auto_cycle`, a case whose cycle is too short for its ring gets the shortest cycle
+/// that holds it, plus 10 %, rounded up to 100 µs. Every case is validated here: the error
+/// names the case and its bad key.
+pub fn cases(base: &Loaded, axes: &[SweepAxis], seeds: u32, auto_cycle: bool) -> Result<Vec<Case>> {
+    let origin = &base.origin;
+    let table: toml::Table = toml::from_str(&base.text).map_err(|e| ScenarioError::Syntax {
+        origin: clip(origin, ECHO_CHARS).into_owned(),
+        message: clip_middle(e.message().trim(), 2 * ECHO_CHARS).replace('\n', " "),
+    })?;
+    let mut combos: Vec<Labels> = vec![Vec::new()];
+    for a in axes {
+        combos = combos
+            .into_iter()
+            .flat_map(|c| {
+                a.values.iter().map(move |v| {
+                    let mut c = c.clone();
+                    c.push((a.key.clone(), v.clone()));
+                    c
+                })
+            })
+            .collect();
+    }
+    let mut out = Vec::new();
+    for labels in combos {
+        let mut t = table.clone();
+        for (k, v) in &labels {
+            set(&mut t, k, toml_value(v))?;
+        }
+        let with = || {
+            let l: Vec<String> = labels.iter().map(|(k, v)| format!("{k}={v}")).collect();
+            clip(&format!("{origin} with {}", l.join(" ")), 2 * ECHO_CHARS).into_owned()
+        };
+        let s = Scenario::deserialize(toml::Value::Table(t.clone())).map_err(|e| {
+            ScenarioError::Syntax {
+                origin: with(),
+                message: clip_middle(e.message().trim(), 2 * ECHO_CHARS).replace('\n', " "),
+            }
+        })?;
+        if auto_cycle && let Some(cycle) = cycle_that_holds(&s) {
+            set(
+                &mut t,
+                "ring.cycle",
+                toml::Value::String(format!("{}ns", cycle.as_ns())),
+            )?;
+        }
+        let s = Scenario::deserialize(toml::Value::Table(t.clone())).map_err(|e| {
+            ScenarioError::Syntax {
+                origin: with(),
+                message: e.message().to_string(),
+            }
+        })?;
+        s.validate()?;
+        for k in 0..u64::from(seeds.max(1)) {
+            let seed = s.seed.wrapping_add(k);
+            let mut tk = t.clone();
+            // TOML integers are i64: a seed beyond travels as its two's complement.
+            tk.insert("seed".into(), toml::Value::Integer(seed as i64));
+            let scenario = toml::to_string(&tk)
+                .map_err(|e| Error::Failed(format!("cannot write the case {}: {e}", with())))?;
+            out.push(Case {
+                labels: labels.clone(),
+                seed,
+                scenario,
+            });
+        }
+    }
+    Ok(out)
+}
+
+/// The shortest cycle that holds `s`'s ring plus 10 %, rounded up to 100 µs, when its own
+/// is too short.
+fn cycle_that_holds(s: &Scenario) -> Option<Duration> {
+    let mut p = s.ring_params();
+    p.t_cyc = Duration::from_ms(10_000);
+    let plan = CyclePlan::new(&p).ok()?;
+    let need = match s.ring.plan {
+        PlanKind::P2pLumped => plan.min_t_cyc.max(plan.event.min_t_cyc),
+        PlanKind::LumpedOnly => plan.lumped_only.min_t_cyc,
+    };
+    (need > s.ring.cycle.0).then(|| {
+        let ns = need.as_ns() + need.as_ns() / 10;
+        Duration::from_ns((ns / 100_000 + 1) * 100_000)
+    })
+}
+
+/// Runs one case: a pure function of the case (same case, same result, wherever it runs).
+pub fn run_case(case: &Case) -> Result<CaseResult> {
+    let s = case.scenario()?;
+    let r = crate::simulate(&s, &crate::SimOptions::default())?;
+    Ok(CaseResult {
+        track_rmse: r.summary.track_rmse,
+        sync_rmse: r.summary.sync_rmse,
+        lumped_lost: r.master.lumped_lost,
+        retries: r.master.retries,
+        commands_lost: r.master.commands_lost,
+        clock_error_max_ns: r.clock_error_max_ns.iter().copied().fold(0.0, f64::max),
+        group_stop_s: r.group_stop.map(|(t, _)| t),
+    })
+}
+
+/// The default number of parallel cases: the CPUs this process may use.
+pub fn default_jobs() -> usize {
+    std::thread::available_parallelism().map_or(1, |n| n.get())
+}
+
+/// Runs every case on `jobs` threads (one single-threaded simulation per case); results in
+/// case order. `progress(done, total)` is called after each case.
+pub fn run_cases(
+    cases: &[Case],
+    jobs: usize,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Vec<Result<CaseResult>> {
+    let next = AtomicUsize::new(0);
+    let done = AtomicUsize::new(0);
+    let slots: Vec<Mutex<Option<Result<CaseResult>>>> =
+        cases.iter().map(|_| Mutex::new(None)).collect();
+    std::thread::scope(|scope| {
+        for _ in 0..jobs.max(1).min(cases.len().max(1)) {
+            scope.spawn(|| {
+                loop {
+                    let i = next.fetch_add(1, Ordering::Relaxed);
+                    if i >= cases.len() {
+                        break;
+                    }
+                    let r = run_case(&cases[i]);
+                    if let Ok(mut slot) = slots[i].lock() {
+                        *slot = Some(r);
+                    }
+                    progress(done.fetch_add(1, Ordering::Relaxed) + 1, cases.len());
+                }
+            });
+        }
+    });
+    slots
+        .into_iter()
+        .map(|slot| {
+            slot.into_inner()
+                .ok()
+                .flatten()
+                .unwrap_or_else(|| Err(Error::Failed("a case was not run".into())))
+        })
+        .collect()
+}
+
+/// The means over the seeds of one combination of values.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Mean {
+    /// The combination.
+    pub labels: Labels,
+    /// Cases (seeds) in the mean.
+    pub runs: usize,
+    /// Mean Track-RMSE [rad].
+    pub track_rmse: f64,
+    /// Mean Sync-RMSE [rad].
+    pub sync_rmse: f64,
+    /// Standard deviation of Sync-RMSE over the seeds (population) [rad].
+    pub sync_rmse_std: f64,
+}
+
+/// Means over the seeds, per combination of values, in the cases' order.
+pub fn aggregate(cases: &[Case], results: &[CaseResult]) -> Vec<Mean> {
+    let mut groups: Vec<(Labels, Vec<(f64, f64)>)> = Vec::new();
+    for (c, r) in cases.iter().zip(results) {
+        match groups.last_mut() {
+            Some((l, v)) if *l == c.labels => v.push((r.track_rmse, r.sync_rmse)),
+            _ => groups.push((c.labels.clone(), vec![(r.track_rmse, r.sync_rmse)])),
+        }
+    }
+    groups
+        .into_iter()
+        .map(|(labels, v)| {
+            let n = v.len() as f64;
+            let track = v.iter().map(|x| x.0).sum::<f64>() / n;
+            let sync = v.iter().map(|x| x.1).sum::<f64>() / n;
+            let sd = (v.iter().map(|x| (x.1 - sync).powi(2)).sum::<f64>() / n).sqrt();
+            Mean {
+                labels,
+                runs: v.len(),
+                track_rmse: track,
+                sync_rmse: sync,
+                sync_rmse_std: sd,
+            }
+        })
+        .collect()
+}
+
+/// A finished sweep.
+#[derive(Debug, Clone)]
+pub struct Sweep {
+    /// The swept keys, in order.
+    pub keys: Vec<String>,
+    /// The base scenario's name or path.
+    pub origin: String,
+    /// Seeds per combination.
+    pub seeds: u32,
+    /// Every case.
+    pub cases: Vec<Case>,
+    /// Their results, in the same order.
+    pub results: Vec<CaseResult>,
+    /// Means over the seeds.
+    pub means: Vec<Mean>,
+}
+
+impl Sweep {
+    /// Collects the results of [`run_cases`]: the first failed case is the error, named.
+    pub fn new(
+        base: &Loaded,
+        axes: &[SweepAxis],
+        seeds: u32,
+        cases: Vec<Case>,
+        results: Vec<Result<CaseResult>>,
+    ) -> Result<Sweep> {
+        let results = cases
+            .iter()
+            .zip(results)
+            .map(|(c, r)| {
+                r.map_err(|e| match e {
+                    Error::Scenario(e) => Error::Input(format!("case {}: {e}", c.name())),
+                    other => other,
+                })
+            })
+            .collect::<Result<Vec<_>>>()?;
+        Ok(Sweep {
+            keys: axes.iter().map(|a| a.key.clone()).collect(),
+            origin: base.origin.clone(),
+            seeds,
+            means: aggregate(&cases, &results),
+            cases,
+            results,
+        })
+    }
+
+    /// Cases that ended in a group stop.
+    pub fn stopped(&self) -> usize {
+        self.results
+            .iter()
+            .filter(|r| r.group_stop_s.is_some())
+            .count()
+    }
+
+    /// The means as a Markdown table.
+    pub fn table(&self) -> String {
+        let mut table = format!(
+            "| {} | runs | Track-RMSE [rad] | Sync-RMSE [rad] (± std over seeds) |\n|{}---:|---:|---:|\n",
+            self.keys.join(" | "),
+            "---|".repeat(self.keys.len())
+        );
+        for m in &self.means {
+            let vals: Vec<&str> = m.labels.iter().map(|(_, v)| v.as_str()).collect();
+            let _ = writeln!(
+                table,
+                "| {} | {} | {:.5} | {:.7} ± {:.7} |",
+                vals.join(" | "),
+                m.runs,
+                m.track_rmse,
+                m.sync_rmse,
+                m.sync_rmse_std
+            );
+        }
+        table
+    }
+}
+
+/// Writes a sweep into `dir`: `sweep.csv` (one row per case), `means.csv` (one row per
+/// combination) and `sweep.svg` (mean Sync-RMSE against the first key, one line per value
+/// of the others).
+pub fn write_sweep(dir: &OutDir, sw: &Sweep) -> Result<()> {
+    let keys = sw.keys.join(",");
+    let mut csv = format!(
+        "{keys},seed,track_rmse,sync_rmse,lumped_lost,retries,commands_lost,clock_error_max_ns,group_stop_s\n"
+    );
+    for (c, r) in sw.cases.iter().zip(&sw.results) {
+        let vals: Vec<&str> = c.labels.iter().map(|(_, v)| v.as_str()).collect();
+        let _ = writeln!(
+            csv,
+            "{},{},{:.9},{:.9},{},{},{},{:.0},{}",
+            vals.join(","),
+            c.seed,
+            r.track_rmse,
+            r.sync_rmse,
+            r.lumped_lost,
+            r.retries,
+            r.commands_lost,
+            r.clock_error_max_ns,
+            r.group_stop_s.map_or(String::new(), |t| format!("{t:.4}"))
+        );
+    }
+    dir.write("sweep.csv", &csv)?;
+    let mut mcsv = format!("{keys},runs,track_rmse_mean,sync_rmse_mean,sync_rmse_std\n");
+    for m in &sw.means {
+        let vals: Vec<&str> = m.labels.iter().map(|(_, v)| v.as_str()).collect();
+        let _ = writeln!(
+            mcsv,
+            "{},{},{:.9},{:.9},{:.9}",
+            vals.join(","),
+            m.runs,
+            m.track_rmse,
+            m.sync_rmse,
+            m.sync_rmse_std
+        );
+    }
+    dir.write("means.csv", &mcsv)?;
+    dir.write("sweep.svg", sweep_svg(sw))?;
+    Ok(())
+}
+
+/// Mean Sync-RMSE against the first key, one line per value of the others.
+fn sweep_svg(sw: &Sweep) -> String {
+    use ringsync_report::plot::{PALETTE, Series, line_chart};
+    let mut groups: Vec<(String, Vec<(f64, f64)>)> = Vec::new();
+    for (k, m) in sw.means.iter().enumerate() {
+        let name = m.labels[1..]
+            .iter()
+            .map(|(k, v)| format!("{k}={v}"))
+            .collect::<Vec<_>>()
+            .join(", ");
+        let x = m.labels[0].1.parse::<f64>().unwrap_or(k as f64);
+        match groups.iter_mut().find(|(n, _)| *n == name) {
+            Some((_, pts)) => pts.push((x, m.sync_rmse)),
+            None => groups.push((name, vec![(x, m.sync_rmse)])),
+        }
+    }
+    let series: Vec<Series<'_>> = groups
+        .into_iter()
+        .enumerate()
+        .map(|(i, (name, points))| Series {
+            name: if name.is_empty() {
+                "Sync-RMSE".into()
+            } else {
+                name
+            },
+            colour: PALETTE[i % PALETTE.len()],
+            points,
+        })
+        .collect();
+    line_chart(
+        &format!(
+            "Sync-RMSE against {} ({}, mean of {} seed{})",
+            sw.keys[0],
+            sw.origin,
+            sw.seeds,
+            if sw.seeds == 1 { "" } else { "s" }
+        ),
+        &sw.keys[0],
+        "Sync-RMSE [rad]",
+        &series,
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn base() -> Loaded {
+        crate::load("paper-2015").expect("builtin")
+    }
+
+    #[test]
+    fn parses_axes() {
+        let a: SweepAxis = "faults.loss=0, 0.01,0.02".parse().expect("axis");
+        assert_eq!(a.key, "faults.loss");
+        assert_eq!(a.values, vec!["0", "0.01", "0.02"]);
+        assert!("faults.loss".parse::<SweepAxis>().is_err());
+        assert!("=1".parse::<SweepAxis>().is_err());
+        assert!("a b=1".parse::<SweepAxis>().is_err());
+    }
+
+    #[test]
+    fn cartesian_product_with_seeds() {
+        let axes: Vec<SweepAxis> = ["control.estimator=hold,paper", "faults.loss=0,0.02"]
+            .iter()
+            .map(|s| s.parse().expect("axis"))
+            .collect();
+        let c = cases(&base(), &axes, 2, false).expect("cases");
+        assert_eq!(c.len(), 2 * 2 * 2);
+        assert_eq!(
+            c[0].labels,
+            vec![
+                ("control.estimator".into(), "hold".into()),
+                ("faults.loss".into(), "0".into())
+            ]
+        );
+        assert_eq!((c[0].seed, c[1].seed), (1, 2));
+        let s7 = c[7].scenario().expect("valid");
+        assert_eq!(s7.faults.loss, 0.02);
+        assert_eq!(s7.control.estimator, ringsync_control::EstimatorKind::Paper);
+        assert_eq!(s7.seed, 2);
+        assert_eq!(
+            c[7].name(),
+            "control.estimator=paper faults.loss=0.02 seed=2"
+        );
+        // The text holds everything else of the base.
+        let mut want = base().scenario;
+        want.seed = 2;
+        want.faults.loss = 0.02;
+        assert_eq!(s7, want);
+    }
+
+    #[test]
+    fn bad_keys_and_values_are_errors() {
+        let bad = |s: &str| {
+            cases(&base(), &[s.parse().expect("axis")], 1, false)
+                .expect_err("bad")
+                .to_string()
+        };
+        assert!(bad("faults.lost=0.1").contains("lost"));
+        assert!(bad("faults.loss=2").contains("faults.loss = 2"));
+        assert!(bad("ring.slaves=64").contains("ring.cycle"));
+        // With auto_cycle the ring gets a cycle that holds it.
+        let c = cases(&base(), &["ring.slaves=64".parse().expect("axis")], 1, true).expect("auto");
+        let s = c[0].scenario().expect("valid");
+        assert!(s.ring.cycle.0 > Duration::from_ms(8));
+        assert_eq!(s.ring.cycle.0.as_ns() % 100_000, 0);
+    }
+
+    #[test]
+    fn runs_in_parallel_in_order() {
+        let short = crate::parse("duration = \"100ms\"\n", "t").expect("text");
+        let c = cases(
+            &short,
+            &["control.law=pd,sync".parse().expect("axis")],
+            1,
+            false,
+        )
+        .expect("cases");
+        let r = run_cases(&c, 2, &|_, _| {});
+        assert_eq!(r.len(), 2);
+        let (pd, sync) = (r[0].as_ref().expect("pd"), r[1].as_ref().expect("sync"));
+        let solo = run_case(&c[1]).expect("run");
+        assert_eq!(*sync, solo);
+        assert_ne!(pd, sync);
+    }
+
+    #[test]
+    fn means_over_seeds() {
+        let c = |v: &str, seed| Case {
+            labels: vec![("k".into(), v.into())],
+            seed,
+            scenario: String::new(),
+        };
+        let r = |sync| CaseResult {
+            track_rmse: 1.0,
+            sync_rmse: sync,
+            lumped_lost: 0,
+            retries: 0,
+            commands_lost: 0,
+            clock_error_max_ns: 0.0,
+            group_stop_s: None,
+        };
+        let m = aggregate(
+            &[c("a", 1), c("a", 2), c("b", 1)],
+            &[r(1.0), r(3.0), r(5.0)],
+        );
+        assert_eq!(m.len(), 2);
+        assert_eq!(
+            (m[0].runs, m[0].sync_rmse, m[0].sync_rmse_std),
+            (2, 2.0, 1.0)
+        );
+        assert_eq!(
+            (m[1].runs, m[1].sync_rmse, m[1].sync_rmse_std),
+            (1, 5.0, 0.0)
+        );
+    }
+}
