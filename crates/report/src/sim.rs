@@ -358,7 +358,7 @@ synchronisation error (Sync-RMSE) by 49.270 % and the tracking error (Track-RMSE
 <p>This page is ringsync's reproduction in its deterministic co-simulator: the same frames on modelled 100 Mbit/s links, \
 drifting clocks synchronised from the frames, the sans-IO master and slaves that the real runtime is built to run as well, and simulated \
 servo axes. Scenario <code>{name}</code>, seed {seed}, {n} axes, {dur} s, T<sub>cyc</sub> = {cyc} ms, estimator \
-<code>{est}</code>. Re-run it with <code>cargo run --release -p ringsync -- reproduce</code>.</p>\n",
+<code>{est}</code>. Re-run it with <code>cargo run --release -p ringsync-cli -- reproduce</code>.</p>\n",
         name = esc(&s.name),
         seed = s.seed,
         n = s.axes_count(),
