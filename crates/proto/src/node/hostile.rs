@@ -443,7 +443,7 @@ fn a_real_clock_step_relocks_after_a_bounded_time_and_a_burst_never_does() {
     let feed = |s: &mut Slave, k: i64, master_k: i64| {
         let rx = Instant::from_ns(k * MS + 1_000);
         let mut b = lumped(master_k as u32, (master_k * MS) as u64, 1);
-        s.handle_frame(rx, rx, &mut b);
+        let _ = s.handle_frame(rx, rx, &mut b);
     };
     for k in 0..50 {
         feed(&mut s, k, k);
@@ -640,7 +640,7 @@ fn stray_frames_do_not_hold_off_a_relock() {
     let feed = |s: &mut Slave, k: i64, master_k: i64| {
         let rx = Instant::from_ns(k * MS + 1_000);
         let mut b = lumped(master_k as u32, (master_k * MS) as u64, 1);
-        s.handle_frame(rx, rx, &mut b);
+        let _ = s.handle_frame(rx, rx, &mut b);
     };
     for k in 0..50 {
         feed(&mut s, k, k);

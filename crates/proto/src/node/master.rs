@@ -322,7 +322,43 @@ struct SentLumped {
     back: bool,
 }
 
-/// The master.
+/// The master of the ring: it sends the lumped frame at each cycle start (clock sync and
+/// feedback, docs/system.md eq. 1-2), runs the [`Motion`] at the P2P start, then opens one
+/// time slice per axis for its command and takes each response (retrying into reserved
+/// slices), and stops the group when feedback or responses fail for W cycles.
+///
+/// It is sans-IO, like quinn-proto's `Connection`: it never reads a clock or touches a
+/// socket. Its time is the master's clock, which is the ring's true time.
+///
+/// # Driving it
+///
+/// A driver owns time and the wire, and calls, in this order:
+///
+/// 1. [`poll_timeout`](Master::poll_timeout): when the master next needs
+///    [`handle_timeout`](Master::handle_timeout) (the cycle start, the P2P start, a slice's
+///    opening or deadline);
+/// 2. at that time [`handle_timeout`](Master::handle_timeout); whenever a frame comes back,
+///    [`handle_frame`](Master::handle_frame) with the time its last bit arrived. Time never
+///    goes backwards from one call to the next;
+/// 3. after either, [`poll_transmit`](Master::poll_transmit) until `None` (frames to send,
+///    each with its send instant), then [`poll_event`](Master::poll_event) until `None` (the
+///    law ran, the group stopped, an order was given);
+/// 4. optionally [`recycle`](Master::recycle) the buffers of frames sent or received, so a
+///    steady ring allocates nothing per frame.
+///
+/// # Getters
+///
+/// [`config`](Master::config), [`counters`](Master::counters) (every lost cycle explained,
+/// every refused frame counted), [`record`](Master::record) (the last law run),
+/// [`cycle`](Master::cycle), [`is_stopping`](Master::is_stopping),
+/// [`order`](Master::order), [`desired`](Master::desired),
+/// [`awaiting_frames`](Master::awaiting_frames),
+/// [`last_lumped_cycle`](Master::last_lumped_cycle), [`motion`](Master::motion).
+///
+/// # Example
+///
+/// [`testbed`](super::testbed) drives a master and its slaves on ideal links;
+/// `examples/04_nodes_by_hand.rs` does it in a page, with the calls above spelled out.
 pub struct Master {
     cfg: MasterConfig,
     /// The motion application (law, trajectories, supervision, the stop ramp).
@@ -478,6 +514,7 @@ impl Master {
     }
 
     /// When the master next needs [`Master::handle_timeout`] [master ns].
+    #[must_use]
     pub fn poll_timeout(&self) -> Instant {
         let c = self.cycle_start();
         if self.next_lumped < self.cfg.lumped_offsets.len() {
@@ -1053,12 +1090,16 @@ impl Master {
         self.spares.give(buf);
     }
 
-    /// The next frame to send.
+    /// The next frame to send, with its send instant; `None` when there is none (call after
+    /// each `handle_*` until `None`).
+    #[must_use]
     pub fn poll_transmit(&mut self) -> Option<Transmit> {
         self.out.pop_front()
     }
 
-    /// The next event.
+    /// The next event for the driver; `None` when there is none (call after draining
+    /// [`Master::poll_transmit`]).
+    #[must_use]
     pub fn poll_event(&mut self) -> Option<MasterEvent> {
         self.events.pop_front()
     }

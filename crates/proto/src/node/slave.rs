@@ -300,7 +300,36 @@ enum CommandAction {
     Repeat,
 }
 
-/// A slave.
+/// A slave of the ring: one servo drive's node. It latches its encoder at its synchronised
+/// sampling instants, writes the sample into its slot of each lumped frame and follows the
+/// master's clock from the frame's timestamps, forwards every frame not for it, applies the
+/// command of its time slice and answers it, and puts its drive in its safe state when the
+/// master is lost for W cycles. With the lumped-only plan it runs its own law
+/// ([`SlaveLaw`]) on the frame's feedback instead of taking commands.
+///
+/// It is sans-IO, like quinn-proto's `Connection`. Its time is its own local clock (its
+/// hardware timestamp counter); the driver converts between local and true time.
+///
+/// # Driving it
+///
+/// A driver calls, in this order:
+///
+/// 1. [`poll_timeout`](Slave::poll_timeout): the local time of the next encoder latch;
+/// 2. then [`handle_sample`](Slave::handle_sample) with the encoder count at that instant;
+///    whenever a frame arrives, [`handle_frame`](Slave::handle_frame) with its first and
+///    last bit's local times; it returns whether to forward the frame (modified in place:
+///    a lumped frame carries this slave's sample on);
+/// 3. after either, [`poll_transmit`](Slave::poll_transmit) until `None` (responses, each
+///    with its send instant), then [`poll_event`](Slave::poll_event) until `None` (apply a
+///    command, brake, torque off, the watchdog expired, the clock re-locked);
+/// 4. optionally [`recycle`](Slave::recycle) the buffers of frames it is done with.
+///
+/// # Getters
+///
+/// [`config`](Slave::config), [`counters`](Slave::counters), [`clock`](Slave::clock)
+/// (local ↔ synchronised time), [`status`](Slave::status), [`command`](Slave::command),
+/// [`torque_off`](Slave::torque_off), [`last_lumped_cycle`](Slave::last_lumped_cycle),
+/// [`samples_taken`](Slave::samples_taken).
 pub struct Slave {
     cfg: SlaveConfig,
     clock: SyncClock,
@@ -446,6 +475,7 @@ impl Slave {
     }
 
     /// Local time of the next encoder latch; call [`Slave::handle_sample`] then.
+    #[must_use]
     pub fn poll_timeout(&self) -> Instant {
         let at = match self.latch {
             Latch::Window => self.sample_instant() - self.cfg.velocity_window,
@@ -551,6 +581,8 @@ impl Slave {
 
     /// A frame whose first bit arrived at local `rx_start` and last bit at `rx_end`. A lumped
     /// frame is modified in place (this slave's slot, then the CRC) once it is accepted.
+    /// The outcome says whether the driver forwards it to the next node.
+    #[must_use]
     pub fn handle_frame(
         &mut self,
         rx_start: Instant,
@@ -943,12 +975,16 @@ impl Slave {
         }
     }
 
-    /// The next frame this slave originates (responses).
+    /// The next frame this slave originates (a response), with its send instant; `None`
+    /// when there is none (call after each `handle_*` until `None`).
+    #[must_use]
     pub fn poll_transmit(&mut self) -> Option<Transmit> {
         self.out.pop_front()
     }
 
-    /// The next event for the driver.
+    /// The next event for the driver; `None` when there is none (call after draining
+    /// [`Slave::poll_transmit`]).
+    #[must_use]
     pub fn poll_event(&mut self) -> Option<SlaveEvent> {
         self.events.pop_front()
     }
