@@ -23,9 +23,12 @@
 //!   clock taken at the check before t or at the one after it (the checks run once a cycle,
 //!   at k·T + 700 µs, after the cycle's lumped frame and commands): the earlier copy when no
 //!   lumped frame reached the slave between that check and t, the later one when none
-//!   reached it between t and the later check; if lumped frames reached it on both sides of
-//!   t (or at t), either copy is accepted. A copy of a slave that had taken no lumped frame
-//!   yet is no copy: such a slave has no time line and takes no command. (Before its clock
+//!   reached it between t and the later check, either copy when frames reached it only at t
+//!   (their order against the command is not known). When frames reached it on both sides of
+//!   t and it took some, it used a clock between the two copies, which the harness does not
+//!   have: the window is not checked for that command (its value, address and cycle order
+//!   are); this hides, never invents, a violation. A copy of a slave that had taken no lumped
+//!   frame yet is no copy: such a slave has no time line and takes no command. (Before its clock
 //!   locks, the slave places a command by its last frame plus the local time since; its
 //!   clock reads the same then, because the rate is first measured by the frame that locks
 //!   it.) In true time the window does not hold: the slaves synchronise one way, so a path
@@ -671,28 +674,38 @@ impl Harness {
             let local = ring.local(i, t);
             let start = &self.clocks[i - 1];
             let stop = &end[i - 1];
-            // Which copy of the clock the slave used at t (see the module doc).
+            // Which copy of the clock the slave used at t (see the module doc): `None` when
+            // it took lumped frames on both sides of t, and used a state between the copies.
             let ls = &shared.lumped_at[i - 1];
             let before = ls.iter().any(|&x| x > self.checked_at && x < t);
             let after = ls.iter().any(|&x| x > t && x <= now);
             let at_t = ls.contains(&t);
-            let changed = stop.syncs != start.syncs;
-            let ambiguous = at_t || before && after;
-            let mut s_at = Vec::with_capacity(2);
-            if (!changed || ambiguous || !(before || at_t)) && start.syncs > 0 {
-                s_at.push(start.clock.to_sync(local).as_ns());
-            }
-            if changed && (ambiguous || before || at_t) && stop.syncs > 0 {
-                s_at.push(stop.clock.to_sync(local).as_ns());
-            }
+            let copies: Option<Vec<&ClockAt>> = if stop.syncs == start.syncs {
+                Some(vec![start])
+            } else {
+                match (before, at_t, after) {
+                    (false, false, _) => Some(vec![start]),
+                    (_, false, false) => Some(vec![stop]),
+                    (false, true, false) => Some(vec![start, stop]),
+                    _ => None,
+                }
+            };
+            // A slave that had taken no lumped frame has no time line: it takes no command.
+            let s_at: Option<Vec<i64>> = copies.map(|c| {
+                c.iter()
+                    .filter(|c| c.syncs > 0)
+                    .map(|c| c.clock.to_sync(local).as_ns())
+                    .collect()
+            });
             let cands = shared.deliveries.get(&(i, t)).cloned().unwrap_or_default();
             let last = self.last_cycle[i - 1];
             let newer = |c: u32| last.is_none_or(|l| c.wrapping_sub(l) as i32 > 0);
             let fits = |d: &Delivery| {
                 forge::clip(f64::from(d.value), U_MAX) == u
-                    && s_at
-                        .iter()
-                        .any(|&s| in_window(s, d.cycle, self.p2p, self.window))
+                    && s_at.as_ref().is_none_or(|s_at| {
+                        s_at.iter()
+                            .any(|&s| in_window(s, d.cycle, self.p2p, self.window))
+                    })
             };
             let Some(d) = cands
                 .iter()

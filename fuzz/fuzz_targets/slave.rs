@@ -723,7 +723,8 @@ impl Harness {
                     .s
                     .last_lumped_cycle()
                     .is_none_or(|c| k >= c.saturating_add(2))
-                && (k * T + path - clock.to_sync(Instant::from_ns(at)).as_ns()).abs() <= window - 2;
+                && (k * T + path - clock.to_sync(Instant::from_ns(at.max(self.now))).as_ns()).abs()
+                    <= window - 2;
             let syncs = self.s.counters().syncs;
             self.frame(at, 1_000, copy(&b));
             if due {
@@ -763,7 +764,10 @@ impl Harness {
             // that is newer than the last one it took.
             let window = self.s.config().clock_window.as_ns();
             let clock = self.s.clock();
-            let s_rx = clock.to_sync(Instant::from_ns(at + 2_000)).as_ns();
+            // The frame arrives when it is due, or now if that has passed (`Harness::frame`).
+            let s_rx = clock
+                .to_sync(Instant::from_ns(at.max(self.now) + 2_000))
+                .as_ns();
             let due = clock.is_locked()
                 && k >= 1
                 && value.is_finite()
