@@ -56,6 +56,11 @@
 //!   cycles, either stopping (`Master::is_stopping`) or its slave is in its safe state
 //!   (status FAULT, BRAKING or TORQUE_OFF).
 //!
+//! - With `RINGSYNC_FUZZ_F5=1` only (known finding F5, docs/fuzzing.md, excluded until the
+//!   master is fixed): a drive that is off or braking (status TORQUE_OFF or BRAKING) without
+//!   its own watchdog (no FAULT) was stopped by an order the master did not give; within
+//!   W + 2 cycles the master stops the group.
+//!
 //! # Out of scope
 //! The wire has no authentication: a CRC says the bytes are intact, not who sent them. A
 //! forged frame whose *data* is bit-identical to the truth (a lumped frame whose slots are
