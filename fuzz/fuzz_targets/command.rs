@@ -15,4 +15,3 @@ fn check(data: &[u8]) {
         assert_eq!(CommandRepr::parse(&buf[..n]), Ok(r));
     }
 }
-

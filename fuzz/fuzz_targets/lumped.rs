@@ -32,4 +32,3 @@ fn check(data: &[u8]) {
         }
     }
 }
-

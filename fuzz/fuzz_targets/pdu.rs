@@ -17,4 +17,3 @@ fn check(data: &[u8]) {
         assert_eq!(&buf[..n], &data[..n]);
     }
 }
-
