@@ -94,7 +94,7 @@ enum Op {
     /// A frame arriving `after_ns` (mod 1.2 ms) after the last input, capped at the next
     /// deadline.
     Frame { after_ns: u32, frame: MFrame },
-    /// `cycles % 64` cycles of a perfect ring; positions `error` counts off the desired path;
+    /// `1 + cycles % 64` cycles of a perfect ring; positions `error` counts off the desired path;
     /// `quirk` bit 0 loses the lumped frame, bit 1 axis `quirk >> 4`'s responses, bit 2
     /// marks that axis FAULT, bit 3 makes the samples 1 µs late, bit 6 makes that axis's
     /// responses report 1 V more than the command, bit 7 report BRAKING.
