@@ -11,6 +11,15 @@ use ringsync_wire::crc32;
 /// T_cyc of every ring the targets build [ns].
 pub const CYCLE_NS: i64 = 1_000_000;
 
+/// The last wire timestamp a node may take (`Instant::HORIZON`, i64::MAX / 4) [ns]; the
+/// targets check that nothing stamped later changes a node.
+pub const HORIZON_NS: i64 = ringsync_proto::Instant::HORIZON.as_ns();
+
+/// Whether a wire timestamp lies past [`HORIZON_NS`].
+pub fn past_horizon(t: u64) -> bool {
+    t > HORIZON_NS as u64
+}
+
 /// A PDU with the given header fields and payload, CRC filled in.
 pub fn pdu(kind: u8, flags: u8, retry: u8, cycle: u32, seq: u16, payload: &[u8]) -> Vec<u8> {
     let len = payload.len().min(usize::from(u16::MAX));
@@ -25,10 +34,10 @@ pub fn pdu(kind: u8, flags: u8, retry: u8, cycle: u32, seq: u16, payload: &[u8])
     b
 }
 
-/// Header flags: the defined bits only, unless the fuzzer sets bit 7 (then the raw byte,
-/// reserved bits and all).
+/// Header flags: the defined bits only (STOP, TORQUE_OFF, BRAKE), unless the fuzzer sets
+/// bit 7 (then the raw byte, reserved bits and all).
 pub fn flags(b: u8) -> u8 {
-    if b & 0x80 != 0 { b } else { b & 0x03 }
+    if b & 0x80 != 0 { b } else { b & 0x07 }
 }
 
 /// Status bits: the defined ones only, unless bit 15 is set (then the raw value).
@@ -203,6 +212,9 @@ pub enum When {
     Near(i32),
     /// This value [ns] (anything up to the end of the u64 time line).
     Raw(u64),
+    /// The end of the time line a node takes from the wire ([`HORIZON_NS`]) plus this [ns]:
+    /// both sides of the edge.
+    Horizon(i16),
 }
 
 impl When {
@@ -216,6 +228,7 @@ impl When {
                 .saturating_add(i64::from(frac) % CYCLE_NS),
             When::Near(d) => reference.saturating_add(i64::from(d)),
             When::Raw(v) => return v,
+            When::Horizon(d) => HORIZON_NS.saturating_add(i64::from(d)),
         };
         t.max(0) as u64
     }
@@ -230,4 +243,16 @@ pub fn clip(u: f64, limit: f64) -> f64 {
 pub fn tracing() -> bool {
     static ON: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
     *ON.get_or_init(|| std::env::var_os("RINGSYNC_FUZZ_TRACE").is_some())
+}
+
+/// The wire timestamp a node reads from `bytes` (a lumped frame's send stamp, a command's
+/// or a response's sampling instant), if the header and that field are there.
+pub fn wire_time(bytes: &[u8]) -> Option<u64> {
+    let at = match bytes.get(1)? {
+        1 | 4 => 12,
+        2 => 20,
+        3 => 28,
+        _ => return None,
+    };
+    Some(u64::from_le_bytes(bytes.get(at..at + 8)?.try_into().ok()?))
 }

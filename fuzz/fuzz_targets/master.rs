@@ -1,20 +1,46 @@
-//! One [`Master`] alone (4 axes, the testbed's plan and PD law; the proposed plan or the
-//! lumped-only plan), fed an arbitrary interleaving of `handle_timeout` (at `poll_timeout()`,
-//! or later: a driver that wakes late) and `handle_frame` (at any time up to the next
-//! deadline): its own last lumped frame returned with any slots and header fields, forged
-//! responses and commands with any fields (cycles near the master's, times near now), sealed
-//! and unsealed raw bytes, and whole cycles of a perfect ring (every lumped frame back with
-//! fresh samples near the desired path, every command answered), so that the fuzzer reaches
-//! the law, the slices, the retries and the group stop.
+//! One [`Master`] alone (4 axes, the testbed's plan and PD law, a stop timeout of 300 ms;
+//! the proposed plan or the lumped-only plan), fed an arbitrary interleaving of
+//! `handle_timeout` (at `poll_timeout()`, or later: a driver that wakes late) and
+//! `handle_frame` (at any time up to the next deadline): its own last lumped frame returned
+//! with any slots and header fields, forged responses and commands with any fields (cycles
+//! near the master's, times near now or at the time line's horizon), sealed and unsealed raw
+//! bytes, and whole cycles of a perfect ring (every lumped frame back with fresh samples near
+//! the desired path, every command answered with what it carried), with quirks, so that the
+//! fuzzer reaches the law, the slices, the retries, the watchdogs, the group stop and its
+//! orders.
+//!
+//! The harness mirrors what the master must have taken: each returned lumped frame it
+//! accepted (its "last seen" cycle moves) and the samples in it that were newer than the last
+//! one and not from the future, and each response it accepted (nothing counted as refused).
 //!
 //! # Invariants
 //! - No panic.
 //! - Every frame it sends parses; leaves at the time of the call that sent it (never before
 //!   an earlier one); a lumped frame is stamped with that time and carries the cycle in
-//!   progress (which advances by one at a time); a command targets an axis 1..=4, carries the
-//!   cycle of the last lumped frame, retry 0 or 1, and a finite value within ±10 V; once the
-//!   group stops every command carries STOP; once an axis's torque is ordered off, every
-//!   command to it carries TORQUE_OFF and 0 V.
+//!   progress (which advances by one at a time), no flags on the proposed plan, STOP|BRAKE
+//!   on the lumped-only plan from the group stop on (none before). A command targets an
+//!   axis 1..=4, carries the cycle of the last lumped frame, retry 0 or 1, a finite value
+//!   within ±10 V, STOP iff the group stops, BRAKE iff the axis was ordered to brake,
+//!   TORQUE_OFF iff it was ordered off, and 0 V when ordered or blind (no fresh sample for
+//!   W law runs). No command on the lumped-only plan.
+//! - Acceptance: a response is taken only if it answers the open slice (the last command
+//!   sent: its target, cycle and retry), once.
+//! - `CommandMismatch`: `command_mismatches` moves only when a response is taken, by one,
+//!   exactly when its applied command is not what the master sent in that slice (clipped,
+//!   if the response says SATURATED) and its status is not FAULT, BRAKING or TORQUE_OFF; a
+//!   stop for a mismatch names such a response's axis, sent and applied values.
+//! - Watchdogs: a law run (a cycle end on the lumped-only plan) after W in a row without a
+//!   newly taken sample of an axis (late samples count) stops the group; a stop for no
+//!   feedback names such an axis, and one for no response an axis whose slices went
+//!   unanswered W cycles in a row.
+//! - Orders (the group stop): only while stopping; per axis at most a Brake, then at most a
+//!   TorqueOff, nothing after; Brake for an axis without feedback (or every axis on the
+//!   lumped-only plan, at the stop), TorqueOff for one that cannot follow its ramp, has
+//!   held still at the end of it, or at the stop timeout, by which every axis is off.
+//!   `Master::order` agrees.
+//! - Timestamps: no sample from the future (so none past `Instant::HORIZON`) reaches the
+//!   master's feedback: each record's sampling instants (written slots on the lumped-only
+//!   plan) are at most now + `timestamp_tolerance`.
 //! - `poll_timeout()`: after `handle_timeout(t)` (t ≥ the deadline d it answered) the next
 //!   deadline is ≥ d − turnaround. It is not always ≥ t: a driver that wakes late gets the
 //!   deadlines it missed (past ones, to run at once); and a slice that ends by its response
@@ -23,19 +49,25 @@
 //!   up to `turnaround` in the past (the next lumped frame leaves that late, stamped with its
 //!   real send time). After `handle_frame(t)` the deadline is unchanged, or t + turnaround
 //!   (a response ended the slice). At most 64 calls in a row at one time (no livelock).
-//! - The record after `Computed { k }` is cycle k's; with the proposed plan its commands are
-//!   finite and within ±10 V (with the lumped-only plan they are what the slaves reported,
-//!   finite by the wire format).
-//! - A group stop happens at most once and is final; torque off at most once per axis.
+//! - The record after `Computed { k }` is cycle k's, k increases; with the proposed plan
+//!   its commands are finite and within ±10 V (with the lumped-only plan they are what the
+//!   slaves reported, finite by the wire format).
+//! - A group stop happens at most once and is final.
 //! - Counters never decrease.
 #![no_main]
+
+use std::collections::HashSet;
 
 use libfuzzer_sys::arbitrary::{self, Arbitrary, Unstructured};
 use libfuzzer_sys::fuzz_target;
 use ringsync_control::{AxisTrajectory, Cosine, Gains, Pd, VelocitySource};
-use ringsync_proto::node::{Master, MasterConfig, MasterCounters, MasterEvent, Transmit};
+use ringsync_proto::node::{
+    Master, MasterConfig, MasterCounters, MasterEvent, OffReason, StopOrder, StopReason, Transmit,
+};
 use ringsync_proto::{CyclePlan, Duration, Instant, RingParams};
-use ringsync_wire::{Flags, Pdu};
+use ringsync_wire::{
+    CommandRepr, FeedbackSlot, Flags, LumpedOnlySlot, LumpedRepr, Pdu, ResponseRepr, Status,
+};
 
 #[path = "forge.rs"]
 mod forge;
@@ -52,6 +84,8 @@ const U_MAX: f64 = 10.0;
 const TOTAL: i64 = 2_000 * T;
 /// Most a driver wakes late [ns].
 const MAX_LATE: u32 = 2_000_000;
+/// The stop's longest time here (300 ms, so that inputs reach it) [ns].
+const STOP_TIMEOUT: i64 = 300 * T;
 
 #[derive(Arbitrary, Debug)]
 enum Op {
@@ -60,9 +94,10 @@ enum Op {
     /// A frame arriving `after_ns` (mod 1.2 ms) after the last input, capped at the next
     /// deadline.
     Frame { after_ns: u32, frame: MFrame },
-    /// `cycles` cycles of a perfect ring; positions `error` counts off the desired path;
+    /// `1 + cycles % 64` cycles of a perfect ring; positions `error` counts off the desired path;
     /// `quirk` bit 0 loses the lumped frame, bit 1 axis `quirk >> 4`'s responses, bit 2
-    /// marks that axis FAULT, bit 3 makes the samples 1 µs late.
+    /// marks that axis FAULT, bit 3 makes the samples 1 µs late, bit 6 makes that axis's
+    /// responses report 1 V more than the command, bit 7 report BRAKING.
     Ring { cycles: u8, error: i32, quirk: u8 },
 }
 
@@ -97,6 +132,15 @@ enum MFrame {
     Raw(Vec<u8>),
 }
 
+/// The last command sent: the open slice, if the master has one.
+#[derive(Debug, Clone, Copy)]
+struct Sent {
+    axis: usize,
+    cycle: u32,
+    retry: u8,
+    value: f32,
+}
+
 struct Harness {
     m: Master,
     now: i64,
@@ -106,11 +150,26 @@ struct Harness {
     last_lumped: Option<Vec<u8>>,
     /// Frames sent since the perfect ring last answered.
     sent: Vec<Transmit>,
-    stopped: bool,
-    off: [bool; N],
+    /// When the group stop began [ns].
+    stopped: Option<i64>,
+    orders: [Option<StopOrder>; N],
     last_k: Option<i64>,
     same_time_calls: u32,
     lumped_only: bool,
+    w: u32,
+    tolerance: i64,
+    /// The last command sent (the open slice), until a response to it is taken.
+    open: Option<Sent>,
+    /// Mismatches the master had to count since the last law run: (axis, sent, applied).
+    mismatches: HashSet<(usize, u32, u32)>,
+    /// Mirror of the master's feedback: the newest sample taken per axis [ns], whether one
+    /// was taken since the last law run, law runs since one was, and cycles in a row
+    /// without a response taken.
+    latest: [Option<u64>; N],
+    fed: [bool; N],
+    since_fresh: [u32; N],
+    acked: [bool; N],
+    missed: [u32; N],
 }
 
 impl Harness {
@@ -127,6 +186,9 @@ impl Harness {
             MasterConfig::from_plan(&plan, Duration::ZERO, vec![res; N], 1.0)
         };
         cfg.watchdog_cycles = 5;
+        cfg.stop_timeout = Duration::from_ns(STOP_TIMEOUT);
+        let w = cfg.watchdog_cycles;
+        let tolerance = cfg.timestamp_tolerance.as_ns();
         let law = Pd::new(Gains::uniform(N, 3.182, 1.591, 0.0), false)
             .unwrap_or_else(|e| panic!("law: {e}"));
         let traj =
@@ -144,11 +206,20 @@ impl Harness {
             cycle: None,
             last_lumped: None,
             sent: Vec::new(),
-            stopped: false,
-            off: [false; N],
+            stopped: None,
+            orders: [None; N],
             last_k: None,
             same_time_calls: 0,
             lumped_only,
+            w,
+            tolerance,
+            open: None,
+            mismatches: HashSet::new(),
+            latest: [None; N],
+            fed: [false; N],
+            since_fresh: [0; N],
+            acked: [false; N],
+            missed: [0; N],
         }
     }
 
@@ -168,13 +239,50 @@ impl Harness {
         }
         self.now = t;
         let before = self.m.counters();
+        let k = self.m.cycle();
         self.m.handle_timeout(Instant::from_ns(t));
         let next = self.m.poll_timeout().as_ns();
         assert!(
             next >= d - self.turnaround(),
             "deadline {d} ns answered at {t} ns, next deadline {next} ns"
         );
-        self.drain(t, &before);
+        assert_eq!(
+            self.m.counters().command_mismatches,
+            before.command_mismatches,
+            "a mismatch counted without a response"
+        );
+        let ended = self.m.cycle() != k;
+        if ended {
+            assert_eq!(self.m.cycle(), k + 1, "cycle {k} -> {}", self.m.cycle());
+            self.cycle_ended();
+        }
+        self.drain(t, &before, ended);
+    }
+
+    /// The master ended a cycle: slices unanswered count, and on the lumped-only plan its
+    /// feedback watchdog ran.
+    fn cycle_ended(&mut self) {
+        if self.lumped_only {
+            self.law_ran();
+        } else {
+            for i in 0..N {
+                self.missed[i] = if self.acked[i] { 0 } else { self.missed[i] + 1 };
+            }
+        }
+        self.acked = [false; N];
+        self.open = None;
+    }
+
+    /// The law ran (the proposed plan) or the cycle ended (lumped-only): the feedback
+    /// watchdog counts.
+    fn law_ran(&mut self) {
+        for i in 0..N {
+            self.since_fresh[i] = if std::mem::take(&mut self.fed[i]) {
+                0
+            } else {
+                self.since_fresh[i].saturating_add(1)
+            };
+        }
     }
 
     /// Runs every deadline up to `until`, then returns the time a frame may arrive at.
@@ -194,52 +302,267 @@ impl Harness {
         self.same_time_calls = 0;
         let d = self.m.poll_timeout().as_ns();
         let before = self.m.counters();
+        let seen = self.m.last_lumped_cycle();
         self.m.handle_frame(Instant::from_ns(t), bytes);
+        let after = self.m.counters();
         let next = self.m.poll_timeout().as_ns();
         assert!(
             next == d || next == t + self.turnaround(),
             "a frame at {t} ns moved the deadline {d} -> {next} ns"
         );
-        self.drain(t, &before);
+        // What the master took, mirrored.
+        let newest = t.saturating_add(self.tolerance).max(0) as u64;
+        if self.m.last_lumped_cycle() != seen {
+            self.took_lumped(bytes, newest);
+        }
+        let mut expect = 0;
+        if bytes.get(1) == Some(&3) && after.rejected.total() == before.rejected.total() {
+            let r = ResponseRepr::parse(bytes)
+                .unwrap_or_else(|e| panic!("the master took a response that does not parse: {e}"));
+            let Some(s) = self.open.take() else {
+                panic!("the master took {r:?} with no slice open");
+            };
+            assert!(
+                usize::from(r.source) == s.axis + 1
+                    && r.common.cycle == s.cycle
+                    && r.echo_cycle == s.cycle
+                    && r.common.retry == s.retry,
+                "the master took {r:?} in the slice of {s:?}"
+            );
+            self.acked[s.axis] = true;
+            let idle = Status::FAULT.bits() | Status::BRAKING.bits() | Status::TORQUE_OFF.bits();
+            let (sent, applied) = (s.value, r.applied_v);
+            let ok = if r.status.contains(Status::SATURATED) {
+                applied.abs() <= sent.abs() && applied * sent > 0.0
+            } else {
+                applied == sent
+            };
+            if r.status.bits() & idle == 0 && !ok {
+                expect = 1;
+                self.mismatches
+                    .insert((s.axis, sent.to_bits(), applied.to_bits()));
+            }
+        }
+        assert_eq!(
+            after.command_mismatches - before.command_mismatches,
+            expect,
+            "command mismatches counted"
+        );
+        self.drain(t, &before, false);
     }
 
-    fn drain(&mut self, t: i64, before: &MasterCounters) {
+    /// The master took a returned lumped frame: the samples it had to take.
+    fn took_lumped(&mut self, bytes: &[u8], newest: u64) {
+        let slots: Vec<(usize, FeedbackSlot)> = if self.lumped_only {
+            let l = LumpedRepr::<LumpedOnlySlot>::parse(bytes)
+                .unwrap_or_else(|e| panic!("the master took a lumped frame that fails: {e}"));
+            let first = usize::from(l.first_slot);
+            l.slots
+                .iter()
+                .enumerate()
+                .map(|(k, s)| (first + k, s.feedback))
+                .collect()
+        } else {
+            let l = LumpedRepr::<FeedbackSlot>::parse(bytes)
+                .unwrap_or_else(|e| panic!("the master took a lumped frame that fails: {e}"));
+            let first = usize::from(l.first_slot);
+            l.slots
+                .iter()
+                .enumerate()
+                .map(|(k, s)| (first + k, *s))
+                .collect()
+        };
+        for (i, s) in slots {
+            if i >= N || !s.written || s.sample_time_ns > newest {
+                continue;
+            }
+            if self.lumped_only {
+                self.fed[i] = true;
+            } else if self.latest[i].is_none_or(|l| s.sample_time_ns > l) {
+                self.latest[i] = Some(s.sample_time_ns);
+                self.fed[i] = true;
+            }
+        }
+    }
+
+    /// What a call gave; `ended`: it ended a cycle.
+    fn drain(&mut self, t: i64, before: &MasterCounters, ended: bool) {
         check_counters(before, &self.m.counters());
+        // Events first: those of a law run come before the commands it sends.
+        let mut events = Vec::new();
+        while let Some(ev) = self.m.poll_event() {
+            events.push(ev);
+        }
+        let computed = events
+            .iter()
+            .any(|e| matches!(e, MasterEvent::Computed { .. }));
+        if computed && !self.lumped_only {
+            self.law_ran();
+        }
+        for ev in events {
+            self.event(t, ev);
+        }
+        if computed && !self.lumped_only || ended && self.lumped_only {
+            // The watchdogs: a blind axis stops the group.
+            for i in 0..N {
+                if self.since_fresh[i] >= self.w {
+                    assert!(
+                        self.stopped.is_some(),
+                        "axis {} without a new sample for {} law runs, no stop",
+                        i + 1,
+                        self.since_fresh[i]
+                    );
+                }
+            }
+            if computed && !self.lumped_only {
+                let r = self.m.record();
+                for i in 0..N {
+                    if self.since_fresh[i] >= self.w || self.orders[i].is_some() {
+                        assert_eq!(r.u[i], 0.0, "axis {} blind or ordered: {r:?}", i + 1);
+                    }
+                }
+            }
+        }
+        if let Some(at) = self.stopped
+            && computed
+            && !self.lumped_only
+            && t >= at + STOP_TIMEOUT + 1_000
+        {
+            assert!(
+                self.orders.iter().all(|o| *o == Some(StopOrder::TorqueOff)),
+                "the stop timed out, orders {:?}",
+                self.orders
+            );
+        }
+        for i in 0..N {
+            assert_eq!(self.m.order(i), self.orders[i], "axis {}'s order", i + 1);
+        }
         while let Some(tx) = self.m.poll_transmit() {
             self.transmit(t, &tx);
             self.sent.push(tx);
         }
-        while let Some(ev) = self.m.poll_event() {
-            match ev {
-                MasterEvent::Computed { k } => {
-                    assert!(
-                        self.last_k.is_none_or(|l| k > l),
-                        "cycle {k} computed again"
-                    );
-                    self.last_k = Some(k);
-                    let r = self.m.record();
-                    assert_eq!(r.k, k, "the record is not cycle {k}'s");
-                    for &u in &r.u {
-                        assert!(u.is_finite(), "record {r:?}");
-                        if !self.lumped_only {
-                            assert!(u.abs() <= U_MAX, "record {r:?}");
+        assert!(
+            self.stopped.is_none() || self.m.is_stopping(),
+            "the group stop ended"
+        );
+        assert_eq!(
+            self.stopped.is_some(),
+            self.m.is_stopping(),
+            "a stop unseen"
+        );
+    }
+
+    fn event(&mut self, t: i64, ev: MasterEvent) {
+        if forge::tracing() && !matches!(ev, MasterEvent::Computed { .. }) {
+            eprintln!("  {t} ns: {ev:?}");
+        }
+        match ev {
+            MasterEvent::Computed { k } => {
+                assert!(
+                    self.last_k.is_none_or(|l| k > l),
+                    "cycle {k} computed again"
+                );
+                self.last_k = Some(k);
+                let r = self.m.record();
+                assert_eq!(r.k, k, "the record is not cycle {k}'s");
+                let newest = (t.saturating_add(self.tolerance)) as f64 * 1e-9;
+                for i in 0..N {
+                    let u = r.u[i];
+                    assert!(u.is_finite(), "record {r:?}");
+                    if !self.lumped_only {
+                        assert!(u.abs() <= U_MAX, "record {r:?}");
+                    }
+                    if !self.lumped_only || r.fresh[i] {
+                        assert!(
+                            r.sample_time[i] <= newest * (1.0 + 1e-12),
+                            "axis {}: a sample from the future in {r:?} at {t} ns",
+                            i + 1
+                        );
+                    }
+                }
+                self.mismatches.clear();
+            }
+            MasterEvent::GroupStop { at, reason } => {
+                assert!(self.stopped.is_none(), "a second group stop: {ev:?}");
+                assert_eq!(at.as_ns(), t, "{ev:?}");
+                self.stopped = Some(t);
+                match reason {
+                    StopReason::NoFeedback { axis } => assert!(
+                        self.since_fresh[axis] >= self.w,
+                        "{ev:?} after {} law runs without a sample",
+                        self.since_fresh[axis]
+                    ),
+                    StopReason::NoResponse { axis } => assert!(
+                        self.missed[axis] >= self.w,
+                        "{ev:?} after {} cycles without a response",
+                        self.missed[axis]
+                    ),
+                    StopReason::CommandMismatch {
+                        axis,
+                        sent,
+                        applied,
+                    } => assert!(
+                        self.mismatches
+                            .contains(&(axis, sent.to_bits(), applied.to_bits())),
+                        "{ev:?}, mismatches seen {:?}",
+                        self.mismatches
+                    ),
+                    _ => {}
+                }
+                assert!(reason.axis() < N, "{ev:?}");
+            }
+            MasterEvent::Order {
+                at,
+                axis,
+                order,
+                why,
+            } => {
+                let Some(stop) = self.stopped else {
+                    panic!("{ev:?} before any stop");
+                };
+                assert_eq!(at.as_ns(), t, "{ev:?}");
+                assert!(axis < N, "{ev:?}");
+                let had = self.orders[axis];
+                match order {
+                    StopOrder::Brake => {
+                        assert_eq!(had, None, "{ev:?} after {had:?}");
+                        match why {
+                            OffReason::NoFeedback => assert!(
+                                !self.lumped_only
+                                    && (self.since_fresh[axis] >= self.w
+                                        || self.latest[axis].is_none()),
+                                "{ev:?} with feedback"
+                            ),
+                            OffReason::LumpedOnly => {
+                                assert!(self.lumped_only && t == stop, "{ev:?}")
+                            }
+                            _ => panic!("{ev:?}: a brake for that reason"),
+                        }
+                    }
+                    StopOrder::TorqueOff => {
+                        assert!(!self.lumped_only, "{ev:?} on the lumped-only plan");
+                        assert_ne!(had, Some(StopOrder::TorqueOff), "{ev:?} twice");
+                        match why {
+                            OffReason::StopTimeout => {
+                                assert!(t >= stop + STOP_TIMEOUT - 1_000, "{ev:?}")
+                            }
+                            OffReason::StopComplete => assert!(
+                                had.is_none()
+                                    && t >= stop + self.m.config().stop_hold.as_ns() - 1_000,
+                                "{ev:?} after {had:?}"
+                            ),
+                            OffReason::FollowingError { error } => assert!(
+                                had.is_none()
+                                    && error.abs() > self.m.config().following_error_limit,
+                                "{ev:?} after {had:?}"
+                            ),
+                            _ => panic!("{ev:?}: torque off for that reason"),
                         }
                     }
                 }
-                MasterEvent::GroupStop { .. } => {
-                    assert!(!self.stopped, "a second group stop: {ev:?}");
-                    self.stopped = true;
-                }
-                MasterEvent::TorqueOff { axis, .. } => {
-                    assert!(axis < N && !self.off[axis], "{ev:?} twice or no such axis");
-                    self.off[axis] = true;
-                }
+                self.orders[axis] = Some(order);
             }
         }
-        assert!(
-            !self.stopped || self.m.is_stopping(),
-            "the group stop ended"
-        );
     }
 
     fn transmit(&mut self, t: i64, tx: &Transmit) {
@@ -255,34 +578,54 @@ impl Harness {
         match pdu {
             Pdu::Lumped(l) => {
                 assert!(!self.lumped_only, "a kind-1 frame on the lumped-only plan");
+                assert_eq!(l.common.flags, Flags::empty(), "lumped frame {l:?}");
                 self.lumped(l.common.cycle, l.master_time_ns, t, &tx.bytes);
             }
             Pdu::LumpedOnly(l) => {
                 assert!(self.lumped_only, "a kind-4 frame on the proposed plan");
+                let flags = if self.stopped.is_some() {
+                    Flags::STOP.with(Flags::BRAKE)
+                } else {
+                    Flags::empty()
+                };
+                assert_eq!(l.common.flags, flags, "lumped-only frame {:?}", l.common);
                 self.lumped(l.common.cycle, l.master_time_ns, t, &tx.bytes);
             }
-            Pdu::Command(c) => {
-                assert!(!self.lumped_only, "a command on the lumped-only plan");
-                let v = f64::from(c.command_v);
-                assert!(v.is_finite() && v.abs() <= U_MAX, "command {c:?}");
-                assert!((1..=N as u16).contains(&c.target), "command {c:?}");
-                assert_eq!(Some(c.common.cycle), self.cycle, "command {c:?}");
-                assert!(c.common.retry <= 1, "command {c:?}");
-                if self.stopped {
-                    assert!(
-                        c.common.flags.contains(Flags::STOP),
-                        "{c:?} during the stop"
-                    );
-                }
-                if self.off[usize::from(c.target) - 1] {
-                    assert!(
-                        c.common.flags.contains(Flags::TORQUE_OFF) && c.command_v == 0.0,
-                        "{c:?} after torque off"
-                    );
-                }
-            }
+            Pdu::Command(c) => self.command(&c),
             Pdu::Response(r) => panic!("the master sent a response: {r:?}"),
         }
+    }
+
+    fn command(&mut self, c: &CommandRepr) {
+        assert!(!self.lumped_only, "a command on the lumped-only plan");
+        let v = f64::from(c.command_v);
+        assert!(v.is_finite() && v.abs() <= U_MAX, "command {c:?}");
+        assert!((1..=N as u16).contains(&c.target), "command {c:?}");
+        assert_eq!(Some(c.common.cycle), self.cycle, "command {c:?}");
+        assert!(c.common.retry <= 1, "command {c:?}");
+        let axis = usize::from(c.target) - 1;
+        let f = c.common.flags;
+        let order = self.orders[axis];
+        assert_eq!(f.contains(Flags::STOP), self.stopped.is_some(), "{c:?}");
+        assert_eq!(
+            f.contains(Flags::TORQUE_OFF),
+            order == Some(StopOrder::TorqueOff),
+            "{c:?} with order {order:?}"
+        );
+        assert_eq!(
+            f.contains(Flags::BRAKE),
+            order == Some(StopOrder::Brake),
+            "{c:?} with order {order:?}"
+        );
+        if order.is_some() || self.since_fresh[axis] >= self.w {
+            assert_eq!(c.command_v, 0.0, "{c:?} to an axis blind or ordered");
+        }
+        self.open = Some(Sent {
+            axis,
+            cycle: c.common.cycle,
+            retry: c.common.retry,
+            value: c.command_v,
+        });
     }
 
     fn lumped(&mut self, cycle: u32, stamp: u64, t: i64, bytes: &[u8]) {
@@ -331,7 +674,7 @@ impl Harness {
                 }
                 forge::lumped(
                     kind,
-                    0,
+                    field(2, 1) as u8,
                     0,
                     cycle.map_or(field(4, 4) as u32, |c| c.resolve(k)),
                     seq.unwrap_or(field(8, 2) as u16),
@@ -366,7 +709,7 @@ impl Harness {
         self.sent.clear();
         for _ in 0..512 {
             let done = self.cycle.unwrap_or(0).wrapping_sub(start);
-            if done > u32::from(cycles % 8) || self.now > TOTAL {
+            if done > u32::from(cycles % 64) || self.now > TOTAL {
                 break;
             }
             // The answers to what went out, in time order, each before the next deadline.
@@ -415,7 +758,19 @@ impl Harness {
                 if quirk & 2 != 0 && i == axis {
                     return None;
                 }
-                let status = if quirk & 4 != 0 && i == axis { 1 } else { 0 };
+                let mut status = 0;
+                let mut applied = c.command_v;
+                if i == axis {
+                    if quirk & 4 != 0 {
+                        status |= Status::FAULT.bits();
+                    }
+                    if quirk & 64 != 0 {
+                        applied += 1.0;
+                    }
+                    if quirk & 128 != 0 {
+                        status |= Status::BRAKING.bits();
+                    }
+                }
                 let head = Head {
                     cycle: CycleSel::Raw(c.common.cycle),
                     retry: c.common.retry,
@@ -429,7 +784,7 @@ impl Harness {
                     position: 0,
                     velocity: 0,
                     sample: When::Raw(c.sample_time_ns),
-                    applied: c.command_v,
+                    applied,
                 };
                 let hops = (N - i) as i64 * 1_000;
                 Some((t + 8_000 + hops, forge::response(&head, &resp, 0, 0)))
@@ -447,7 +802,17 @@ impl Harness {
         data: &[u8],
     ) -> Vec<u8> {
         let n = (data.len() / if kind == 4 { 32 } else { 20 }) as u16;
-        forge::lumped(kind, 0, 0, c.cycle, c.seq, t as u64, first, n, data)
+        forge::lumped(
+            kind,
+            c.flags.bits(),
+            0,
+            c.cycle,
+            c.seq,
+            t as u64,
+            first,
+            n,
+            data,
+        )
     }
 
     /// Axis i's slot, sampled at the cycle start `t` (quirk bit 3: 1 µs later).
@@ -477,6 +842,7 @@ fn check_counters(b: &MasterCounters, a: &MasterCounters) {
             && a.retries >= b.retries
             && a.retries_ok >= b.retries_ok
             && a.commands_lost >= b.commands_lost
+            && a.command_mismatches >= b.command_mismatches
             && a.rejected
                 .iter()
                 .zip(b.rejected.iter())
