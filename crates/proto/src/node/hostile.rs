@@ -503,8 +503,50 @@ fn a_torque_off_order_is_latched() {
         .max()
         .unwrap_or(0);
     assert!(last < 100 * MS, "slave 2 applied a command at {last} ns");
-    // The others go on.
-    assert!(r.applied.iter().any(|a| a.1 == 3 && a.0 > 299 * MS));
+    // The master did not order it: its response says TORQUE_OFF, so something else
+    // commands the axis, and the group stops at the next law run (fuzzing finding F5: the
+    // others used to go on until the following error tripped, 77-354 ms later).
+    let s = stops(&r);
+    assert_eq!(s.len(), 1, "{s:?}");
+    let (t, reason) = s[0];
+    assert!(
+        matches!(reason, StopReason::CommandMismatch { axis: 1, .. }),
+        "{reason:?}"
+    );
+    assert!((100 * MS..102 * MS).contains(&t), "stopped at {t} ns");
+}
+
+/// A lumped frame of cycle 5000 and its command (left over from an earlier run), then the
+/// master from cycle 1: the slave restarts its acquisition and takes the master's commands
+/// (fuzzing finding F4: the stray command's cycle held off every command of the new time
+/// line as stale, up to 2^31 cycles).
+#[test]
+fn a_stray_command_does_not_hold_off_the_next_time_line() {
+    let mut s = Slave::new(SlaveConfig::new(
+        1,
+        Duration::from_ms(1),
+        Duration::from_us(1),
+    ));
+    let mut feed = |local: i64, mut b: Vec<u8>| {
+        let t = Instant::from_ns(local);
+        s.handle_frame(t, t, &mut b)
+    };
+    let _ = feed(1_000, lumped(5_000, (5_000 * MS) as u64, 1));
+    let _ = feed(200_000, command(5_000, 1, 1.0, 0, (4_999 * MS) as u64));
+    for k in 1..=10i64 {
+        let _ = feed(k * MS + 1_000, lumped(k as u32, (k * MS) as u64, 1));
+        let out = feed(
+            k * MS + 200_000,
+            command(k as u32, 1, 0.5, 0, ((k - 1) * MS) as u64),
+        );
+        // From cycle 2 on, two agreeing frames have locked the clock.
+        if k >= 2 {
+            assert_eq!(out, FrameOutcome::Consumed, "cycle {k}");
+        }
+    }
+    let c = s.counters();
+    assert_eq!(c.acquisitions_restarted, 1);
+    assert_eq!(c.rejected.get(Reject::Stale), 0, "{c:?}");
 }
 
 /// A stray lumped frame (one left in a socket by an earlier run, or a forgery) reaches

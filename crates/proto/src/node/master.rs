@@ -1006,16 +1006,20 @@ impl Master {
     }
 
     /// A response says which command the slave applied: it must be the one this master
-    /// sent (clipped to the drive's range if the slave says it saturated), unless the
-    /// drive no longer follows commands (fault, braking, torque off). Anything else means
-    /// that something besides this master commands the axis: the group stops.
+    /// sent (clipped to the drive's range if the slave says it saturated). A drive in its
+    /// own safe state says FAULT (the group stops for the fault); one braking or with its
+    /// torque off must have been ordered so by this master. Anything else means that
+    /// something besides this master commands the axis (a forged command, or a forged
+    /// order): the group stops.
     fn check_applied(&mut self, i: usize, r: &ResponseRepr) {
-        let idle = Status::FAULT.with(Status::BRAKING).with(Status::TORQUE_OFF);
-        if r.status.bits() & idle.bits() != 0 {
+        if r.status.contains(Status::FAULT) {
             return;
         }
+        let stopped = Status::BRAKING.with(Status::TORQUE_OFF);
         let (sent, applied) = (self.sent_u[i], r.applied_v);
-        let ok = if r.status.contains(Status::SATURATED) {
+        let ok = if r.status.bits() & stopped.bits() != 0 {
+            self.orders[i].is_some()
+        } else if r.status.contains(Status::SATURATED) {
             applied.abs() <= sent.abs() && applied * sent > 0.0
         } else {
             applied == sent

@@ -701,10 +701,13 @@ impl Slave {
                 self.clock.sync(rx, at);
                 self.acquired = self.last_lumped.is_some();
             }
-            // Not yet locked: the frames so far disagree with this one; start over from it.
+            // Not yet locked: the frames so far disagree with this one; start over from it,
+            // and forget the command taken on the abandoned time line (its cycle would hold
+            // off every command of the new one as stale).
             Err(_) if !acquired => {
                 self.clock.restart(rx, at);
                 self.candidate = None;
+                self.last_command = None;
                 self.counters.acquisitions_restarted += 1;
             }
             Err(r) => {
