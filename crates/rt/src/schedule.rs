@@ -5,6 +5,7 @@
 
 use ringsync_model::Spec;
 use ringsync_model::spec::timestamp_tolerance;
+use ringsync_proto::node::MeasuredSchedule;
 use ringsync_proto::{Duration, PlanKind};
 
 use crate::calibrate::Calibration;
@@ -44,7 +45,6 @@ pub fn apply(
     let slice = cal.slice.iter().map(|p| p.p99).max().unwrap_or(0) + t_ti;
     let p2p_start = (2 * cal.round_trip.p99 + 20_000).max(m.p2p_start.as_ns());
     let timeout = response_timeout.as_ns();
-    let turnaround = m.turnaround.as_ns();
     if m.plan == PlanKind::P2pLumped {
         // Each slice ends when its response is back; only a slice whose response is lost
         // runs to its deadline (slice + timeout), and the master opens no slice that would
@@ -60,14 +60,18 @@ pub fn apply(
                 t_cyc as f64 * 1e-3
             )));
         }
-        m.p2p_start = Duration::from_ns(p2p_start);
-        m.slice = Duration::from_ns(slice);
-        m.guard = Duration::from_ns(timeout);
-        let mut at = p2p_start;
-        for i in 0..n {
-            m.command_arrival[i] = Duration::from_ns(at + cal.command[i]);
-            at += cal.slice[i].p50 + t_ti + turnaround;
-        }
+        let measured = MeasuredSchedule {
+            p2p_start: Duration::from_ns(p2p_start),
+            slice: Duration::from_ns(slice),
+            guard: Duration::from_ns(timeout),
+            command_transit: cal.command.iter().map(|c| Duration::from_ns(*c)).collect(),
+            typical_slice: cal
+                .slice
+                .iter()
+                .map(|p| Duration::from_ns(p.p50 + t_ti))
+                .collect(),
+        };
+        *m = m.clone().with_measured(&measured);
     } else {
         let frame = spec.plan.lumped_only.lumped.frame_time[0].as_ns();
         for i in 0..n {

@@ -81,6 +81,23 @@ pub struct MasterConfig {
     pub timestamp_tolerance: Duration,
 }
 
+/// A ring's P2P schedule as measured on real links (see [`MasterConfig::with_measured`]).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct MeasuredSchedule {
+    /// Start of the P2P phase from the cycle start.
+    pub p2p_start: Duration,
+    /// Length of one time slice: the slowest slave's command-to-response time.
+    pub slice: Duration,
+    /// How long the master waits for a response beyond the slice.
+    pub guard: Duration,
+    /// Per slave: the command's transit, from the master's send to its last bit at the
+    /// slave.
+    pub command_transit: Vec<Duration>,
+    /// Per slave: its typical slice, from the command's send to the response back at the
+    /// master (the next slice's command follows it after the turnaround).
+    pub typical_slice: Vec<Duration>,
+}
+
 impl MasterConfig {
     /// The schedule of the lumped-only plan on the ring of `plan` (a single lumped frame).
     pub fn lumped_only(plan: &CyclePlan, resolution: Vec<f64>) -> Self {
@@ -135,6 +152,23 @@ impl MasterConfig {
             plan: PlanKind::P2pLumped,
             timestamp_tolerance: Duration::from_us(50),
         }
+    }
+
+    /// This schedule with its P2P phase as measured on real links (the runtime's
+    /// calibration) in place of the plan's wire figures: the P2P start, the slice and the
+    /// guard as given, and each command's arrival where the measured ring puts it: slice
+    /// i's command leaves after the earlier slices' typical round trips (each followed by
+    /// the turnaround) and takes its slave's measured transit.
+    pub fn with_measured(mut self, m: &MeasuredSchedule) -> Self {
+        self.p2p_start = m.p2p_start;
+        self.slice = m.slice;
+        self.guard = m.guard;
+        let mut at = m.p2p_start;
+        for (i, arrival) in self.command_arrival.iter_mut().enumerate() {
+            *arrival = at + m.command_transit.get(i).copied().unwrap_or(Duration::ZERO);
+            at += m.typical_slice.get(i).copied().unwrap_or(m.slice) + self.turnaround;
+        }
+        self
     }
 
     /// Number of axes.

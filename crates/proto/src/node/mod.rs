@@ -14,7 +14,8 @@ pub mod testbed;
 
 pub use clock::{ClockFilter, SyncClock};
 pub use master::{
-    Master, MasterConfig, MasterCounters, MasterEvent, OffReason, StopOrder, StopReason,
+    Master, MasterConfig, MasterCounters, MasterEvent, MeasuredSchedule, OffReason, StopOrder,
+    StopReason,
 };
 pub use motion::{CycleRecord, Motion, MotionInput, MotionOutput, Setpoint};
 pub use reject::{Reject, Rejections};

@@ -111,3 +111,34 @@ fn the_sampling_lead_moves_both_latches_and_the_sample_time() {
     latch(&mut s0[0], 0, 0);
     assert_eq!(s0[0].poll_timeout().as_ns(), T_CYC - 125_000);
 }
+
+/// A measured schedule replaces the plan's P2P figures: command i arrives after the earlier
+/// slices' typical round trips and turnarounds, plus its own transit.
+#[test]
+fn a_measured_schedule_places_each_command() {
+    let plan = CyclePlan::new(&RingParams {
+        slaves: 3,
+        ..RingParams::default()
+    })
+    .expect("plan");
+    let cfg = MasterConfig::from_plan(&plan, Duration::ZERO, vec![1e-3; 3]);
+    let us = Duration::from_us;
+    let m = MeasuredSchedule {
+        p2p_start: us(300),
+        slice: us(40),
+        guard: us(200),
+        command_transit: vec![us(5), us(9), us(13)],
+        typical_slice: vec![us(20), us(30), us(35)],
+    };
+    let turn = cfg.turnaround;
+    let c = cfg.with_measured(&m);
+    assert_eq!((c.p2p_start, c.slice, c.guard), (us(300), us(40), us(200)));
+    assert_eq!(
+        c.command_arrival,
+        vec![
+            us(305),
+            us(300) + us(20) + turn + us(9),
+            us(300) + us(20) + us(30) + turn * 2 + us(13),
+        ]
+    );
+}
