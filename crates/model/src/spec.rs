@@ -37,16 +37,15 @@ impl Scenario {
     /// Validates the scenario once and builds its ring: the plan, the master's and every
     /// slave's configuration. The error names the first bad key.
     pub fn build(&self) -> Result<Spec, ScenarioError> {
-        self.validate()?;
-        Spec::of(self)
+        let plan = self.validated_plan()?;
+        Spec::of(self, plan)
     }
 }
 
 impl Spec {
     /// The configurations a validated scenario describes, with the path delays of its plan.
-    fn of(s: &Scenario) -> Result<Self, ScenarioError> {
+    fn of(s: &Scenario, plan: CyclePlan) -> Result<Self, ScenarioError> {
         let n = s.axes_count();
-        let plan = CyclePlan::new(&s.ring_params()).map_err(|e| scenario_err("ring", e))?;
         let resolution = encoders(s)?
             .iter()
             .map(|e| e.resolution())

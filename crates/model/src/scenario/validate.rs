@@ -40,6 +40,12 @@ impl EncoderBits {
 impl Scenario {
     /// Checks every value; the error names the first bad key.
     pub fn validate(&self) -> Result<(), ScenarioError> {
+        self.validated_plan().map(|_| ())
+    }
+
+    /// [`Scenario::validate`], returning the cycle plan it built on the way (so that
+    /// building a scenario plans its ring once).
+    pub(crate) fn validated_plan(&self) -> Result<ringsync_proto::CyclePlan, ScenarioError> {
         let ns = |d: Dur| d.0.as_ns();
         if ns(self.duration) <= 0 || ns(self.duration) > 3_600_000_000_000 {
             return Err(out_of_range("duration", self.duration, "1 ns ..= 3600 s"));
@@ -187,7 +193,7 @@ impl Scenario {
             }
         }
         self.check_brake()?;
-        Ok(())
+        Ok(plan)
     }
 
     /// A slave brakes its axis with u = −K_b·v, updated once a cycle (docs/safety.md):
