@@ -1,7 +1,12 @@
 //! The servo axes of a ring as the drivers move them: each holds its command between
-//! events and is advanced exactly to the next event's true time.
+//! events and is advanced exactly to the next event's true time. Independent axes are
+//! [`ServoAxes`]; the coupled two-link arm is [`ArmAxes`]; [`Spec::plant`](crate::Spec::plant)
+//! makes the one a scenario asks for.
 
 use ringsync_plant::{AxisModel, Encoder};
+
+mod arm;
+pub use arm::ArmAxes;
 
 use crate::scenario::{Scenario, ScenarioError};
 use crate::spec::{encoders, scenario_err};

@@ -50,6 +50,30 @@ impl RobustTerm {
     }
 }
 
+/// Why the discrete-time check did not run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum NotModelled {
+    /// The lumped-only plan: its one-cycle-old data is not modelled yet.
+    LumpedOnlyPlan,
+    /// The coupled two-link arm (`plant.kind = "two-link-arm"`): the check models
+    /// independent linear axes only.
+    CoupledPlant,
+}
+
+impl NotModelled {
+    /// Why, in words.
+    pub fn reason(self) -> &'static str {
+        match self {
+            NotModelled::LumpedOnlyPlan => {
+                "the lumped-only plan is not modelled yet (its one-cycle-old data)"
+            }
+            NotModelled::CoupledPlant => {
+                "the plant is the coupled two-link arm (plant.kind = \"two-link-arm\"): the check models independent linear axes only, and the arm's inertia couples its joints and changes with its configuration"
+            }
+        }
+    }
+}
+
 /// What the check says about the loop as a whole.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Verdict {
@@ -57,8 +81,8 @@ pub enum Verdict {
     Stable,
     /// Spectral radius ≥ 1.
     Unstable,
-    /// The check cannot vouch for stability: the lumped-only plan is not modelled, or the
-    /// exact sign with K_N ≠ 0 cannot be linearised.
+    /// The check cannot vouch for stability: the lumped-only plan or the coupled arm is not
+    /// modelled ([`NotModelled`]), or the exact sign with K_N ≠ 0 cannot be linearised.
     NotShown,
 }
 
@@ -73,11 +97,14 @@ pub struct CheckReport {
     pub estimator: &'static str,
     /// Sample-to-actuation delay of each axis [s].
     pub delays: Vec<f64>,
-    /// The discrete-time check; `None` for the lumped-only plan (not modelled yet).
+    /// The discrete-time check; `None` when it does not model the scenario.
     pub discrete: Option<DiscreteReport>,
+    /// Why the discrete-time check did not run (`None` when it ran).
+    pub not_modelled: Option<NotModelled>,
     /// How the robust term entered the discrete-time check.
     pub robust: RobustTerm,
-    /// The paper's conditions; `None` unless the law is the sync controller.
+    /// The paper's conditions; `None` unless the law is the sync controller on independent
+    /// axes.
     pub continuous: Option<ContinuousReport>,
     /// Points of the trajectory evaluated.
     pub points: usize,
@@ -156,16 +183,21 @@ pub fn check(s: &Scenario, points: usize) -> Result<CheckReport, CheckError> {
         }
         RobustTerm::Off => s.law()?,
     };
-    let (delays, discrete) = match s.ring.plan {
+    let coupled = s.plant.arm().is_some();
+    let (delays, discrete, not_modelled) = match s.ring.plan {
+        PlanKind::P2pLumped if coupled => {
+            (command_delays(&plan), None, Some(NotModelled::CoupledPlant))
+        }
         PlanKind::P2pLumped => {
             let delays = command_delays(&plan);
             let linear: Vec<(f64, f64)> = models.iter().map(|m| m.linear_part()).collect();
             let r = discrete_check(law.as_ref(), &linear, s.ring.cycle.secs(), &delays)?;
-            (delays, Some(r))
+            (delays, Some(r), None)
         }
-        PlanKind::LumpedOnly => (Vec::new(), None),
+        PlanKind::LumpedOnly if coupled => (Vec::new(), None, Some(NotModelled::CoupledPlant)),
+        PlanKind::LumpedOnly => (Vec::new(), None, Some(NotModelled::LumpedOnlyPlan)),
     };
-    let continuous = if s.control.law == LawKind::Sync {
+    let continuous = if s.control.law == LawKind::Sync && !coupled {
         let plant = IndependentAxes::new(models);
         let c = &s.control;
         Some(continuous_conditions(
@@ -185,6 +217,7 @@ pub fn check(s: &Scenario, points: usize) -> Result<CheckReport, CheckError> {
         estimator: s.control.estimator.name(),
         delays,
         discrete,
+        not_modelled,
         robust,
         continuous,
         points,
@@ -290,6 +323,32 @@ mod tests {
         .expect("valid");
         let r = check(&s, 11).expect("check");
         assert!(r.continuous.is_none() && r.discrete.is_none());
+        assert_eq!(r.not_modelled, Some(NotModelled::LumpedOnlyPlan));
         assert_eq!(r.verdict(), Verdict::NotShown);
+    }
+
+    /// The check models independent linear axes: on the two-link arm it does not analyse
+    /// the wrong plant, it says why it cannot vouch for the loop. The same ring with
+    /// independent axes is analysed.
+    #[test]
+    fn the_coupled_arm_is_not_shown() {
+        let ring = "[ring]\nslaves = 2\n";
+        let arm = Scenario::from_toml(&format!("{ring}[plant]\nkind = \"two-link-arm\"\n"), "arm")
+            .expect("valid");
+        let r = check(&arm, 11).expect("check");
+        assert_eq!(r.not_modelled, Some(NotModelled::CoupledPlant));
+        assert!(r.discrete.is_none() && r.continuous.is_none());
+        assert_eq!(r.verdict(), Verdict::NotShown);
+        assert!(
+            r.not_modelled
+                .expect("why")
+                .reason()
+                .contains("coupled two-link arm")
+        );
+        assert_eq!(r.delays.len(), 2);
+        let axes = Scenario::from_toml(ring, "axes").expect("valid");
+        let r = check(&axes, 11).expect("check");
+        assert!(r.not_modelled.is_none() && r.discrete.is_some() && r.continuous.is_some());
+        assert_eq!(r.verdict(), Verdict::Stable);
     }
 }

@@ -25,14 +25,14 @@ use ringsync_proto::Instant;
 use ringsync_proto::node::{FrameOutcome, Master, MasterEvent, SafeState, Slave, SlaveEvent};
 use ringsync_wire::Status;
 
-use crate::axes::{Axes, ServoAxes};
+use crate::axes::Axes;
 use crate::locate::locate_break_of;
 use crate::observer::Observer;
 use crate::oscillator::Oscillator;
 use crate::record::{AxisProbe, FaultEvent, FaultStep, Recorder};
 use crate::result::{Captured, LinkCounters, PassageLog, RunResult};
 use crate::scenario::ScenarioError;
-use crate::spec::{Spec, scenario_err};
+use crate::spec::Spec;
 
 /// What happened at the master in one call, for a driver's own bookkeeping.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -74,7 +74,7 @@ impl Devices {
     pub fn new(spec: &Spec, cycles: i64, trace: bool) -> Result<Self, ScenarioError> {
         let s = &spec.scenario;
         let (master, slaves) = spec.nodes()?;
-        let axes = ServoAxes::for_scenario(s).map_err(|e| scenario_err("axis", e))?;
+        let axes = spec.plant()?;
         let n = slaves.len();
         let zero = AxisProbe {
             x: 0.0,
@@ -88,7 +88,7 @@ impl Devices {
             safe: slaves.iter().map(|s| s.config().safe_state).collect(),
             slaves,
             osc: Oscillator::for_scenario(s),
-            axes: Box::new(axes),
+            axes,
             rec: Recorder::new(n, cycles, s.ring.cycle.secs(), trace),
             observers: Vec::new(),
             probe: vec![zero; n],

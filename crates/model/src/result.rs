@@ -21,6 +21,23 @@ pub const ASSUMPTIONS: &[&str] = &[
     "lumped-only plan: each slave evaluates the shared trajectory itself to form e_j = x^d_j(s_j) − x_j; the frame's desired fields carry the master's values for monitoring",
 ];
 
+/// Assumptions of the coupled two-link arm (`[plant] kind = "two-link-arm"`), named after
+/// [`ASSUMPTIONS`] in the outputs of a run of it (docs/simulator.md, "The plant").
+pub const ARM_ASSUMPTIONS: &[&str] = &[
+    "plant.kind = \"two-link-arm\": the two axes are the joints of a planar arm, M(q)q̈ + C(q,q̇)q̇ + F·q̇ = τ with p1, p2, p3 and F from [plant]; it moves in a horizontal plane (no gravity), with rigid links and viscous joint friction only (no Coulomb friction: the [[axis]] tables' mechanical keys are not used)",
+    "each joint's drive is an ideal torque source, τ_i = K_a,i·sat(u_i) with K_a,i from plant.torque_constant and ±u_max of the joint's [[axis]] table (no current-loop lag); both joints advance together by RK4 (steps of at most 0.1 ms) with both commands held between events",
+];
+
+/// The assumptions behind a run of scenario `s`: [`ASSUMPTIONS`], and [`ARM_ASSUMPTIONS`]
+/// when its plant is the two-link arm.
+pub fn assumptions(s: &crate::Scenario) -> Vec<&'static str> {
+    let mut v = ASSUMPTIONS.to_vec();
+    if s.plant.arm().is_some() {
+        v.extend_from_slice(ARM_ASSUMPTIONS);
+    }
+    v
+}
+
 /// One frame passage at a node, recorded for tests and traces (true time).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct PassageLog {

@@ -2,7 +2,7 @@
 
 use std::fmt::Write as _;
 
-use ringsync_model::check::{ASSUMPTIONS, CheckReport, RobustTerm, Verdict};
+use ringsync_model::check::{ASSUMPTIONS, CheckReport, NotModelled, RobustTerm, Verdict};
 use serde_json::{Value, json};
 
 /// A readable report of `ringsync check`.
@@ -32,12 +32,21 @@ pub fn check_text(r: &CheckReport) -> String {
                 if d.is_stable() { "stable" } else { "UNSTABLE" }
             );
         }
-        None => {
-            let _ = writeln!(
-                o,
-                "\nDiscrete-time check: not available for the lumped-only plan yet (its one-cycle-old data is not modelled)."
-            );
-        }
+        None => match r.not_modelled {
+            Some(NotModelled::CoupledPlant) => {
+                let _ = writeln!(
+                    o,
+                    "\nDiscrete-time check: not available: {}.",
+                    NotModelled::CoupledPlant.reason()
+                );
+            }
+            Some(NotModelled::LumpedOnlyPlan) | None => {
+                let _ = writeln!(
+                    o,
+                    "\nDiscrete-time check: not available for the lumped-only plan yet (its one-cycle-old data is not modelled)."
+                );
+            }
+        },
     }
     match r.robust {
         RobustTerm::Off => {}
@@ -90,6 +99,12 @@ pub fn check_text(r: &CheckReport) -> String {
                 }
             );
         }
+        None if r.not_modelled == Some(NotModelled::CoupledPlant) => {
+            let _ = writeln!(
+                o,
+                "\nThe paper's conditions (section 3.4): not evaluated on the coupled two-link arm."
+            );
+        }
         None => {
             let _ = writeln!(
                 o,
@@ -110,6 +125,9 @@ pub fn verdict_text(r: &CheckReport) -> &'static str {
     match (r.verdict(), r.discrete.is_some()) {
         (Verdict::Stable, _) => "stable: the linearised sampled loop has spectral radius < 1",
         (Verdict::Unstable, _) => "UNSTABLE: the linearised sampled loop has spectral radius >= 1",
+        (Verdict::NotShown, false) if r.not_modelled == Some(NotModelled::CoupledPlant) => {
+            "NOT SHOWN: the discrete-time check models independent linear axes, not the coupled two-link arm (plant.kind = \"two-link-arm\")"
+        }
         (Verdict::NotShown, false) => {
             "NOT SHOWN: the discrete-time check does not model the lumped-only plan"
         }
@@ -131,6 +149,7 @@ pub fn check_json(r: &CheckReport) -> Value {
             "states": d.states,
             "stable": d.is_stable(),
         })),
+        "not_modelled": r.not_modelled.map(NotModelled::reason),
         "robust_term": match r.robust {
             RobustTerm::Off => Value::Null,
             RobustTerm::BoundaryLayer { kn_max, phi } => json!({

@@ -3,7 +3,7 @@
 use std::fmt::Write as _;
 
 use ringsync_model::RunResult;
-use ringsync_model::result::ASSUMPTIONS;
+use ringsync_model::result::{ASSUMPTIONS, assumptions};
 use ringsync_model::scenario::{CoulombSign, Scenario};
 use ringsync_proto::node::{Rejections, StopReason};
 use serde_json::{Value, json};
@@ -122,7 +122,7 @@ pub fn summary_json(s: &Scenario, hash: u64, r: &RunResult) -> Value {
             "failed": r.ring_break.map(|b| b.describe()),
             "failed_slave": r.ring_break.and_then(|b| b.slave()),
         },
-        "assumptions": ASSUMPTIONS,
+        "assumptions": assumptions(s),
     })
 }
 
@@ -598,7 +598,10 @@ controller <code>{law}</code>, estimator <code>{est}</code>; {cycles} cycles of 
         );
     }
     o.push_str("<h2>Assumptions not in the paper</h2>\n<ul>\n");
-    for a in ASSUMPTIONS.iter().chain(ringsync_proto::plan::ASSUMPTIONS) {
+    for a in assumptions(s)
+        .iter()
+        .chain(ringsync_proto::plan::ASSUMPTIONS)
+    {
         let _ = writeln!(o, "<li>{}</li>", esc(a));
     }
     let _ = writeln!(

@@ -369,4 +369,6 @@ impl Sim {
 }
 
 #[cfg(test)]
+mod arm_tests;
+#[cfg(test)]
 mod tests;

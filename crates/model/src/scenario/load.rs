@@ -9,10 +9,16 @@ use super::schema::Scenario;
 pub const MAX_SCENARIO_BYTES: u64 = 1 << 20;
 
 /// The built-in scenarios: (name, TOML text).
-const BUILTIN: &[(&str, &str)] = &[(
-    "paper-2015",
-    include_str!("../../../../scenarios/paper-2015.toml"),
-)];
+const BUILTIN: &[(&str, &str)] = &[
+    (
+        "paper-2015",
+        include_str!("../../../../scenarios/paper-2015.toml"),
+    ),
+    (
+        "arm-2link",
+        include_str!("../../../../scenarios/arm-2link.toml"),
+    ),
+];
 
 /// Names of the built-in scenarios.
 pub fn builtin_names() -> impl Iterator<Item = &'static str> {

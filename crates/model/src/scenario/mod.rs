@@ -6,16 +6,19 @@
 //! keys are errors.
 //!
 //! The rooms: [`schema`] (the tables and keys, as data), [`load`] (names, files, text),
-//! [`validate`] (ranges and cross-key rules), [`build`] (the run's objects), [`error`].
+//! [`validate`] (ranges and cross-key rules), [`build`] (the run's objects), [`error`];
+//! [`plant`] holds the `[plant]` table whole (schema, checks, parameters).
 
 pub mod build;
 pub mod error;
 pub mod load;
+pub mod plant;
 pub mod schema;
 pub mod validate;
 
 pub use error::{ECHO_CHARS, ScenarioError, clip, clip_middle};
 pub use load::{MAX_SCENARIO_BYTES, builtin, builtin_names, fnv1a};
+pub use plant::{ARM_MAX_STEP, ArmSpec, PlantSpec};
 pub use schema::*;
 pub use validate::{EncoderBits, MIN_ENCODER_BITS, VELOCITY_MARGIN};
 

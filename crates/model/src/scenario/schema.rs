@@ -440,6 +440,8 @@ pub struct Scenario {
     pub trajectory: TrajectorySpec,
     /// Axes, used in turn.
     pub axis: Vec<AxisSpec>,
+    /// What the axes are mechanically: independent, or the joints of a coupled arm.
+    pub plant: super::plant::PlantSpec,
 }
 
 impl Default for Scenario {
@@ -461,6 +463,7 @@ impl Default for Scenario {
             axis: (0..4)
                 .map(|i| AxisSpec { rated_torque: r[i], j_over_ka: j[i], viscous: b[i], ..AxisSpec::default() })
                 .collect(),
+            plant: super::plant::PlantSpec::default(),
         }
     }
 }

@@ -192,6 +192,7 @@ impl Scenario {
                 ));
             }
         }
+        self.validate_plant()?;
         self.check_brake()?;
         Ok(plan)
     }
@@ -200,12 +201,15 @@ impl Scenario {
     /// that loop must be stable for every axis. For a torque axis,
     /// v ← v·(1 − T·K_b/(J/K_a)), so T·K_b/(J/K_a) < 2; for a velocity axis (time constant
     /// τ, gain k_v), v ← v·(a − (1 − a)·k_v·K_b) with a = e^(−T/τ), so
-    /// (1 − a)·k_v·K_b < 1 + a.
+    /// (1 − a)·k_v·K_b < 1 + a. The two-link arm has its own (`ArmSpec`'s).
     fn check_brake(&self) -> Result<(), ScenarioError> {
         let t = self.ring.cycle.secs();
         let k = self.faults.brake_gain;
         if !(k.is_finite() && k > 0.0) {
             return Err(out_of_range("faults.brake_gain", k, "> 0 V·s/rad"));
+        }
+        if let Some(arm) = self.plant.arm() {
+            return arm.check_brake(t, k);
         }
         for i in 0..self.axes_count() {
             let Some(a) = self.axis_spec(i) else { continue };
