@@ -37,6 +37,14 @@ pub enum ControlError {
         /// Which computation.
         what: &'static str,
     },
+    /// An analysis whose assumptions the configuration does not meet.
+    #[error("{what} does not apply: {why}")]
+    NotApplicable {
+        /// Which analysis.
+        what: &'static str,
+        /// Which assumption fails, and for what.
+        why: String,
+    },
     /// A slice or vector of the wrong length.
     #[error("{what}: expected {expected} values, got {got}")]
     LengthMismatch {

@@ -3,7 +3,7 @@ use proptest::prelude::*;
 
 use super::*;
 use crate::coupling::Coupling;
-use crate::estimator::{DEPTH, EstimatorKind};
+use crate::estimator::{DEPTH, EstimatorKind, Signal};
 
 /// A random cycle: history, inputs and gains for n axes.
 #[derive(Debug, Clone)]
@@ -402,4 +402,45 @@ fn bad_configurations_are_named() {
         &mut ControlOutput::new(3),
     );
     assert!(matches!(r, Err(ControlError::LengthMismatch { .. })));
+}
+
+/// The estimator slot holds state: the controller tells a law's estimator of every sample
+/// it pushes (interpolated ones too), and the law's command uses the estimator's slope.
+#[test]
+fn a_stateful_estimator_is_told_of_every_sample() {
+    use crate::estimator::Smoothing;
+    let n = 3;
+    let law = RingCoupled::with_estimator(
+        Gains::uniform(n, 2.0, 1.0, 0.0),
+        0.5,
+        Box::new(Smoothing::new(n, 0.5)),
+    )
+    .expect("ring");
+    let mut c = Controller::new(law, VelocitySource::Reported);
+    let mut fb = Feedback::new(n);
+    let mut input = ControlInput::new(n, 1e-3);
+    let mut out = ControlOutput::new(n);
+    // Axis 0: e = 0.1·m (x^d = 0, x = −0.1·m) sampled at m·1 ms with cycle 2 missing
+    // (on every axis); axes 1 and 2 stay at e = 0.
+    for m in [0usize, 1, 3] {
+        let t = m as f64 * 1e-3;
+        fb.sample_time = vec![t; n];
+        fb.position[0] = -0.1 * m as f64;
+        input.apply_time = vec![t + 0.5e-3; n];
+        c.update(&fb, &input, &mut out).expect("update");
+    }
+    let est = c.law.estimator().expect("owned");
+    assert_eq!(est.name(), "smoothing");
+    // Three samples each, and one interpolated (cycle 2).
+    let h = &c.history;
+    assert_eq!(h.count, vec![4, 4, 4]);
+    // Axis 0's smoothed slope, β = 0.5 on differences of 0.1: 0 after the first sample,
+    // then 0.05, 0.075 (the interpolated sample) and 0.0875: four observations.
+    let v = est.slope(h, 0, Signal::Position);
+    assert!((v - 0.0875).abs() < 1e-15, "{v}");
+    // Axis 1's neighbours are 0 (slope 0.0875, 0.5 cycles ahead) and 2 (all zero):
+    // u_1 = K_P·(e_1 + α·(2·e_1 − e'_0 − e'_2)) with e_1 = 0 and no velocity errors.
+    let e0 = 0.3 + 0.5 * 0.0875;
+    let want = 2.0 * (0.5 * -e0);
+    assert!((out.u[1] - want).abs() < 1e-15, "{} vs {want}", out.u[1]);
 }
