@@ -5,7 +5,8 @@ use std::time::Instant as WallClock;
 
 use anyhow::Context as _;
 use clap::Args;
-use ringsync_model::scenario::{LawKind, Scenario};
+use ringsync_model::law::{pd, ring, sync};
+use ringsync_model::scenario::Scenario;
 use ringsync_report::sim::{
     ReproRow, repro_figures, repro_html, repro_json, repro_table, summary_json, trace_csv,
 };
@@ -149,12 +150,13 @@ pub(crate) fn reproduce(args: &ReproduceArgs) -> Result<Outcome, CliError> {
     let base = Scenario::load(&args.scenario).map_err(usage)?;
     let dir = out_dir(&args.out, &args.scenario)?;
     let wall = WallClock::now();
-    let laws = [LawKind::Pd, LawKind::Sync, LawKind::RingCoupled];
+    // Table 1's two controllers and the literature baseline, by their registry names.
+    let laws = [pd::ENTRY.name, sync::ENTRY.name, ring::ENTRY.name];
     let plans = [
         ringsync_proto::PlanKind::P2pLumped,
         ringsync_proto::PlanKind::LumpedOnly,
     ];
-    let combos: Vec<(ringsync_proto::PlanKind, LawKind)> = plans
+    let combos: Vec<(ringsync_proto::PlanKind, &str)> = plans
         .iter()
         .flat_map(|&p| laws.iter().map(move |&l| (p, l)))
         .collect();
@@ -165,10 +167,10 @@ pub(crate) fn reproduce(args: &ReproduceArgs) -> Result<Outcome, CliError> {
                 .iter()
                 .map(|&(plan, law)| {
                     let mut s = base.clone();
-                    s.control.law = law;
+                    s.control.law = law.to_string();
                     s.ring.plan = plan;
                     let figures =
-                        plan == ringsync_proto::PlanKind::P2pLumped && law != LawKind::RingCoupled;
+                        plan == ringsync_proto::PlanKind::P2pLumped && law != ring::ENTRY.name;
                     scope.spawn(move || {
                         let r = run(
                             &s,
@@ -180,7 +182,7 @@ pub(crate) fn reproduce(args: &ReproduceArgs) -> Result<Outcome, CliError> {
                         .map_err(run_error)?;
                         let row = ReproRow {
                             plan: s.ring.plan.name(),
-                            controller: law.name(),
+                            controller: law,
                             track_rmse: r.summary.track_rmse,
                             sync_rmse: r.summary.sync_rmse,
                         };

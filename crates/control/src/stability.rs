@@ -207,7 +207,7 @@ pub fn discrete_check(
             ControlError::InvalidParameter {
                 name: format!("delays[{i}]"),
                 value: d,
-                expected: "0 <= delay <= t_cyc",
+                expected: "0 <= delay <= t_cyc".into(),
             }
         })?);
     }

@@ -25,6 +25,8 @@ pub mod rng;
 pub mod scenario;
 pub mod spec;
 
+/// The control laws and their registry (`law::LAWS`), from `ringsync-control`.
+pub use ringsync_control::law;
 pub use devices::Devices;
 pub use observer::Observer;
 pub use result::RunResult;

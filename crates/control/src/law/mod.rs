@@ -7,12 +7,20 @@
 //! feedback into error samples.
 //!
 //! All laws are O(n) per cycle and allocate nothing after construction.
+//!
+//! Every law is in the [registry]: one file in this folder with its `ENTRY`, and one line in
+//! the list below.
 
-mod pd;
-mod ring;
-mod sync;
+pub mod registry;
+
+registry::laws! {
+    pd,
+    sync,
+    ring,
+}
 
 pub use pd::Pd;
+pub use registry::{LawEntry, LawParams, ParamSpec};
 pub use ring::RingCoupled;
 pub use sync::{Sign, SyncController, SyncParams};
 
@@ -172,7 +180,8 @@ impl ControlOutput {
 /// A control law: commands from the error history (newest sample first) and the cycle's
 /// inputs.
 pub trait ControlLaw: Send {
-    /// Short name used in outputs: `pd` (`pd+ff` with feed-forward), `sync` or `ring-coupled`.
+    /// Short name used in outputs: the registry's name (`pd`, `sync`, `ring-coupled`, …), or a
+    /// variant of it (`pd+ff` for PD with feed-forward).
     fn name(&self) -> &'static str;
     /// Number of axes.
     fn axes(&self) -> usize;

@@ -11,9 +11,26 @@
 //! adjacent-coupling structure of Sun's ring approach as commonly restated; the original
 //! paper's exact law was not available to check it against.
 
+use super::registry::LawEntry;
 use super::{ControlInput, ControlLaw, ControlOutput, Gains};
 use crate::error::{ControlError, check};
 use crate::estimator::{ErrorHistory, Estimator, EstimatorKind, Signal};
+
+/// The registry's entry: `ring-coupled`, from K_P, K_D, K_H, K_C, α and the estimator; no
+/// parameters of its own.
+pub const ENTRY: LawEntry = LawEntry {
+    name: "ring-coupled",
+    description: "ring-coupled baseline in the style of Sun et al. (2007): E = (I + αL)e with the ring Laplacian L, the neighbours through the estimator",
+    min_axes: 2,
+    params: &[],
+    make: |p| {
+        Ok(Box::new(RingCoupled::new(
+            p.gains.clone(),
+            p.sync.alpha,
+            p.sync.estimator,
+        )?))
+    },
+};
 
 /// The ring-coupled controller.
 #[derive(Debug)]

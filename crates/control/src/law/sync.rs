@@ -16,10 +16,21 @@
 //! − (S_sv − s_k·v̂_k) (times in cycles, relative to the first axis's sample) from three sums
 //! over all axes.
 
+use super::registry::LawEntry;
 use super::{ControlInput, ControlLaw, ControlOutput, Gains};
 use crate::coupling::Coupling;
 use crate::error::{ControlError, check};
 use crate::estimator::{ErrorHistory, Estimator, EstimatorKind, Signal};
+
+/// The registry's entry: `sync`, from K_P, K_D, K_E, K_H, K_C and the coupling's parameters;
+/// no parameters of its own.
+pub const ENTRY: LawEntry = LawEntry {
+    name: "sync",
+    description: "the paper's position-synchronisation controller (eq. 9, 14): each axis coupled to the mean of all others through E' = (I + αT)e with the motion message estimator",
+    min_axes: 2,
+    params: &[],
+    make: |p| Ok(Box::new(SyncController::new(p.gains.clone(), p.sync)?)),
+};
 
 /// How the robust term's sgn(Ė') is evaluated.
 #[derive(Debug, Clone, Copy, PartialEq)]
