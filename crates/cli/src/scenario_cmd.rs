@@ -16,6 +16,8 @@ pub enum ScenarioCmd {
         /// Name of a built-in scenario.
         name: String,
     },
+    /// List the control laws (`control.law`) with their own parameters (`[control.params]`).
+    Laws,
     /// Check a scenario file (or built-in name): parse and validate, print the error or "ok".
     Validate {
         /// Scenario file or built-in name.
@@ -33,6 +35,7 @@ pub(crate) fn run(cmd: &ScenarioCmd) -> Result<Outcome, CliError> {
             }
             out(&text)
         }
+        ScenarioCmd::Laws => out(&ringsync::layers::control::law::registry::catalogue()),
         ScenarioCmd::Show { name } => match builtin(name) {
             Some(text) => out(text),
             None => Err(CliError::Usage(format!(

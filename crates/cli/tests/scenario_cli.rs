@@ -61,7 +61,7 @@ fn bad_scenarios_give_one_line_and_exit_2() {
         (
             "law.toml",
             "[control]\nlaw = \"pid\"\n",
-            "unknown variant `pid`",
+            "unknown control law 'pid': expected one of pd, sync, ring-coupled, adjacent",
         ),
     ] {
         let p = temp_file(name, text);
@@ -225,4 +225,21 @@ fn check_exits_3_unless_it_can_vouch_for_the_loop() {
     let extra = v["robust_term"]["extra_kd"].as_f64().expect("extra_kd");
     assert!((extra - 3024.0).abs() < 1e-6, "{extra}");
     assert!(v["discrete"]["spectral_radius"].as_f64().expect("rho") > 1.0);
+}
+
+#[test]
+fn scenario_laws_lists_the_registry_with_parameters() {
+    let o = ringsync(&["scenario", "laws"]);
+    assert_eq!(o.status.code(), Some(0));
+    let text = String::from_utf8(o.stdout).expect("utf-8");
+    for name in ["pd", "sync", "ring-coupled", "adjacent"] {
+        assert!(
+            text.lines().any(|l| l.starts_with(&format!("{name} "))),
+            "{text}"
+        );
+    }
+    assert!(
+        text.contains("kx = 1.591 V/rad (allowed >= 0 V/rad)"),
+        "{text}"
+    );
 }

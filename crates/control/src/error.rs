@@ -11,7 +11,17 @@ pub enum ControlError {
         /// The value given.
         value: f64,
         /// The allowed range, with units.
-        expected: &'static str,
+        expected: std::borrow::Cow<'static, str>,
+    },
+    /// A law parameter the law does not declare.
+    #[error("control law {law} has no parameter '{key}': its parameters are {known}")]
+    UnknownParameter {
+        /// The law's registry name.
+        law: &'static str,
+        /// The key given.
+        key: String,
+        /// The keys it declares, comma-separated, or `none`.
+        known: String,
     },
     /// Coupling needs at least `min` axes.
     #[error("{what} needs at least {min} axes, got {n}")]
@@ -36,6 +46,14 @@ pub enum ControlError {
     NoConvergence {
         /// Which computation.
         what: &'static str,
+    },
+    /// An analysis whose assumptions the configuration does not meet.
+    #[error("{what} does not apply: {why}")]
+    NotApplicable {
+        /// Which analysis.
+        what: &'static str,
+        /// Which assumption fails, and for what.
+        why: String,
     },
     /// A slice or vector of the wrong length.
     #[error("{what}: expected {expected} values, got {got}")]
@@ -64,7 +82,7 @@ pub(crate) fn check(
         Err(ControlError::InvalidParameter {
             name: name.to_string(),
             value,
-            expected,
+            expected: expected.into(),
         })
     }
 }

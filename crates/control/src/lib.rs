@@ -3,8 +3,10 @@
 //!
 //! - [`trajectory`]: x^d, ẋ^d, ẍ^d (cosine, trapezoid, sequences);
 //! - [`coupling`]: ε = T·e, E = (I + αT)·e and its inverse, the ring Laplacian (eq. 3-7);
-//! - [`estimator`]: the motion message estimators and the error history (eq. 11-13);
-//! - [`law`]: standard PD, the sync controller (eq. 9, 14), the ring-coupled baseline;
+//! - [`estimator`]: the motion message estimators (a trait, so that one may keep state) and
+//!   the error history (eq. 11-13);
+//! - [`law`]: the law registry; standard PD, the sync controller (eq. 9, 14), the ring-coupled
+//!   baseline, adjacent cross-coupling;
 //! - [`metrics`]: Track-RMSE and Sync-RMSE (eq. 26-27) and per-axis figures;
 //! - [`stability`]: the paper's conditions along a trajectory and a discrete-time check.
 //!
@@ -21,7 +23,7 @@ pub mod trajectory;
 
 pub use coupling::Coupling;
 pub use error::ControlError;
-pub use estimator::{ErrorHistory, EstimatorKind};
+pub use estimator::{ErrorHistory, Estimator, EstimatorKind, Signal};
 pub use law::{
     ControlInput, ControlLaw, ControlOutput, Controller, Feedback, Gains, Pd, RingCoupled, Sign,
     SyncController, SyncParams, VelocitySource,

@@ -18,13 +18,21 @@
 //! previous samples of e and ė that the estimators read: 9n states. The loop matrix is built
 //! column by column by running the law's own `compute` on unit states, so what is checked is
 //! exactly the code that runs. Velocity feedback is the reported (exact) velocity.
+//!
+//! What the discrete-time check assumes of the law: its command is a function of the
+//! history and the inputs alone ([`ControlLaw::compute`] is pure), linear in the history
+//! once the robust term is off, and its estimator, if any, is linear and time-invariant in
+//! the samples the history holds ([`crate::Estimator::is_linear_in_history`]): the check
+//! sets the history directly and never calls [`crate::Estimator::observe`]. A law whose
+//! estimator keeps state of its own (a Kalman filter) is refused with
+//! [`ControlError::NotApplicable`]: the loop would need the estimator's state too.
 
 use nalgebra::DMatrix;
 use nalgebra::linalg::{SVD, Schur};
 use ringsync_plant::{Discretised, Dynamics};
 
 use crate::error::{ControlError, check, check_len};
-use crate::estimator::ErrorHistory;
+use crate::estimator::{DEPTH, ErrorHistory};
 use crate::law::{ControlInput, ControlLaw, ControlOutput, Gains};
 use crate::trajectory::Trajectory;
 
@@ -170,7 +178,8 @@ const PER_AXIS: usize = 9;
 /// The spectral radius of the sampled closed loop of `law` on linear axes `(a, g)`
 /// (ẍ = g·u − a·ẋ, see [`ringsync_plant::AxisModel::linear_part`]), period `t_cyc` [s], and
 /// per-axis sample-to-actuation delays `delays` [s] (0 ≤ delay ≤ T_cyc). All axes sample at
-/// the same instant.
+/// the same instant. Refused ([`ControlError::NotApplicable`]) when the law's estimator is
+/// not linear in the history (see the module's docs).
 pub fn discrete_check(
     law: &dyn ControlLaw,
     axes: &[(f64, f64)],
@@ -181,6 +190,15 @@ pub fn discrete_check(
     check_len("axes", n, axes.len())?;
     check_len("delays", n, delays.len())?;
     check("t_cyc", t_cyc, 0.0, true, "> 0 s")?;
+    if let Some(est) = law.estimator().filter(|e| !e.is_linear_in_history()) {
+        return Err(ControlError::NotApplicable {
+            what: "the discrete-time stability check",
+            why: format!(
+                "it builds the loop from the last {DEPTH} samples alone, and estimator {} keeps state beyond them (not linear in the history)",
+                est.name()
+            ),
+        });
+    }
     let mut disc = Vec::with_capacity(n);
     for (i, (&(a, g), &d)) in axes.iter().zip(delays).enumerate() {
         check(&format!("axes[{i}].a"), a, 0.0, false, ">= 0 1/s")?;
@@ -189,7 +207,7 @@ pub fn discrete_check(
             ControlError::InvalidParameter {
                 name: format!("delays[{i}]"),
                 value: d,
-                expected: "0 <= delay <= t_cyc",
+                expected: "0 <= delay <= t_cyc".into(),
             }
         })?);
     }

@@ -9,7 +9,11 @@ use ringsync_plant::IndependentAxes;
 use ringsync_proto::plan::{FrameRef, Node};
 use ringsync_proto::{CyclePlan, PlanKind};
 
-use crate::scenario::{LawKind, Scenario, ScenarioError};
+use crate::scenario::{Scenario, ScenarioError};
+
+/// The registry name of the paper's sync controller: the law the paper's conditions and the
+/// robust term belong to.
+const SYNC: &str = ringsync_control::law::sync::ENTRY.name;
 
 /// Assumptions of the check that the paper does not make; printed with every result.
 pub const ASSUMPTIONS: &[&str] = &[
@@ -197,7 +201,7 @@ pub fn check(s: &Scenario, points: usize) -> Result<CheckReport, CheckError> {
         PlanKind::LumpedOnly if coupled => (Vec::new(), None, Some(NotModelled::CoupledPlant)),
         PlanKind::LumpedOnly => (Vec::new(), None, Some(NotModelled::LumpedOnlyPlan)),
     };
-    let continuous = if s.control.law == LawKind::Sync && !coupled {
+    let continuous = if s.control.law == SYNC && !coupled {
         let plant = IndependentAxes::new(models);
         let c = &s.control;
         Some(continuous_conditions(
@@ -229,7 +233,7 @@ pub fn check(s: &Scenario, points: usize) -> Result<CheckReport, CheckError> {
 /// scenario's duration.
 pub fn robust_term(s: &Scenario, points: usize) -> Result<RobustTerm, CheckError> {
     let c = &s.control;
-    if s.control.law != LawKind::Sync || (c.delta_h == 0.0 && c.delta_c == 0.0) {
+    if s.control.law != SYNC || (c.delta_h == 0.0 && c.delta_c == 0.0) {
         return Ok(RobustTerm::Off);
     }
     let trajectories = s.trajectories()?;

@@ -28,5 +28,7 @@ pub mod spec;
 pub use devices::Devices;
 pub use observer::Observer;
 pub use result::RunResult;
+/// The control laws and their registry (`law::LAWS`), from `ringsync-control`.
+pub use ringsync_control::law;
 pub use scenario::{Scenario, ScenarioError, builtin, builtin_names};
 pub use spec::Spec;

@@ -123,7 +123,7 @@ impl Spec {
     /// the lumped-only plan).
     pub fn nodes(&self) -> Result<(Master, Vec<Slave>), ScenarioError> {
         let s = &self.scenario;
-        let law = s.law().map_err(|e| scenario_err("control", e))?;
+        let law = s.law()?;
         let trajectories = s
             .trajectories()
             .map_err(|e| scenario_err("trajectory", e))?;
@@ -146,7 +146,7 @@ impl Spec {
             .map(|cfg| {
                 if s.ring.plan == PlanKind::LumpedOnly {
                     let control = SlaveControl::new(
-                        s.law().map_err(|e| scenario_err("control", e))?,
+                        s.law()?,
                         s.velocity_source(),
                         s.trajectories()
                             .map_err(|e| scenario_err("trajectory", e))?,

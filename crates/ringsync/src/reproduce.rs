@@ -2,7 +2,7 @@
 //! baseline on the proposed plan (P2P + lumped) and on the lumped-only plan of ref. [3],
 //! one simulation per case, the cases in parallel.
 
-use ringsync_model::scenario::LawKind;
+use ringsync_model::law::{pd, ring, sync};
 use ringsync_model::{RunResult, Scenario};
 use ringsync_proto::{CyclePlan, PlanKind};
 use ringsync_report::sim::{ReproRow, repro_figures, repro_html, repro_json, repro_table};
@@ -22,8 +22,9 @@ pub struct Reproduction {
     pub runs: Vec<RunResult>,
 }
 
-/// The controllers of the reproduction, in the table's order.
-const LAWS: [LawKind; 3] = [LawKind::Pd, LawKind::Sync, LawKind::RingCoupled];
+/// The controllers of the reproduction by their registry names, in the table's order: the
+/// paper's two and the literature's ring-coupled baseline.
+const LAWS: [&str; 3] = [pd::ENTRY.name, sync::ENTRY.name, ring::ENTRY.name];
 
 /// Runs the reproduction on `base` (its plan and law replaced case by case), on as many
 /// threads as cases.
@@ -37,7 +38,7 @@ const LAWS: [LawKind; 3] = [LawKind::Pd, LawKind::Sync, LawKind::RingCoupled];
 /// # Ok::<(), ringsync::Error>(())
 /// ```
 pub fn reproduce(base: &Scenario) -> Result<Reproduction> {
-    let combos: Vec<(PlanKind, LawKind)> = [PlanKind::P2pLumped, PlanKind::LumpedOnly]
+    let combos: Vec<(PlanKind, &str)> = [PlanKind::P2pLumped, PlanKind::LumpedOnly]
         .iter()
         .flat_map(|&p| LAWS.iter().map(move |&l| (p, l)))
         .collect();
@@ -46,9 +47,9 @@ pub fn reproduce(base: &Scenario) -> Result<Reproduction> {
             .iter()
             .map(|&(plan, law)| {
                 let mut s = base.clone();
-                s.control.law = law;
+                s.control.law = law.to_string();
                 s.ring.plan = plan;
-                let trace = plan == PlanKind::P2pLumped && law != LawKind::RingCoupled;
+                let trace = plan == PlanKind::P2pLumped && law != ring::ENTRY.name;
                 scope.spawn(move || {
                     let opts = crate::SimOptions {
                         trace,
@@ -57,7 +58,7 @@ pub fn reproduce(base: &Scenario) -> Result<Reproduction> {
                     let r = crate::simulate(&s, &opts)?;
                     let row = ReproRow {
                         plan: plan.name(),
-                        controller: law.name(),
+                        controller: law,
                         track_rmse: r.summary.track_rmse,
                         sync_rmse: r.summary.sync_rmse,
                     };

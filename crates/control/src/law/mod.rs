@@ -7,17 +7,26 @@
 //! feedback into error samples.
 //!
 //! All laws are O(n) per cycle and allocate nothing after construction.
+//!
+//! Every law is in the [registry]: one file in this folder with its `ENTRY`, and one line in
+//! the list below.
 
-mod pd;
-mod ring;
-mod sync;
+pub mod registry;
+
+registry::laws! {
+    pd,
+    sync,
+    ring,
+    adjacent,
+}
 
 pub use pd::Pd;
+pub use registry::{LawEntry, LawParams, ParamSpec};
 pub use ring::RingCoupled;
 pub use sync::{Sign, SyncController, SyncParams};
 
 use crate::error::{ControlError, check, check_len};
-use crate::estimator::ErrorHistory;
+use crate::estimator::{ErrorHistory, Estimator};
 use crate::trajectory::State;
 
 /// Per-axis gains (diagonal matrices as vectors) and drive limits. Gains are in volts:
@@ -172,10 +181,20 @@ impl ControlOutput {
 /// A control law: commands from the error history (newest sample first) and the cycle's
 /// inputs.
 pub trait ControlLaw: Send {
-    /// Short name used in outputs: `pd` (`pd+ff` with feed-forward), `sync` or `ring-coupled`.
+    /// Short name used in outputs: the registry's name (`pd`, `sync`, `ring-coupled`, …), or a
+    /// variant of it (`pd+ff` for PD with feed-forward).
     fn name(&self) -> &'static str;
     /// Number of axes.
     fn axes(&self) -> usize;
+    /// The motion message estimator the law owns, if it uses one (the stability check asks
+    /// it whether it is linear in the history).
+    fn estimator(&self) -> Option<&dyn Estimator> {
+        None
+    }
+    /// The same, to tell it of new samples ([`Controller::update`] does).
+    fn estimator_mut(&mut self) -> Option<&mut dyn Estimator> {
+        None
+    }
     /// The law itself, on inputs whose lengths [`ControlLaw::compute`] has checked.
     fn evaluate(&self, history: &ErrorHistory, input: &ControlInput, out: &mut ControlOutput);
     /// Computes this cycle's commands after checking that history, input and output all
@@ -255,7 +274,9 @@ impl<L: ControlLaw> Controller<L> {
         }
     }
 
-    /// Takes this cycle's fresh samples into the history, then computes the commands.
+    /// Takes this cycle's fresh samples into the history, then computes the commands. The
+    /// law's estimator, if any, is told of every sample pushed ([`Estimator::observe`]),
+    /// interpolated ones included, before the law computes.
     ///
     /// The estimators assume one sample per cycle. When a fresh sample comes after g missed
     /// cycles (its sampling instant g + 1 cycles after the last one), g samples linearly
@@ -310,6 +331,9 @@ impl<L: ControlLaw> Controller<L> {
                             de0 + f * (de_new - de0),
                             t0 + f * (t - t0),
                         )?;
+                        if let Some(est) = self.law.estimator_mut() {
+                            est.observe(h, i);
+                        }
                     }
                 }
             }
@@ -325,6 +349,9 @@ impl<L: ControlLaw> Controller<L> {
                 }
             };
             self.history.push(i, e, de, fb.sample_time[i])?;
+            if let Some(est) = self.law.estimator_mut() {
+                est.observe(&self.history, i);
+            }
         }
         self.law.compute(&self.history, input, out)
     }
@@ -337,6 +364,12 @@ impl<L: ControlLaw + ?Sized> ControlLaw for Box<L> {
     }
     fn axes(&self) -> usize {
         (**self).axes()
+    }
+    fn estimator(&self) -> Option<&dyn Estimator> {
+        (**self).estimator()
+    }
+    fn estimator_mut(&mut self) -> Option<&mut dyn Estimator> {
+        (**self).estimator_mut()
     }
     fn evaluate(&self, history: &ErrorHistory, input: &ControlInput, out: &mut ControlOutput) {
         (**self).evaluate(history, input, out)

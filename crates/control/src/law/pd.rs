@@ -1,9 +1,20 @@
 //! Standard PD, the paper's baseline: u = K_P·e + K_D·ė, each axis on its own latest sample,
 //! with optional feed-forward K_H·ẍ^d + K_C·ẋ^d.
 
+use super::registry::LawEntry;
 use super::{ControlInput, ControlLaw, ControlOutput, Gains};
 use crate::error::ControlError;
 use crate::estimator::ErrorHistory;
+
+/// The registry's entry: `pd`, no parameters of its own; feed-forward when the scenario sets
+/// K_H or K_C.
+pub const ENTRY: LawEntry = LawEntry {
+    name: "pd",
+    description: "standard PD, the paper's baseline: u = K_P·e + K_D·ė on each axis's own latest sample (named pd+ff with K_H·ẍ^d + K_C·ẋ^d)",
+    min_axes: 1,
+    params: &[],
+    make: |p| Ok(Box::new(Pd::new(p.gains.clone(), p.feed_forward)?)),
+};
 
 /// The standard PD controller.
 #[derive(Debug, Clone, PartialEq)]

@@ -11,21 +11,47 @@
 //! adjacent-coupling structure of Sun's ring approach as commonly restated; the original
 //! paper's exact law was not available to check it against.
 
+use super::registry::LawEntry;
 use super::{ControlInput, ControlLaw, ControlOutput, Gains};
 use crate::error::{ControlError, check};
-use crate::estimator::{ErrorHistory, EstimatorKind};
+use crate::estimator::{ErrorHistory, Estimator, EstimatorKind, Signal};
+
+/// The registry's entry: `ring-coupled`, from K_P, K_D, K_H, K_C, α and the estimator; no
+/// parameters of its own.
+pub const ENTRY: LawEntry = LawEntry {
+    name: "ring-coupled",
+    description: "ring-coupled baseline in the style of Sun et al. (2007): E = (I + αL)e with the ring Laplacian L, the neighbours through the estimator",
+    min_axes: 2,
+    params: &[],
+    make: |p| {
+        Ok(Box::new(RingCoupled::new(
+            p.gains.clone(),
+            p.sync.alpha,
+            p.sync.estimator,
+        )?))
+    },
+};
 
 /// The ring-coupled controller.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug)]
 pub struct RingCoupled {
     gains: Gains,
     alpha: f64,
-    estimator: EstimatorKind,
+    estimator: Box<dyn Estimator>,
 }
 
 impl RingCoupled {
-    /// A checked controller: n ≥ 2, α ≥ 0.
+    /// A checked controller: n ≥ 2, α ≥ 0, with a built-in estimator.
     pub fn new(gains: Gains, alpha: f64, estimator: EstimatorKind) -> Result<Self, ControlError> {
+        Self::with_estimator(gains, alpha, estimator.build())
+    }
+
+    /// A checked controller with any estimator (which the law then owns).
+    pub fn with_estimator(
+        gains: Gains,
+        alpha: f64,
+        estimator: Box<dyn Estimator>,
+    ) -> Result<Self, ControlError> {
         gains.validate()?;
         if gains.axes() < 2 {
             return Err(ControlError::TooFewAxes {
@@ -50,18 +76,24 @@ impl ControlLaw for RingCoupled {
     fn axes(&self) -> usize {
         self.gains.axes()
     }
+    fn estimator(&self) -> Option<&dyn Estimator> {
+        Some(self.estimator.as_ref())
+    }
+    fn estimator_mut(&mut self) -> Option<&mut dyn Estimator> {
+        Some(self.estimator.as_mut())
+    }
     #[inline]
     fn evaluate(&self, h: &ErrorHistory, input: &ControlInput, out: &mut ControlOutput) {
         let n = self.axes();
         let g = &self.gains;
-        let est = self.estimator;
+        let est = self.estimator.as_ref();
         let a = self.alpha;
         // Neighbour j's sample extrapolated to axis k's application time.
         let ahead = |j: usize, k: usize| {
             let d = (input.apply_time[k] - h.t[j]) / input.t_cyc;
             (
-                est.estimate(&h.e[j], h.count[j], d),
-                est.estimate(&h.de[j], h.count[j], d),
+                est.estimate(h, j, Signal::Position, d),
+                est.estimate(h, j, Signal::Velocity, d),
             )
         };
         for k in 0..n {

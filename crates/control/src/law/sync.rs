@@ -16,10 +16,21 @@
 //! − (S_sv − s_k·v̂_k) (times in cycles, relative to the first axis's sample) from three sums
 //! over all axes.
 
+use super::registry::LawEntry;
 use super::{ControlInput, ControlLaw, ControlOutput, Gains};
 use crate::coupling::Coupling;
 use crate::error::{ControlError, check};
-use crate::estimator::{ErrorHistory, EstimatorKind};
+use crate::estimator::{ErrorHistory, Estimator, EstimatorKind, Signal};
+
+/// The registry's entry: `sync`, from K_P, K_D, K_E, K_H, K_C and the coupling's parameters;
+/// no parameters of its own.
+pub const ENTRY: LawEntry = LawEntry {
+    name: "sync",
+    description: "the paper's position-synchronisation controller (eq. 9, 14): each axis coupled to the mean of all others through E' = (I + αT)e with the motion message estimator",
+    min_axes: 2,
+    params: &[],
+    make: |p| Ok(Box::new(SyncController::new(p.gains.clone(), p.sync)?)),
+};
 
 /// How the robust term's sgn(Ė') is evaluated.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -41,7 +52,8 @@ pub struct SyncParams {
     pub delta_c: f64,
     /// sgn or its boundary layer.
     pub sign: Sign,
-    /// The motion message estimator.
+    /// The motion message estimator (built-in kinds; [`SyncController::with_estimator`]
+    /// takes any other).
     pub estimator: EstimatorKind,
     /// Extrapolate the own axis's sample too (the paper uses it as is).
     pub extrapolate_own: bool,
@@ -62,10 +74,11 @@ impl SyncParams {
 }
 
 /// The position-synchronisation controller (eq. 9 and 14).
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug)]
 pub struct SyncController {
     gains: Gains,
     params: SyncParams,
+    estimator: Box<dyn Estimator>,
     /// P = p_diag·I and Q = q_off·(1·1ᵀ − I) of I + αT.
     p_diag: f64,
     q_off: f64,
@@ -76,8 +89,19 @@ pub struct SyncController {
 }
 
 impl SyncController {
-    /// A checked controller: n ≥ 2 axes, α ≥ 0, K_E ≥ 0, Δ_H, Δ_C ≥ 0, φ > 0.
+    /// A checked controller: n ≥ 2 axes, α ≥ 0, K_E ≥ 0, Δ_H, Δ_C ≥ 0, φ > 0, with the
+    /// built-in estimator `params.estimator`.
     pub fn new(gains: Gains, params: SyncParams) -> Result<Self, ControlError> {
+        Self::with_estimator(gains, params, params.estimator.build())
+    }
+
+    /// A checked controller with any estimator, which the law then owns (`params.estimator`
+    /// is not used).
+    pub fn with_estimator(
+        gains: Gains,
+        params: SyncParams,
+        estimator: Box<dyn Estimator>,
+    ) -> Result<Self, ControlError> {
         gains.validate()?;
         let coupling = Coupling::new(gains.axes(), params.alpha)?;
         check("delta_h", params.delta_h, 0.0, false, ">= 0 V·s²/rad")?;
@@ -90,6 +114,7 @@ impl SyncController {
             inv_n: 1.0 / gains.axes() as f64,
             gains,
             params,
+            estimator,
             p_diag,
             q_off,
             inv_den: 1.0 / coupling.denominator(),
@@ -109,12 +134,18 @@ impl ControlLaw for SyncController {
     fn axes(&self) -> usize {
         self.gains.axes()
     }
+    fn estimator(&self) -> Option<&dyn Estimator> {
+        Some(self.estimator.as_ref())
+    }
+    fn estimator_mut(&mut self) -> Option<&mut dyn Estimator> {
+        Some(self.estimator.as_mut())
+    }
     #[inline]
     fn evaluate(&self, h: &ErrorHistory, input: &ControlInput, out: &mut ControlOutput) {
         let n = self.axes();
         let g = &self.gains;
         let p = &self.params;
-        let est = p.estimator;
+        let est = self.estimator.as_ref();
         let inv_t = 1.0 / input.t_cyc;
         let t_ref = h.t[0];
         // Pass 1: sums over all axes.
@@ -122,10 +153,9 @@ impl ControlLaw for SyncController {
         let (mut sde, mut sw, mut ssw) = (0.0, 0.0, 0.0);
         let mut ske = 0.0;
         for j in 0..n {
-            let c = h.count[j];
             let s = (h.t[j] - t_ref) * inv_t;
-            let v = est.slope(&h.e[j], c);
-            let w = est.slope(&h.de[j], c);
+            let v = est.slope(h, j, Signal::Position);
+            let w = est.slope(h, j, Signal::Velocity);
             out.work[j] = [v, w, s];
             se += h.e[j][0];
             sv += v;

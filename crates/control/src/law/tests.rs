@@ -3,7 +3,7 @@ use proptest::prelude::*;
 
 use super::*;
 use crate::coupling::Coupling;
-use crate::estimator::{DEPTH, EstimatorKind};
+use crate::estimator::{DEPTH, EstimatorKind, Signal};
 
 /// A random cycle: history, inputs and gains for n axes.
 #[derive(Debug, Clone)]
@@ -402,4 +402,176 @@ fn bad_configurations_are_named() {
         &mut ControlOutput::new(3),
     );
     assert!(matches!(r, Err(ControlError::LengthMismatch { .. })));
+}
+
+/// The estimator slot holds state: the controller tells a law's estimator of every sample
+/// it pushes (interpolated ones too), and the law's command uses the estimator's slope.
+#[test]
+fn a_stateful_estimator_is_told_of_every_sample() {
+    use crate::estimator::Smoothing;
+    let n = 3;
+    let law = RingCoupled::with_estimator(
+        Gains::uniform(n, 2.0, 1.0, 0.0),
+        0.5,
+        Box::new(Smoothing::new(n, 0.5)),
+    )
+    .expect("ring");
+    let mut c = Controller::new(law, VelocitySource::Reported);
+    let mut fb = Feedback::new(n);
+    let mut input = ControlInput::new(n, 1e-3);
+    let mut out = ControlOutput::new(n);
+    // Axis 0: e = 0.1·m (x^d = 0, x = −0.1·m) sampled at m·1 ms with cycle 2 missing
+    // (on every axis); axes 1 and 2 stay at e = 0.
+    for m in [0usize, 1, 3] {
+        let t = m as f64 * 1e-3;
+        fb.sample_time = vec![t; n];
+        fb.position[0] = -0.1 * m as f64;
+        input.apply_time = vec![t + 0.5e-3; n];
+        c.update(&fb, &input, &mut out).expect("update");
+    }
+    let est = c.law.estimator().expect("owned");
+    assert_eq!(est.name(), "smoothing");
+    // Three samples each, and one interpolated (cycle 2).
+    let h = &c.history;
+    assert_eq!(h.count, vec![4, 4, 4]);
+    // Axis 0's smoothed slope, β = 0.5 on differences of 0.1: 0 after the first sample,
+    // then 0.05, 0.075 (the interpolated sample) and 0.0875: four observations.
+    let v = est.slope(h, 0, Signal::Position);
+    assert!((v - 0.0875).abs() < 1e-15, "{v}");
+    // Axis 1's neighbours are 0 (slope 0.0875, 0.5 cycles ahead) and 2 (all zero):
+    // u_1 = K_P·(e_1 + α·(2·e_1 − e'_0 − e'_2)) with e_1 = 0 and no velocity errors.
+    let e0 = 0.3 + 0.5 * 0.0875;
+    let want = 2.0 * (0.5 * -e0);
+    assert!((out.u[1] - want).abs() < 1e-15, "{} vs {want}", out.u[1]);
+}
+
+proptest! {
+    /// Adjacent cross-coupling with K_X = α·K_P and K_XD = α·K_D is the ring-coupled law
+    /// E = (I + αL)·e (the same neighbours through the same estimator).
+    #[test]
+    fn adjacent_with_alpha_gains_is_ring_coupled(c in case()) {
+        let (g, a) = (&c.gains, c.params.alpha);
+        let kx = g.kp.iter().map(|k| a * k).collect();
+        let kxd = g.kd.iter().map(|k| a * k).collect();
+        let adj = adjacent::AdjacentCoupled::new(g.clone(), kx, kxd, c.params.estimator)
+            .expect("adjacent");
+        let ring = RingCoupled::new(g.clone(), a, c.params.estimator).expect("ring");
+        let n = c.hist.axes();
+        let (mut got, mut want) = (ControlOutput::new(n), ControlOutput::new(n));
+        adj.compute(&c.hist, &c.input, &mut got).expect("compute");
+        ring.compute(&c.hist, &c.input, &mut want).expect("compute");
+        for (x, y) in got.u_raw.iter().zip(&want.u_raw) {
+            prop_assert!((x - y).abs() <= 1e-9 * (1.0 + y.abs()), "{x} vs {y}");
+        }
+    }
+
+    /// Without coupling gains it is standard PD with feed-forward, whatever the neighbours do.
+    #[test]
+    fn adjacent_without_coupling_is_pd(c in case()) {
+        let n = c.hist.axes();
+        let adj = adjacent::AdjacentCoupled::new(
+            c.gains.clone(), vec![0.0; n], vec![0.0; n], c.params.estimator,
+        ).expect("adjacent");
+        let pd = Pd::new(c.gains.clone(), true).expect("pd");
+        let (mut got, mut want) = (ControlOutput::new(n), ControlOutput::new(n));
+        adj.compute(&c.hist, &c.input, &mut got).expect("compute");
+        pd.compute(&c.hist, &c.input, &mut want).expect("compute");
+        prop_assert_eq!(got.u_raw, want.u_raw);
+    }
+}
+
+/// Adjacent cross-coupling term by term on three axes with the Hold estimator: axis k sees
+/// K_P·e_k + K_D·ė_k + K_X,k·(2e_k − e_{k−1} − e_{k+1}) + K_XD,k·(2ė_k − ė_{k−1} − ė_{k+1}).
+#[test]
+fn adjacent_term_by_term() {
+    let n = 3;
+    let mut hist = ErrorHistory::new(n);
+    let e = [0.1, -0.2, 0.4];
+    let de = [1.0, 0.5, -0.5];
+    for i in 0..n {
+        hist.push(i, e[i], de[i], 1.0).expect("push");
+    }
+    let mut input = ControlInput::new(n, 1e-3);
+    input.apply_time = vec![1.0001; n];
+    let gains = Gains::uniform(n, 2.0, 1.0, 0.0);
+    let (kx, kxd) = (vec![1.0, 0.0, 3.0], vec![0.5, 2.0, 0.0]);
+    let law = adjacent::AdjacentCoupled::new(gains, kx, kxd, EstimatorKind::Hold).expect("law");
+    let mut out = ControlOutput::new(n);
+    law.compute(&hist, &input, &mut out).expect("compute");
+    // Axis 0: 0.2 + 1.0 + 1·(0.2 + 0.2 − 0.4) + 0.5·(2 − 0.5 + 0.5) = 1.2 + 0 + 1.0
+    // Axis 1: −0.4 + 0.5 + 0 + 2·(1 − 1 + 0.5) = 1.1
+    // Axis 2: 0.8 − 0.5 + 3·(0.8 + 0.2 − 0.1) + 0 = 3.0
+    let want = [2.2, 1.1, 3.0];
+    for (got, want) in out.u_raw.iter().zip(want) {
+        assert!((got - want).abs() < 1e-12, "{:?} vs {want:?}", out.u_raw);
+    }
+    assert_eq!(law.name(), "adjacent");
+}
+
+/// Every registered law builds from its defaults on the axes it needs, under its own name;
+/// names are unique; the catalogue lists each law and each parameter.
+#[test]
+fn every_registered_law_builds_from_its_defaults() {
+    let mut seen = std::collections::BTreeSet::new();
+    let text = registry::catalogue();
+    for e in LAWS {
+        assert!(seen.insert(e.name), "{} twice", e.name);
+        assert!(registry::find(e.name).is_some());
+        assert!(text.contains(e.name), "{text}");
+        let n = e.min_axes.max(2);
+        let p = LawParams::new(
+            Gains::uniform(n, 3.0, 1.5, 0.5),
+            false,
+            SyncParams::reference(),
+        );
+        let law = e
+            .build(&p)
+            .unwrap_or_else(|err| panic!("{}: {err}", e.name));
+        assert_eq!(law.name(), e.name);
+        assert_eq!(law.axes(), n);
+        for s in e.params {
+            assert!(s.allows(s.default), "{}.{} default", e.name, s.key);
+            assert!(
+                text.contains(&format!("{} = {}", s.key, s.default)),
+                "{text}"
+            );
+        }
+    }
+    assert!(registry::find("pid").is_none());
+    assert_eq!(
+        registry::unknown_law("pid"),
+        "unknown control law 'pid': expected one of pd, sync, ring-coupled, adjacent"
+    );
+}
+
+/// A law's own parameters are checked by the registry: unknown keys, wrong lengths and
+/// values out of range are errors that name the key (and the axis).
+#[test]
+fn law_parameters_are_checked_by_key() {
+    let e = registry::find("adjacent").expect("registered");
+    let base = LawParams::new(
+        Gains::uniform(3, 3.0, 1.5, 0.0),
+        false,
+        SyncParams::reference(),
+    );
+    let with = |key: &'static str, v: Vec<f64>| {
+        let mut p = base.clone();
+        p.set(key, v);
+        e.build(&p).map(|_| ()).map_err(|err| err.to_string())
+    };
+    assert_eq!(with("kx", vec![0.0, 2.0, 5.0]), Ok(()));
+    let err = with("kx", vec![1.0, -1.0, 1.0]).expect_err("negative");
+    assert!(
+        err.contains("params.kx[1]") && err.contains(">= 0 V/rad"),
+        "{err}"
+    );
+    let err = with("kxd", vec![1.0]).expect_err("length");
+    assert!(err.contains("3") && err.contains("1"), "{err}");
+    let err = with("gain", vec![1.0; 3]).expect_err("unknown");
+    assert!(err.contains("'gain'") && err.contains("kx, kxd"), "{err}");
+    let pd = registry::find("pd").expect("registered");
+    let mut p = base.clone();
+    p.set("kx", vec![1.0; 3]);
+    let err = pd.build(&p).map(|_| ()).expect_err("pd has none");
+    assert!(err.to_string().contains("none"), "{err}");
 }

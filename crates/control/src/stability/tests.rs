@@ -156,3 +156,22 @@ fn arm_conditions_along_a_trajectory() {
     assert_eq!(none.cond1_bound, 0.0);
     assert!(continuous_conditions(&arm, &traj[..1], &gains, (0.5, 0.0, 0.0), 2.0, 10).is_err());
 }
+
+/// The check builds the loop from the history alone: a law whose estimator keeps state
+/// beyond it is refused, naming the estimator, not given a radius that means nothing.
+#[test]
+fn an_estimator_with_state_is_refused() {
+    use crate::estimator::Smoothing;
+    let axes = linear(&reference_axes());
+    let law = SyncController::with_estimator(
+        Gains::uniform(4, 3.182, 1.591, 0.75),
+        SyncParams::reference(),
+        Box::new(Smoothing::new(4, 0.5)),
+    )
+    .expect("law");
+    let e = discrete_check(&law, &axes, 1e-3, &DELAYS).expect_err("refused");
+    assert!(matches!(e, ControlError::NotApplicable { .. }), "{e:?}");
+    assert!(e.to_string().contains("estimator smoothing"), "{e}");
+    // The same law with the paper's estimator is checked.
+    assert!(discrete_check(&sync_law(1.591), &axes, 1e-3, &DELAYS).is_ok());
+}

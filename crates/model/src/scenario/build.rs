@@ -1,15 +1,17 @@
 //! Making a run's objects from a scenario's values: the ring parameters of the planner, the
 //! gains, the control law, the desired motion and the axes' plant models.
 
+use ringsync_control::law::registry::{self, LawEntry, LawParams};
 use ringsync_control::{
-    AxisTrajectory, ControlError, ControlLaw, Cosine, Gains, Pd, RingCoupled, Sequence, Sign,
-    SyncController, SyncParams, Trapezoid, VelocitySource,
+    AxisTrajectory, ControlError, ControlLaw, Cosine, Gains, Sequence, Sign, SyncParams, Trapezoid,
+    VelocitySource,
 };
 use ringsync_plant::{AxisModel, Friction, PlantError, SignModel, TorqueAxis, VelocityAxis};
 use ringsync_proto::RingParams;
 
+use super::error::{ScenarioError, control_error, out_of_range};
 use super::schema::{
-    AxisKind, AxisSpec, CoulombSign, LawKind, PerAxis, Scenario, TrajectorySpec, VelocityKind,
+    AxisKind, AxisSpec, CoulombSign, PerAxis, Scenario, TrajectorySpec, VelocityKind,
 };
 
 impl Scenario {
@@ -69,12 +71,12 @@ impl Scenario {
         g(&self.control.kh) || g(&self.control.kc)
     }
 
-    /// The controller's name in outputs: the law's, `pd+ff` for standard PD with
-    /// feed-forward.
+    /// The controller's name in outputs: the built law's ([`ControlLaw::name`]), e.g. `pd+ff`
+    /// for standard PD with feed-forward; the registry's name when the law cannot be built.
     pub fn law_name(&self) -> &'static str {
-        match self.control.law {
-            LawKind::Pd if self.pd_feed_forward() => "pd+ff",
-            other => other.name(),
+        match self.law() {
+            Ok(law) => law.name(),
+            Err(_) => self.law_entry().map_or("?", |e| e.name),
         }
     }
 
@@ -95,18 +97,77 @@ impl Scenario {
         }
     }
 
-    /// The control law, checked.
-    pub fn law(&self) -> Result<Box<dyn ControlLaw>, ControlError> {
-        let g = self.gains();
-        Ok(match self.control.law {
-            LawKind::Pd => Box::new(Pd::new(g, self.pd_feed_forward())?),
-            LawKind::Sync => Box::new(SyncController::new(g, self.sync_params())?),
-            LawKind::RingCoupled => Box::new(RingCoupled::new(
-                g,
-                self.control.alpha,
-                self.control.estimator,
-            )?),
+    /// The registry's entry of `control.law`; the error lists the known names.
+    pub fn law_entry(&self) -> Result<&'static LawEntry, ScenarioError> {
+        let name = &self.control.law;
+        registry::find(name).ok_or_else(|| {
+            out_of_range(
+                "control.law",
+                format!("\"{name}\""),
+                format!(
+                    "the name of a law: {}",
+                    registry::names().collect::<Vec<_>>().join(", ")
+                ),
+            )
         })
+    }
+
+    /// What the law is built from: the common `[control]` values and the law's own
+    /// parameters from `[control.params]`. Each key must be one the law declares, with one
+    /// number for every axis or a list of n, in its range; the error names the key
+    /// (`control.params.<key>`), the value and what is allowed.
+    pub fn law_params(&self) -> Result<LawParams, ScenarioError> {
+        let entry = self.law_entry()?;
+        let n = self.axes_count();
+        let mut p = LawParams::new(self.gains(), self.pd_feed_forward(), self.sync_params());
+        for (key, value) in &self.control.params {
+            let at = format!("control.params.{key}");
+            let Some(spec) = entry.param(key) else {
+                let others = registry::laws_with_param(key);
+                let owner = if others.is_empty() {
+                    String::new()
+                } else {
+                    format!("; {key} is a parameter of {others}")
+                };
+                return Err(out_of_range(
+                    at,
+                    value,
+                    format!(
+                        "the parameters of control.law = \"{}\": {}{owner}",
+                        entry.name,
+                        entry.param_list()
+                    ),
+                ));
+            };
+            let values = match value {
+                PerAxis::One(v) => vec![*v; n],
+                PerAxis::Each(v) if v.len() == n => v.clone(),
+                PerAxis::Each(_) => {
+                    return Err(out_of_range(
+                        at,
+                        value,
+                        format!("one number for every axis, or a list of {n} (one per axis)"),
+                    ));
+                }
+            };
+            if let Some((i, v)) = values.iter().enumerate().find(|(_, v)| !spec.allows(**v)) {
+                let at = match value {
+                    PerAxis::One(_) => at,
+                    PerAxis::Each(_) => format!("{at} (axis {i})"),
+                };
+                return Err(out_of_range(at, v, spec.allowed()));
+            }
+            p.set(spec.key, values);
+        }
+        Ok(p)
+    }
+
+    /// The control law from the registry, checked.
+    pub fn law(&self) -> Result<Box<dyn ControlLaw>, ScenarioError> {
+        let entry = self.law_entry()?;
+        entry
+            .build(&self.law_params()?)
+            .map_err(|e| control_error(&e))
     }
 
     /// Where ė comes from.

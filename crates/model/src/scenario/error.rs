@@ -92,7 +92,7 @@ pub(crate) fn control_error(e: &ControlError) -> ScenarioError {
                 Some((g, rest)) => format!("control.{g} (axis {})", rest.trim_end_matches(']')),
                 None => format!("control.{name}"),
             };
-            out_of_range(key, value, *expected)
+            out_of_range(key, value, expected.to_string())
         }
         other => out_of_range("control", "?", other.to_string()),
     }

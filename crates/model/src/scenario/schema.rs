@@ -3,6 +3,7 @@
 //! [`validate`](super::validate)'s job; making the run's objects from them is
 //! [`build`](super::build)'s.
 
+use std::collections::BTreeMap;
 use std::fmt;
 use std::str::FromStr;
 
@@ -60,13 +61,46 @@ impl<'de> Deserialize<'de> for BitRate {
 }
 
 /// One value for every axis, or one per axis.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
-#[serde(untagged)]
+#[derive(Debug, Clone, PartialEq)]
 pub enum PerAxis {
     /// The same on every axis.
     One(f64),
     /// One per axis (used in turn if shorter than the ring).
     Each(Vec<f64>),
+}
+
+impl<'de> Deserialize<'de> for PerAxis {
+    /// A number (integer or float) or a list of numbers; anything else is an error that
+    /// says so.
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct Visit;
+        impl<'de> serde::de::Visitor<'de> for Visit {
+            type Value = PerAxis;
+            fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+                f.write_str("a number (the same on every axis) or a list of numbers (one per axis)")
+            }
+            fn visit_f64<E: serde::de::Error>(self, v: f64) -> Result<PerAxis, E> {
+                Ok(PerAxis::One(v))
+            }
+            fn visit_i64<E: serde::de::Error>(self, v: i64) -> Result<PerAxis, E> {
+                Ok(PerAxis::One(v as f64))
+            }
+            fn visit_u64<E: serde::de::Error>(self, v: u64) -> Result<PerAxis, E> {
+                Ok(PerAxis::One(v as f64))
+            }
+            fn visit_seq<A: serde::de::SeqAccess<'de>>(
+                self,
+                mut a: A,
+            ) -> Result<PerAxis, A::Error> {
+                let mut v = Vec::with_capacity(a.size_hint().unwrap_or(0));
+                while let Some(x) = a.next_element::<f64>()? {
+                    v.push(x);
+                }
+                Ok(PerAxis::Each(v))
+            }
+        }
+        d.deserialize_any(Visit)
+    }
 }
 
 impl PerAxis {
@@ -81,6 +115,19 @@ impl PerAxis {
     /// The values for `n` axes.
     pub fn expand(&self, n: usize) -> Vec<f64> {
         (0..n).map(|i| self.get(i)).collect()
+    }
+}
+
+impl fmt::Display for PerAxis {
+    /// As written: `3.5` or `[1, 2.5]`.
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            PerAxis::One(v) => write!(f, "{v}"),
+            PerAxis::Each(v) => {
+                let items: Vec<String> = v.iter().map(f64::to_string).collect();
+                write!(f, "[{}]", items.join(", "))
+            }
+        }
     }
 }
 
@@ -216,29 +263,6 @@ impl Default for Faults {
     }
 }
 
-/// Which control law.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum LawKind {
-    /// Standard PD.
-    Pd,
-    /// The paper's sync controller.
-    Sync,
-    /// The ring-coupled baseline.
-    RingCoupled,
-}
-
-impl LawKind {
-    /// The name used in outputs.
-    pub fn name(self) -> &'static str {
-        match self {
-            LawKind::Pd => "pd",
-            LawKind::Sync => "sync",
-            LawKind::RingCoupled => "ring-coupled",
-        }
-    }
-}
-
 /// Where ė comes from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "kebab-case")]
@@ -253,8 +277,9 @@ pub enum VelocityKind {
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ControlSpec {
-    /// The law.
-    pub law: LawKind,
+    /// The law: a name in the law registry (`ringsync_control::law::LAWS`, docs/control.md).
+    #[serde(deserialize_with = "law_name")]
+    pub law: String,
     /// The estimator.
     #[serde(deserialize_with = "estimator_kind")]
     pub estimator: EstimatorKind,
@@ -280,6 +305,19 @@ pub struct ControlSpec {
     pub boundary_layer: f64,
     /// Extrapolate the own sample too.
     pub extrapolate_own: bool,
+    /// `[control.params]`: the chosen law's own parameters by key (the keys its registry
+    /// entry declares), each one number for every axis or a list of n.
+    pub params: BTreeMap<String, PerAxis>,
+}
+
+fn law_name<'de, D: Deserializer<'de>>(d: D) -> Result<String, D::Error> {
+    let s = String::deserialize(d)?;
+    match ringsync_control::law::registry::find(&s) {
+        Some(_) => Ok(s),
+        None => Err(serde::de::Error::custom(
+            ringsync_control::law::registry::unknown_law(&s),
+        )),
+    }
 }
 
 fn estimator_kind<'de, D: Deserializer<'de>>(d: D) -> Result<EstimatorKind, D::Error> {
@@ -290,7 +328,7 @@ fn estimator_kind<'de, D: Deserializer<'de>>(d: D) -> Result<EstimatorKind, D::E
 impl Default for ControlSpec {
     fn default() -> Self {
         ControlSpec {
-            law: LawKind::Sync,
+            law: ringsync_control::law::sync::ENTRY.name.to_string(),
             estimator: EstimatorKind::Paper,
             velocity: VelocityKind::Reported,
             kp: PerAxis::One(3.182),
@@ -303,6 +341,7 @@ impl Default for ControlSpec {
             delta_c: 0.0,
             boundary_layer: 0.01,
             extrapolate_own: false,
+            params: BTreeMap::new(),
         }
     }
 }

@@ -40,7 +40,7 @@ fn a_partial_file_overrides_only_its_keys() {
     assert_eq!(s.ring.slaves, 8);
     assert_eq!(s.ring.cycle, Dur(Duration::from_ms(2)));
     assert_eq!(s.ring.t_rest, Ring::default().t_rest);
-    assert_eq!(s.control.law, LawKind::Pd);
+    assert_eq!(s.control.law, "pd");
     // Lists are used in turn: 8 axes from 2 gains and 4 axis tables.
     assert_eq!(s.gains().kp, vec![1.0, 2.0, 1.0, 2.0, 1.0, 2.0, 1.0, 2.0]);
     assert_eq!(s.axis_models().expect("axes").len(), 8);
@@ -288,4 +288,55 @@ fn a_brake_gain_the_slaves_cannot_use_is_refused() {
     assert!(e.contains("axis[0]: its loop factor is 2.564"), "{e}");
     // A large K_D alone is the control law's business (`check` judges it), not the brake's.
     assert!(Scenario::from_toml("[control]\nkd = 159.1\n", "test").is_ok());
+}
+
+/// `control.law` is a name in the law registry and `[control.params]` holds the chosen law's
+/// own parameters: bad names, keys, lengths and values are one line that names the key.
+#[test]
+fn laws_and_their_parameters_come_from_the_registry() {
+    let adj = "[control]\nlaw = \"adjacent\"\n[control.params]\n";
+    for (text, want) in [
+        (
+            "[control]\nlaw = \"pid\"\n".to_string(),
+            "unknown control law 'pid': expected one of pd, sync, ring-coupled, adjacent",
+        ),
+        (
+            "[control]\nlaw = \"sync\"\n[control.params]\nkx = 1.0\n".to_string(),
+            "control.params.kx = 1 is out of range: allowed the parameters of control.law = \"sync\": none; kx is a parameter of \"adjacent\"",
+        ),
+        (
+            format!("{adj}kx = -1.0\n"),
+            "control.params.kx = -1 is out of range: allowed >= 0 V/rad",
+        ),
+        (
+            format!("{adj}kxd = [1, 2, -3, 4]\n"),
+            "control.params.kxd (axis 2) = -3 is out of range: allowed >= 0 V·s/rad",
+        ),
+        (
+            format!("{adj}kx = [1, 2]\n"),
+            "control.params.kx = [1, 2] is out of range: allowed one number for every axis, or a list of 4 (one per axis)",
+        ),
+        (
+            format!("{adj}kx = \"a\"\n"),
+            "expected a number (the same on every axis) or a list of numbers (one per axis)",
+        ),
+        (
+            format!("[ring]\nslaves = 1\n{adj}"),
+            "ring.slaves = 1 is out of range: allowed 2 ..= 65535 with control.law = \"adjacent\" (coupling needs two axes)",
+        ),
+    ] {
+        let e = err(&text);
+        assert!(e.contains(want), "{text}: {e}");
+        assert_eq!(e.lines().count(), 1, "{e}");
+    }
+    // Accepted: one number for every axis, or one per axis; unset keys take their defaults.
+    let s = Scenario::from_toml(&format!("{adj}kx = [1, 0, 2, 0.5]\n"), "adj").expect("valid");
+    let p = s.law_params().expect("params");
+    assert_eq!(p.get("kx"), Some([1.0, 0.0, 2.0, 0.5].as_slice()));
+    assert_eq!(
+        p.get("kxd"),
+        None,
+        "defaults are filled in when the law is built"
+    );
+    assert_eq!(s.law().expect("law").name(), "adjacent");
 }

@@ -5,7 +5,7 @@
 use ringsync_proto::PlanKind;
 
 use super::error::{ScenarioError, control_error, out_of_range, plant_error};
-use super::schema::{AxisKind, Dur, LawKind, PerAxis, Scenario, TrajectorySpec};
+use super::schema::{AxisKind, Dur, PerAxis, Scenario, TrajectorySpec};
 
 /// Fewest encoder bits: the plant's encoder needs at least 4 counts per revolution.
 pub const MIN_ENCODER_BITS: u32 = 2;
@@ -144,13 +144,19 @@ impl Scenario {
                 ),
             ));
         }
-        if self.control.law != LawKind::Pd && n < 2 {
+        let law = self.law_entry()?;
+        if n < law.min_axes {
+            let why = if law.min_axes == 2 {
+                "coupling needs two axes".to_string()
+            } else {
+                format!("the law needs at least {} axes", law.min_axes)
+            };
             return Err(out_of_range(
                 "ring.slaves",
                 n,
                 format!(
-                    "2 ..= 65535 with control.law = \"{}\" (coupling needs two axes)",
-                    self.control.law.name()
+                    "{} ..= 65535 with control.law = \"{}\" ({why})",
+                    law.min_axes, law.name
                 ),
             ));
         }
@@ -169,7 +175,7 @@ impl Scenario {
         if self.axis.is_empty() {
             return Err(out_of_range("axis", "[]", "at least one [[axis]] table"));
         }
-        self.law().map_err(|e| control_error(&e))?;
+        self.law()?;
         for (i, a) in self.axis.iter().enumerate() {
             if ns(a.velocity_window) <= 0 || a.velocity_window.0 > self.ring.cycle.0 {
                 return Err(out_of_range(
