@@ -17,9 +17,9 @@
 //! ring-coupled law (tested); with K_X = K_XD = 0 it is standard PD with feed-forward.
 
 use super::registry::{LawEntry, ParamSpec};
-use super::{ControlInput, ControlLaw, ControlOutput, Gains};
+use super::{ControlInput, ControlLaw, ControlOutput, Gains, ring_neighbours};
 use crate::error::{ControlError, check, check_len};
-use crate::estimator::{ErrorHistory, Estimator, EstimatorKind, Signal};
+use crate::estimator::{ErrorHistory, Estimator, EstimatorKind};
 
 /// The registry's entry: `adjacent`, from K_P, K_D, K_H, K_C, the estimator and its own
 /// coupling gains `kx` and `kxd`, one per axis.
@@ -125,18 +125,8 @@ impl ControlLaw for AdjacentCoupled {
     fn evaluate(&self, h: &ErrorHistory, input: &ControlInput, out: &mut ControlOutput) {
         let n = self.axes();
         let g = &self.gains;
-        let est = self.estimator.as_ref();
-        // Neighbour j's sample extrapolated to axis k's application time.
-        let ahead = |j: usize, k: usize| {
-            let d = (input.apply_time[k] - h.t[j]) / input.t_cyc;
-            (
-                est.estimate(h, j, Signal::Position, d),
-                est.estimate(h, j, Signal::Velocity, d),
-            )
-        };
         for k in 0..n {
-            let (pe, pde) = ahead((k + n - 1) % n, k);
-            let (ne, nde) = ahead((k + 1) % n, k);
+            let [(pe, pde), (ne, nde)] = ring_neighbours(self.estimator.as_ref(), h, input, k);
             let (e0, de0) = (h.e[k][0], h.de[k][0]);
             let sync = 2.0 * e0 - pe - ne;
             let dsync = 2.0 * de0 - pde - nde;

@@ -178,6 +178,26 @@ impl ControlOutput {
     }
 }
 
+/// The ring neighbours of axis `k` (k − 1 and k + 1, modulo n): their newest (e, ė) samples
+/// extrapolated by `est` to axis k's application time, D = a_k − s_j (eq. 13). Shared by the
+/// laws that couple each axis to its neighbours only.
+#[inline]
+pub(crate) fn ring_neighbours(
+    est: &dyn Estimator,
+    h: &ErrorHistory,
+    input: &ControlInput,
+    k: usize,
+) -> [(f64, f64); 2] {
+    let n = h.axes();
+    [(k + n - 1) % n, (k + 1) % n].map(|j| {
+        let d = (input.apply_time[k] - h.t[j]) / input.t_cyc;
+        (
+            est.estimate(h, j, crate::estimator::Signal::Position, d),
+            est.estimate(h, j, crate::estimator::Signal::Velocity, d),
+        )
+    })
+}
+
 /// A control law: commands from the error history (newest sample first) and the cycle's
 /// inputs.
 pub trait ControlLaw: Send {

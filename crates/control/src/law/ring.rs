@@ -12,9 +12,9 @@
 //! paper's exact law was not available to check it against.
 
 use super::registry::LawEntry;
-use super::{ControlInput, ControlLaw, ControlOutput, Gains};
+use super::{ControlInput, ControlLaw, ControlOutput, Gains, ring_neighbours};
 use crate::error::{ControlError, check};
-use crate::estimator::{ErrorHistory, Estimator, EstimatorKind, Signal};
+use crate::estimator::{ErrorHistory, Estimator, EstimatorKind};
 
 /// The registry's entry: `ring-coupled`, from K_P, K_D, K_H, K_C, α and the estimator; no
 /// parameters of its own.
@@ -86,19 +86,9 @@ impl ControlLaw for RingCoupled {
     fn evaluate(&self, h: &ErrorHistory, input: &ControlInput, out: &mut ControlOutput) {
         let n = self.axes();
         let g = &self.gains;
-        let est = self.estimator.as_ref();
         let a = self.alpha;
-        // Neighbour j's sample extrapolated to axis k's application time.
-        let ahead = |j: usize, k: usize| {
-            let d = (input.apply_time[k] - h.t[j]) / input.t_cyc;
-            (
-                est.estimate(h, j, Signal::Position, d),
-                est.estimate(h, j, Signal::Velocity, d),
-            )
-        };
         for k in 0..n {
-            let (pe, pde) = ahead((k + n - 1) % n, k);
-            let (ne, nde) = ahead((k + 1) % n, k);
+            let [(pe, pde), (ne, nde)] = ring_neighbours(self.estimator.as_ref(), h, input, k);
             let (e0, de0) = (h.e[k][0], h.de[k][0]);
             let big_e = e0 + a * (2.0 * e0 - pe - ne);
             let big_de = de0 + a * (2.0 * de0 - pde - nde);

@@ -4,6 +4,7 @@
 use ringsync_control::Trajectory;
 use ringsync_plant::{AxisModel, Friction, Plant, TorqueAxis, TwoLinkArm};
 
+use super::tests::run_traced;
 use super::*;
 
 /// The built-in arm scenario with the law named `law` (the file's own is "sync").
@@ -17,17 +18,6 @@ fn arm_scenario(law: &str, seed: u64) -> Scenario {
     let mut s = Scenario::from_toml(&with_law, "arm-2link").expect("valid");
     s.seed = seed;
     s
-}
-
-fn run_traced(s: &Scenario) -> RunResult {
-    run(
-        s,
-        RunOptions {
-            trace: true,
-            ..RunOptions::default()
-        },
-    )
-    .expect("run")
 }
 
 /// The bound on PD's tracking error, from the arm's own inverse dynamics. With

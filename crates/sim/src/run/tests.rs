@@ -14,7 +14,7 @@ const IDEAL: &str =
 
 /// The planner's passage of `frame` at `node` that ends there (the node that processes it).
 /// A run of `s` that keeps its trace rows.
-fn run_traced(s: &Scenario) -> RunResult {
+pub(super) fn run_traced(s: &Scenario) -> RunResult {
     run(
         s,
         RunOptions {
