@@ -38,7 +38,11 @@
 //!   has the counterexample). With `RINGSYNC_FUZZ_TRUE_TIME=1` the true-time window is
 //!   asserted as well (exploration mode: it fails).
 //! - A slave applies commands in strictly increasing cycles (so never twice for one cycle),
-//!   until its clock re-locks to a new master time line (which resets that history).
+//!   until its clock re-locks to a new master time line or restarts its acquisition (which
+//!   begins a new time line, and, since F4's fix, forgets the last command): either resets
+//!   that history. A restart shows only in the slave's counter, not as an event: when one
+//!   came between two checks, the history is reset at every command after a lumped frame
+//!   that reached the slave in that interval (this hides, never invents, a violation).
 //! - The master's orders are obeyed: each response a slave sends (seen as it leaves the
 //!   slave) answers a command that reached it `response_delay` before; if it took that
 //!   command as new (not a repeat of the cycle's earlier try) and the command is the
@@ -340,6 +344,8 @@ impl Shared {
 struct ClockAt {
     clock: SyncClock,
     syncs: u64,
+    /// `acquisitions_restarted`.
+    restarts: u64,
 }
 
 fn true_time_mode() -> bool {
@@ -470,6 +476,7 @@ impl Harness {
             .map(|s| ClockAt {
                 clock: s.clock().clone(),
                 syncs: s.counters().syncs,
+                restarts: s.counters().acquisitions_restarted,
             })
             .collect();
         Harness {
@@ -750,9 +757,12 @@ impl Harness {
             .map(|s| ClockAt {
                 clock: s.clock().clone(),
                 syncs: s.counters().syncs,
+                restarts: s.counters().acquisitions_restarted,
             })
             .collect();
         let shared = self.shared.borrow();
+        // Per slave: the time of its last command applied in this step (or the last check).
+        let mut prev = vec![self.checked_at; ring.slaves.len()];
         for &(t, i, u) in &ring.applied[self.applied_seen..] {
             if relocked[i - 1].is_some_and(|r| r <= t) {
                 relocked[i - 1] = None;
@@ -764,6 +774,14 @@ impl Harness {
             // Which copy of the clock the slave used at t (see the module doc): `None` when
             // it took lumped frames on both sides of t, and used a state between the copies.
             let ls = &shared.lumped_at[i - 1];
+            // An acquisition restart begins a new time line, whose cycles are new (and the
+            // slave forgets the last command: F4's fix). It happened on a lumped frame; if the
+            // slave restarted in this step and a lumped frame reached it since its last
+            // command (at the same instant included), the history may have been reset.
+            if stop.restarts != start.restarts && ls.iter().any(|&x| x >= prev[i - 1] && x <= t) {
+                self.last_cycle[i - 1] = None;
+            }
+            prev[i - 1] = t;
             let before = ls.iter().any(|&x| x > self.checked_at && x < t);
             let after = ls.iter().any(|&x| x > t && x <= now);
             let at_t = ls.contains(&t);
@@ -819,13 +837,18 @@ impl Harness {
                 .push(((u as f32).to_bits(), d.from_master));
         }
         self.applied_seen = ring.applied.len();
-        drop(shared);
-        // A re-lock after the last command applied in this step.
+        // A re-lock, or a restart that may have come, after the last command applied in this
+        // step.
         for (i, r) in relocked.iter().enumerate() {
-            if r.is_some() {
+            let restarted = end[i].restarts != self.clocks[i].restarts
+                && shared.lumped_at[i]
+                    .iter()
+                    .any(|&x| x >= prev[i] && x <= now);
+            if r.is_some() || restarted {
                 self.last_cycle[i] = None;
             }
         }
+        drop(shared);
         let mut shared = self.shared.borrow_mut();
         shared.deliveries.retain(|&(_, at), _| at > now - KEEP);
         for v in &mut shared.lumped_at {
