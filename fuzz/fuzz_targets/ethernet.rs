@@ -20,6 +20,7 @@ fuzz_target!(|raw: &[u8]| {
 
 fn check(data: &[u8]) {
     if let Ok(eth) = EthernetFrame::new_checked(data) {
+        // `let _`: read on any bytes only to show that no accessor or parser panics.
         let _ = (eth.dst(), eth.src(), eth.ethertype());
         if let Ok(payload) = eth.ringsync_payload() {
             let _ = Pdu::parse(payload);

@@ -1,5 +1,8 @@
-//! One [`Master`] alone (4 axes, the testbed's plan and PD law, a stop timeout of 300 ms;
-//! the proposed plan or the lumped-only plan), fed an arbitrary interleaving of
+//! One [`Master`] alone (4 axes, the testbed's plan; its motion `ringsync-model`'s
+//! `ControlMotion`, PD on a cosine with the group stop's ramps and orders, a stop timeout of
+//! 300 ms; the proposed plan, with the plan's P2P schedule or one as measured on real links
+//! (`MasterConfig::with_measured`, any that fits the cycle), or the lumped-only plan), fed an
+//! arbitrary interleaving of
 //! `handle_timeout` (at `poll_timeout()`, or later: a driver that wakes late) and
 //! `handle_frame` (at any time up to the next deadline): its own last lumped frame returned
 //! with any slots and header fields, forged responses and commands with any fields (cycles
@@ -26,9 +29,11 @@
 //! - Acceptance: a response is taken only if it answers the open slice (the last command
 //!   sent: its target, cycle and retry), once.
 //! - `CommandMismatch`: `command_mismatches` moves only when a response is taken, by one,
-//!   exactly when its applied command is not what the master sent in that slice (clipped,
-//!   if the response says SATURATED) and its status is not FAULT, BRAKING or TORQUE_OFF; a
-//!   stop for a mismatch names such a response's axis, sent and applied values.
+//!   exactly when its status is not FAULT and either shows BRAKING or TORQUE_OFF for an axis
+//!   this master has not ordered (a forged order: F5, fixed in 02bbcce) or, without those,
+//!   its applied command is not what the master sent in that slice (clipped, if the response
+//!   says SATURATED). A mismatch counted since the last law run stops the group at the next
+//!   one, and a stop for a mismatch names such a response's axis, sent and applied values.
 //! - Watchdogs: a law run (a cycle end on the lumped-only plan) after W in a row without a
 //!   newly taken sample of an axis (late samples count) stops the group; a stop for no
 //!   feedback names such an axis, and one for no response an axis whose slices went
@@ -61,8 +66,10 @@ use std::collections::HashSet;
 use libfuzzer_sys::arbitrary::{self, Arbitrary, Unstructured};
 use libfuzzer_sys::fuzz_target;
 use ringsync_control::{AxisTrajectory, Cosine, Gains, Pd, VelocitySource};
+use ringsync_model::motion::{ControlMotion, StopSettings};
 use ringsync_proto::node::{
-    Master, MasterConfig, MasterCounters, MasterEvent, OffReason, StopOrder, StopReason, Transmit,
+    Master, MasterConfig, MasterCounters, MasterEvent, MeasuredSchedule, OffReason, StopOrder,
+    StopReason, Transmit,
 };
 use ringsync_proto::{CyclePlan, Duration, Instant, RingParams};
 use ringsync_wire::{
@@ -86,6 +93,47 @@ const TOTAL: i64 = 2_000 * T;
 const MAX_LATE: u32 = 2_000_000;
 /// The stop's longest time here (300 ms, so that inputs reach it) [ns].
 const STOP_TIMEOUT: i64 = 300 * T;
+/// How long an axis holds still at the end of its stop ramp before its torque goes off [ns]
+/// (`StopSettings::default()`'s).
+const STOP_HOLD: i64 = 100 * T;
+/// The following-error limit [rad].
+const FE_LIMIT: f64 = 1.0;
+
+/// The master's set-up, the first bytes of an input.
+#[derive(Arbitrary, Debug)]
+struct Setup {
+    lumped_only: bool,
+    /// On the proposed plan: the P2P phase as measured on real links
+    /// (`MasterConfig::with_measured`, as the runtime sets it) instead of the plan's.
+    measured: Option<Measured>,
+}
+
+/// A measured P2P schedule, always one that fits the cycle (P2P start + 4 slices + guard
+/// well under 1 ms, as the runtime requires).
+#[derive(Arbitrary, Debug)]
+struct Measured {
+    /// The P2P start this many µs after the plan's (the runtime never starts earlier).
+    p2p_after_us: u8,
+    /// Slice and guard [ns], at least 1 µs and 0.
+    slice_ns: u16,
+    guard_ns: u16,
+    /// Per slave: the command's transit and its typical slice [ns].
+    transit_ns: [u16; N],
+    typical_ns: [u16; N],
+}
+
+impl Measured {
+    fn schedule(&self, plan_p2p: Duration) -> MeasuredSchedule {
+        let ns = |x: u16| Duration::from_ns(i64::from(x));
+        MeasuredSchedule {
+            p2p_start: plan_p2p + Duration::from_us(i64::from(self.p2p_after_us)),
+            slice: ns(self.slice_ns.max(1_000)),
+            guard: ns(self.guard_ns),
+            command_transit: self.transit_ns.iter().map(|&x| ns(x)).collect(),
+            typical_slice: self.typical_ns.iter().map(|&x| ns(x)).collect(),
+        }
+    }
+}
 
 #[derive(Arbitrary, Debug)]
 enum Op {
@@ -173,7 +221,8 @@ struct Harness {
 }
 
 impl Harness {
-    fn new(lumped_only: bool) -> Self {
+    fn new(setup: &Setup) -> Self {
+        let lumped_only = setup.lumped_only;
         let plan = CyclePlan::new(&RingParams {
             slaves: N as u32,
             ..RingParams::default()
@@ -181,24 +230,40 @@ impl Harness {
         .unwrap_or_else(|e| panic!("plan: {e}"));
         let res = std::f64::consts::TAU / f64::from(1u32 << 20);
         let mut cfg = if lumped_only {
-            MasterConfig::lumped_only(&plan, vec![res; N], 1.0)
+            MasterConfig::lumped_only(&plan, vec![res; N])
         } else {
-            MasterConfig::from_plan(&plan, Duration::ZERO, vec![res; N], 1.0)
+            let cfg = MasterConfig::from_plan(&plan, Duration::ZERO, vec![res; N]);
+            match &setup.measured {
+                Some(m) => {
+                    let p2p = cfg.p2p_start;
+                    cfg.with_measured(&m.schedule(p2p))
+                }
+                None => cfg,
+            }
         };
         cfg.watchdog_cycles = 5;
-        cfg.stop_timeout = Duration::from_ns(STOP_TIMEOUT);
         let w = cfg.watchdog_cycles;
         let tolerance = cfg.timestamp_tolerance.as_ns();
         let law = Pd::new(Gains::uniform(N, 3.182, 1.591, 0.0), false)
             .unwrap_or_else(|e| panic!("law: {e}"));
         let traj =
             Cosine::with_peak_speed(15.12, 2.0).unwrap_or_else(|e| panic!("trajectory: {e}"));
-        let m = Master::new(
-            cfg,
+        // The motion the simulator and the runtime run (`ringsync-model`): the law, the
+        // supervision, the group stop's ramps and orders.
+        let motion = ControlMotion::new(
             Box::new(law),
             VelocitySource::Reported,
             vec![AxisTrajectory::Cosine(traj); N],
+            vec![res; N],
+            Duration::from_ns(T),
+            StopSettings {
+                following_error_limit: FE_LIMIT,
+                hold: Duration::from_ns(STOP_HOLD),
+                timeout: Duration::from_ns(STOP_TIMEOUT),
+                ..StopSettings::default()
+            },
         );
+        let m = Master::new(cfg, Box::new(motion));
         Harness {
             m,
             now: 0,
@@ -330,14 +395,21 @@ impl Harness {
                 "the master took {r:?} in the slice of {s:?}"
             );
             self.acked[s.axis] = true;
-            let idle = Status::FAULT.bits() | Status::BRAKING.bits() | Status::TORQUE_OFF.bits();
+            // The master's rule (F5's fix, 02bbcce): a drive in its own safe state says FAULT
+            // and is not checked; one braking or off must have been ordered so by this
+            // master; any other must have applied what it was sent.
+            let stopped = Status::BRAKING.bits() | Status::TORQUE_OFF.bits();
             let (sent, applied) = (s.value, r.applied_v);
-            let ok = if r.status.contains(Status::SATURATED) {
+            let ok = if r.status.contains(Status::FAULT) {
+                true
+            } else if r.status.bits() & stopped != 0 {
+                self.orders[s.axis].is_some()
+            } else if r.status.contains(Status::SATURATED) {
                 applied.abs() <= sent.abs() && applied * sent > 0.0
             } else {
                 applied == sent
             };
-            if r.status.bits() & idle == 0 && !ok {
+            if !ok {
                 expect = 1;
                 self.mismatches
                     .insert((s.axis, sent.to_bits(), applied.to_bits()));
@@ -480,6 +552,12 @@ impl Harness {
                         );
                     }
                 }
+                // A mismatch counted since the last law run stops the group at this one.
+                assert!(
+                    self.mismatches.is_empty() || self.stopped.is_some(),
+                    "mismatches {:?} counted, cycle {k} computed without a group stop",
+                    self.mismatches
+                );
                 self.mismatches.clear();
             }
             MasterEvent::GroupStop { at, reason } => {
@@ -547,13 +625,11 @@ impl Harness {
                                 assert!(t >= stop + STOP_TIMEOUT - 1_000, "{ev:?}")
                             }
                             OffReason::StopComplete => assert!(
-                                had.is_none()
-                                    && t >= stop + self.m.config().stop_hold.as_ns() - 1_000,
+                                had.is_none() && t >= stop + STOP_HOLD - 1_000,
                                 "{ev:?} after {had:?}"
                             ),
                             OffReason::FollowingError { error } => assert!(
-                                had.is_none()
-                                    && error.abs() > self.m.config().following_error_limit,
+                                had.is_none() && error.abs() > FE_LIMIT,
                                 "{ev:?} after {had:?}"
                             ),
                             _ => panic!("{ev:?}: torque off for that reason"),
@@ -853,10 +929,13 @@ fn check_counters(b: &MasterCounters, a: &MasterCounters) {
 
 fuzz_target!(|data: &[u8]| {
     let mut u = Unstructured::new(data);
-    let Ok(lumped_only) = bool::arbitrary(&mut u) else {
+    let Ok(setup) = Setup::arbitrary(&mut u) else {
         return;
     };
-    let mut h = Harness::new(lumped_only);
+    if forge::tracing() {
+        eprintln!("{setup:?}");
+    }
+    let mut h = Harness::new(&setup);
     while !u.is_empty() && h.now < TOTAL {
         let Ok(op) = Op::arbitrary(&mut u) else {
             break;

@@ -1,5 +1,7 @@
 //! The whole ring on a hostile wire: a [`Testbed`] (master and 4 slaves, W = 5, brake, limit
-//! 1 rad) driven through an arbitrary sequence of operations: run for up to 20 ms (300 ms in
+//! 1 rad; the master runs `ringsync-model`'s `ControlMotion`, PD on the testbed's cosine with
+//! the group stop's ramps and its brake and torque-off orders) driven through an arbitrary
+//! sequence of operations: run for up to 20 ms (300 ms in
 //! all, then a tail of W + 3 cycles); inject a sealed forged frame in front of any node
 //! (commands and responses with any header and payload fields, lumped frames with any cycle,
 //! sequence, stamp, first slot and slot count, raw sealed bytes); set tap rules that drop,
@@ -36,7 +38,11 @@
 //!   has the counterexample). With `RINGSYNC_FUZZ_TRUE_TIME=1` the true-time window is
 //!   asserted as well (exploration mode: it fails).
 //! - A slave applies commands in strictly increasing cycles (so never twice for one cycle),
-//!   until its clock re-locks to a new master time line (which resets that history).
+//!   until its clock re-locks to a new master time line or restarts its acquisition (which
+//!   begins a new time line, and, since F4's fix, forgets the last command): either resets
+//!   that history. A restart shows only in the slave's counter, not as an event: when one
+//!   came between two checks, the history is reset at every command after a lumped frame
+//!   that reached the slave in that interval (this hides, never invents, a violation).
 //! - The master's orders are obeyed: each response a slave sends (seen as it leaves the
 //!   slave) answers a command that reached it `response_delay` before; if it took that
 //!   command as new (not a repeat of the cycle's earlier try) and the command is the
@@ -44,22 +50,25 @@
 //!   TORQUE_OFF; STOP as STOPPING) and in the slave's status from then on (checked at every
 //!   check, so within a cycle).
 //! - `CommandMismatch`: the master's `command_mismatches` grows between two checks by no more
-//!   than the responses that reached it in between and would mismatch (status not FAULT,
-//!   BRAKING or TORQUE_OFF; applied command not the master's command of that cycle to that
-//!   axis, clipped if SATURATED). Such a response is either a forgery (the wire has no
+//!   than the responses that reached it in between and would mismatch (echo and cycle agree,
+//!   status not FAULT, and either BRAKING or TORQUE_OFF for an axis the master had not
+//!   ordered, or an applied command not the master's command of that cycle to that axis,
+//!   clipped if SATURATED). Such a response is either a forgery (the wire has no
 //!   authentication: a forged response can claim anything, and stopping on it is the safe
 //!   answer) or comes from a slave that really applied, in that cycle, a command the master
-//!   did not send (an injected one, invariant above). A stop for a mismatch names such a
-//!   response. The count is a bound, not an equality: the ring does not see which responses
-//!   the master took (the `master` target checks that exactly).
+//!   did not send (an injected one, invariant above), or that really brakes or is off by an
+//!   order no command of the master's carried (a forged order). A stop for a mismatch names
+//!   such a response. The count is a bound, not an equality: the ring does not see which
+//!   responses the master took (the `master` target checks that exactly). Once the master
+//!   has counted a mismatch, its next law run comes with the group stop.
 //! - An axis whose true error |x^d − x| exceeds the limit plus 0.1 rad is, within W + 2
 //!   cycles, either stopping (`Master::is_stopping`) or its slave is in its safe state
 //!   (status FAULT, BRAKING or TORQUE_OFF).
-//!
-//! - With `RINGSYNC_FUZZ_F5=1` only (known finding F5, docs/fuzzing.md, excluded until the
-//!   master is fixed): a drive that is off or braking (status TORQUE_OFF or BRAKING) without
-//!   its own watchdog (no FAULT) was stopped by an order the master did not give; within
-//!   W + 2 cycles the master stops the group.
+//! - A forged order is noticed (F5, fixed in 02bbcce): a drive that is off or braking
+//!   (status TORQUE_OFF or BRAKING) without its own watchdog (no FAULT) while the master is
+//!   not stopping was stopped by an order the master did not give (it orders only during a
+//!   stop); within W + 2 cycles the master stops the group (by the next law run after it
+//!   takes the slave's response showing it, or by the response watchdog if none comes).
 //!
 //! # Out of scope
 //! The wire has no authentication: a CRC says the bytes are intact, not who sent them. A
@@ -67,7 +76,8 @@
 //! copied from the real one, with only time, cycle and sequence lied about) cannot be told
 //! from the real one, and neither can a forged command for the cycle in progress that reaches
 //! its slave in the P2P phase before the master's: the slave takes it (and then refuses the
-//! master's as a duplicate); the master sees the mismatch in the response and stops. Forged
+//! master's as a duplicate); the master sees the mismatch in the response and stops. A
+//! forged order (BRAKE, TORQUE_OFF) is taken the same way and caught the same way. Forged
 //! lumped frames here always carry slots copied from the last real lumped frame the tap saw,
 //! and a forged command applied inside its cycle window counts as sent.
 #![no_main]
@@ -79,10 +89,13 @@ use std::sync::OnceLock;
 
 use libfuzzer_sys::arbitrary::{self, Arbitrary, Unstructured};
 use libfuzzer_sys::fuzz_target;
+use ringsync_control::{AxisTrajectory, Cosine, Gains, Pd, VelocitySource};
+use ringsync_model::motion::{ControlMotion, StopSettings};
+use ringsync_proto::Duration;
 use ringsync_proto::node::clock::MAX_RATE_ERROR;
 use ringsync_proto::node::reject::unwrap_cycle;
-use ringsync_proto::node::testbed::{Fate, Hop, Testbed, TestbedConfig};
-use ringsync_proto::node::{MasterEvent, SlaveEvent, StopReason, SyncClock};
+use ringsync_proto::node::testbed::{Fate, Hop, RESOLUTION, Testbed, TestbedConfig};
+use ringsync_proto::node::{MasterEvent, SlaveEvent, StopReason, SyncClock, TorqueOffCause};
 use ringsync_wire::{CommandRepr, Flags, Pdu, ResponseRepr, Status};
 
 #[path = "forge.rs"]
@@ -331,18 +344,13 @@ impl Shared {
 struct ClockAt {
     clock: SyncClock,
     syncs: u64,
+    /// `acquisitions_restarted`.
+    restarts: u64,
 }
 
 fn true_time_mode() -> bool {
     static MODE: OnceLock<bool> = OnceLock::new();
     *MODE.get_or_init(|| std::env::var_os("RINGSYNC_FUZZ_TRUE_TIME").is_some())
-}
-
-/// Whether to check that the master notices a drive stopped by an order it did not give
-/// (`RINGSYNC_FUZZ_F5=1`): known finding F5, excluded until it is fixed.
-fn f5_mode() -> bool {
-    static MODE: OnceLock<bool> = OnceLock::new();
-    *MODE.get_or_init(|| std::env::var_os("RINGSYNC_FUZZ_F5").is_some())
 }
 
 /// Whether a command of wire cycle `cycle` is in its cycle window at synchronised time `s`:
@@ -376,6 +384,10 @@ struct Drive {
     relocked_at: Option<i64>,
     /// Status bits it must show from now on (orders it took).
     must: u16,
+    /// It began to brake, or cut torque, on an order that no command of the master's
+    /// carried (`Braking { ordered: true }` or `TorqueOff { cause: Commanded }` from a frame
+    /// with no master command with that flag reaching it then): a forged order.
+    unordered: bool,
 }
 
 struct Harness {
@@ -402,6 +414,13 @@ struct Harness {
     /// Per axis: since when its drive has been off or braking by an order the master did
     /// not give (status TORQUE_OFF or BRAKING without FAULT), without a stop.
     unordered_since: Vec<Option<i64>>,
+    /// Per axis (0-based): when the master first gave it an order (`MasterEvent::Order`).
+    ordered_at: Vec<Option<i64>>,
+    /// When the group stop began.
+    stopped_at: Option<i64>,
+    /// The check at which the master was first seen to have counted a mismatch: its next
+    /// law run (any `Computed` after it) comes with the group stop.
+    mismatch_due: Option<i64>,
     window: i64,
     p2p: i64,
     response_delay: i64,
@@ -416,7 +435,26 @@ impl Harness {
         let limit = cfg.following_error_limit;
         let w = i64::from(cfg.watchdog_cycles);
         let hop = cfg.hop_ns;
-        let mut ring = Testbed::new(cfg);
+        let n = cfg.slaves as usize;
+        // The master runs the motion the simulator and the runtime run (`ringsync-model`):
+        // PD on the testbed's cosine, the group stop's ramps and its brake and torque-off
+        // orders (the testbed's own `PdMotion` gives no orders).
+        let law = Pd::new(Gains::uniform(n, 3.182, 1.591, 0.0), false)
+            .unwrap_or_else(|e| panic!("law: {e}"));
+        let traj = Cosine::with_peak_speed(cfg.peak_speed, 2.0)
+            .unwrap_or_else(|e| panic!("trajectory: {e}"));
+        let motion = ControlMotion::new(
+            Box::new(law),
+            VelocitySource::Reported,
+            vec![AxisTrajectory::Cosine(traj); n],
+            vec![RESOLUTION; n],
+            Duration::from_ns(T),
+            StopSettings {
+                following_error_limit: limit,
+                ..StopSettings::default()
+            },
+        );
+        let mut ring = Testbed::with_motion(cfg, Box::new(motion));
         let n = ring.slaves.len();
         let shared = Rc::new(RefCell::new(Shared {
             lumped_at: vec![Vec::new(); n],
@@ -438,6 +476,7 @@ impl Harness {
             .map(|s| ClockAt {
                 clock: s.clock().clone(),
                 syncs: s.counters().syncs,
+                restarts: s.counters().acquisitions_restarted,
             })
             .collect();
         Harness {
@@ -455,6 +494,9 @@ impl Harness {
             mismatches: 0,
             over_since: vec![None; n],
             unordered_since: vec![None; n],
+            ordered_at: vec![None; n],
+            stopped_at: None,
+            mismatch_due: None,
             window,
             p2p,
             response_delay,
@@ -569,6 +611,14 @@ impl Harness {
         let n = self.ring.slaves.len();
         // Events: the drive range, the drive's state; re-locks reset a slave's history.
         let mut relocked: Vec<Option<i64>> = vec![None; n];
+        let shared = self.shared.borrow();
+        // Whether a command of the master's carrying `flag` reached slave i at t.
+        let master_order = |i: usize, t: i64, flag: Flags| {
+            shared.deliveries.get(&(i, t)).is_some_and(|v| {
+                v.iter()
+                    .any(|c| c.from_master && c.flags.bits() & flag.bits() != 0)
+            })
+        };
         for &(t, i, ev) in &self.ring.slave_events[self.events_seen..] {
             let d = &mut self.drives[i - 1];
             match ev {
@@ -589,17 +639,24 @@ impl Harness {
                     );
                     assert!(d.braking && !d.off, "slave {i}: {ev:?} at {t}, drive {d:?}");
                 }
-                SlaveEvent::Braking { .. } => {
+                SlaveEvent::Braking { ordered } => {
                     assert!(
                         !d.braking && !d.off,
                         "slave {i}: {ev:?} at {t}, drive {d:?}"
                     );
                     d.braking = true;
+                    if ordered && !master_order(i, t, Flags::BRAKE) {
+                        d.unordered = true;
+                    }
                 }
-                SlaveEvent::TorqueOff { .. } => {
+                SlaveEvent::TorqueOff { cause } => {
                     assert!(!d.off, "slave {i}: {ev:?} at {t}, drive {d:?}");
                     d.off = true;
                     d.braking = false;
+                    if cause == TorqueOffCause::Commanded && !master_order(i, t, Flags::TORQUE_OFF)
+                    {
+                        d.unordered = true;
+                    }
                 }
                 SlaveEvent::WatchdogExpired => {
                     assert!(!d.watchdog, "slave {i}: {ev:?} at {t} twice");
@@ -611,6 +668,7 @@ impl Harness {
                 }
             }
         }
+        drop(shared);
         self.events_seen = self.ring.slave_events.len();
         self.check_applied(now, &mut relocked);
         self.check_orders();
@@ -668,22 +726,23 @@ impl Harness {
                 ring.slaves[a].status()
             );
         }
-        // Known finding F5 (docs/fuzzing.md), checked only with RINGSYNC_FUZZ_F5=1: a drive
-        // that a forged order took off or set braking (not its own watchdog: no FAULT) is
-        // not noticed by the master until the following error trips. Once fixed: within
-        // W + 2 cycles the master stops the group.
+        // F5 (fixed in 02bbcce): a drive off or braking (not by its own watchdog: no FAULT)
+        // while the master is not stopping was stopped by an order the master did not give
+        // (it orders only during a stop). The master notices: the slave's next response
+        // shows it (a mismatch, the group stops at the next law run), or no response comes
+        // (the response watchdog). Within W + 2 cycles the master stops the group.
         for a in 0..ring.axes.len() {
             let st = ring.slaves[a].status();
             let off = st.contains(Status::TORQUE_OFF) || st.contains(Status::BRAKING);
-            if !f5_mode() || !off || st.contains(Status::FAULT) || ring.master.is_stopping() {
+            if !off || st.contains(Status::FAULT) || ring.master.is_stopping() {
                 self.unordered_since[a] = None;
                 continue;
             }
             let since = *self.unordered_since[a].get_or_insert(now);
             assert!(
                 now - since <= (self.w + 2) * T,
-                "F5: slave {} stopped by an order the master did not give (status {st:?}) \
-                 since {since} ns, no group stop at {now} ns",
+                "slave {} stopped by an order the master did not give (status {st:?}) \
+                 since {since} ns, no group stop at {now} ns (F5)",
                 a + 1
             );
         }
@@ -698,9 +757,12 @@ impl Harness {
             .map(|s| ClockAt {
                 clock: s.clock().clone(),
                 syncs: s.counters().syncs,
+                restarts: s.counters().acquisitions_restarted,
             })
             .collect();
         let shared = self.shared.borrow();
+        // Per slave: the time of its last command applied in this step (or the last check).
+        let mut prev = vec![self.checked_at; ring.slaves.len()];
         for &(t, i, u) in &ring.applied[self.applied_seen..] {
             if relocked[i - 1].is_some_and(|r| r <= t) {
                 relocked[i - 1] = None;
@@ -712,6 +774,14 @@ impl Harness {
             // Which copy of the clock the slave used at t (see the module doc): `None` when
             // it took lumped frames on both sides of t, and used a state between the copies.
             let ls = &shared.lumped_at[i - 1];
+            // An acquisition restart begins a new time line, whose cycles are new (and the
+            // slave forgets the last command: F4's fix). It happened on a lumped frame; if the
+            // slave restarted in this step and a lumped frame reached it since its last
+            // command (at the same instant included), the history may have been reset.
+            if stop.restarts != start.restarts && ls.iter().any(|&x| x >= prev[i - 1] && x <= t) {
+                self.last_cycle[i - 1] = None;
+            }
+            prev[i - 1] = t;
             let before = ls.iter().any(|&x| x > self.checked_at && x < t);
             let after = ls.iter().any(|&x| x > t && x <= now);
             let at_t = ls.contains(&t);
@@ -767,13 +837,18 @@ impl Harness {
                 .push(((u as f32).to_bits(), d.from_master));
         }
         self.applied_seen = ring.applied.len();
-        drop(shared);
-        // A re-lock after the last command applied in this step.
+        // A re-lock, or a restart that may have come, after the last command applied in this
+        // step.
         for (i, r) in relocked.iter().enumerate() {
-            if r.is_some() {
+            let restarted = end[i].restarts != self.clocks[i].restarts
+                && shared.lumped_at[i]
+                    .iter()
+                    .any(|&x| x >= prev[i] && x <= now);
+            if r.is_some() || restarted {
                 self.last_cycle[i] = None;
             }
         }
+        drop(shared);
         let mut shared = self.shared.borrow_mut();
         shared.deliveries.retain(|&(_, at), _| at > now - KEEP);
         for v in &mut shared.lumped_at {
@@ -840,14 +915,24 @@ impl Harness {
     }
 
     /// Every mismatch the master counted is a response that reached it and would mismatch;
-    /// the real ones come from slaves that applied a command the master did not send.
+    /// the real ones come from slaves that applied a command the master did not send, or
+    /// that a forged order stopped. A counted mismatch stops the group at the next law run.
     fn check_mismatches(&mut self, now: i64) {
+        // The master's orders so far (given at its law runs, before the responses that
+        // follow them).
+        for (t, ev) in &self.ring.master_events[self.master_seen..] {
+            if let MasterEvent::Order { axis, .. } = ev
+                && let Some(o) = self.ordered_at.get_mut(*axis)
+            {
+                o.get_or_insert(*t);
+            }
+        }
         let mut shared = self.shared.borrow_mut();
         let arrivals = std::mem::take(&mut shared.at_master);
         let (due, later): (Vec<Arrival>, Vec<Arrival>) =
             arrivals.into_iter().partition(|a| a.at <= now);
         shared.at_master = later;
-        let idle = Status::FAULT.bits() | Status::BRAKING.bits() | Status::TORQUE_OFF.bits();
+        let stopped = Status::BRAKING.bits() | Status::TORQUE_OFF.bits();
         let mut candidates = 0u64;
         for a in due {
             let r = &a.resp;
@@ -855,17 +940,42 @@ impl Harness {
                 .master_values
                 .get(&(r.common.cycle, r.source))
                 .copied();
+            let axis = usize::from(r.source).wrapping_sub(1);
+            // The master's rule (`check_applied`): FAULT is the drive's own safe state, not
+            // checked; BRAKING or TORQUE_OFF must be this master's order (given before the
+            // response came; one at the same instant counts as not yet given, which only
+            // widens the bound); anything else must be the command sent.
+            let halted = r.status.bits() & stopped != 0;
+            let ordered = self
+                .ordered_at
+                .get(axis)
+                .copied()
+                .flatten()
+                .is_some_and(|o| o < a.at);
             let would = r.echo_cycle == r.common.cycle
-                && r.status.bits() & idle == 0
-                && sent.is_none_or(|v| !agrees(r, v));
+                && !r.status.contains(Status::FAULT)
+                && if halted {
+                    !ordered
+                } else {
+                    sent.is_none_or(|v| !agrees(r, v))
+                };
             if !would {
                 continue;
             }
             candidates += 1;
-            let axis = usize::from(r.source).wrapping_sub(1);
             self.mismatching
                 .push((a.at, axis, r.applied_v.to_bits(), sent.map(f32::to_bits)));
-            if !a.forged && sent.is_some() {
+            if !a.forged && halted {
+                // A real response of a drive halted without the master's order: a frame
+                // other than the master's commands stopped it.
+                let i = usize::from(r.source);
+                assert!(
+                    self.drives.get(axis).is_some_and(|d| d.unordered),
+                    "slave {i}'s response {r:?} at {} ns shows a halted drive the master did \
+                     not order, but no order other than the master's reached it",
+                    a.at
+                );
+            } else if !a.forged && sent.is_some() {
                 let i = usize::from(r.source);
                 let by = self.applied_by.get(&(i, r.common.cycle));
                 assert!(
@@ -885,8 +995,24 @@ impl Harness {
             counted - self.mismatches,
             self.checked_at
         );
+        // Mismatches counted before `due`: every law run after it comes with the stop.
+        let due = self.mismatch_due;
+        if counted > self.mismatches && self.mismatch_due.is_none() {
+            self.mismatch_due = Some(now);
+        }
         self.mismatches = counted;
         for (t, ev) in &self.ring.master_events[self.master_seen..] {
+            match ev {
+                MasterEvent::GroupStop { .. } => {
+                    self.stopped_at.get_or_insert(*t);
+                }
+                MasterEvent::Computed { k } if due.is_some_and(|d| *t > d) => assert!(
+                    self.stopped_at.is_some_and(|s| s <= *t),
+                    "the master counted a mismatch by {due:?} ns, computed cycle {k} at {t} ns \
+                     without a group stop"
+                ),
+                _ => {}
+            }
             if let MasterEvent::GroupStop {
                 reason:
                     StopReason::CommandMismatch {

@@ -1,6 +1,6 @@
 //! One [`Slave`] alone (address 1-4, its clock any fixed offset from the master's, brake or
 //! torque-off safe state, P2P start 0 or the plan's, the proposed plan or the lumped-only
-//! plan with its own law), fed an arbitrary interleaving of encoder latches (`handle_sample`,
+//! plan with its own law, `ringsync-model`'s `SlaveControl` running PD), fed an arbitrary interleaving of encoder latches (`handle_sample`,
 //! at any time or when `poll_timeout` asks, any count) and frames (`handle_frame`): forged
 //! lumped frames of both kinds, commands and responses with any field (times and cycles
 //! mostly near the master's, or at the time line's horizon), sealed and unsealed raw bytes,
@@ -24,8 +24,8 @@
 //!   The clock's rate stays within `MAX_RATE_ERROR` of 1. The last lumped cycle taken lies
 //!   on the wire's time line (at most `HORIZON`/T).
 //! - At most one `Apply` per cycle and the applied cycles increase, command frames and
-//!   lumped-only frames alike, until a `Relocked` event (a new master time line: its
-//!   cycles are new). A lumped-only slave refuses every command frame (`UnexpectedKind`)
+//!   lumped-only frames alike, until a `Relocked` event or an acquisition restart (a new
+//!   master time line: its cycles are new). A lumped-only slave refuses every command frame (`UnexpectedKind`)
 //!   and sends nothing.
 //! - A command taken as new (answered, not a repeat): TORQUE_OFF in it shows in the status
 //!   at once, BRAKE as BRAKING or TORQUE_OFF, STOP as STOPPING; without those, a drive that
@@ -50,12 +50,10 @@
 //! - Counters never decrease.
 //! - Liveness: in the nominal cycles, a locked slave takes a lumped frame newer than its
 //!   last that reaches it within its clock window, and a command of the cycle in progress by
-//!   its clock (inside [c·T + p2p_start − w, (c + 1)·T + w]) newer than the last it took.
-//!
-//! Known finding F4 (docs/fuzzing.md) is excluded so that the target can keep running: a
-//! restart of the clock's acquisition keeps the last command taken on the abandoned time
-//! line, and the slave refuses the new line's commands as stale until its cycles pass that
-//! one; the harness does the same (see `last_taken` in `Harness::frame`) until it is fixed.
+//!   its clock (inside [c·T + p2p_start − w, (c + 1)·T + w]) newer than the last it took on
+//!   the current time line: a re-lock or an acquisition restart forgets the last command
+//!   (F4, fixed in 02bbcce: a restart used to keep the abandoned line's, and the slave
+//!   refused the new line's commands as stale until its cycles passed that one).
 #![no_main]
 
 use std::collections::HashSet;
@@ -63,10 +61,10 @@ use std::collections::HashSet;
 use libfuzzer_sys::arbitrary::{self, Arbitrary, Unstructured};
 use libfuzzer_sys::fuzz_target;
 use ringsync_control::{AxisTrajectory, Cosine, Gains, Pd, VelocitySource};
+use ringsync_model::motion::SlaveControl;
 use ringsync_proto::node::clock::MAX_RATE_ERROR;
 use ringsync_proto::node::{
-    FrameOutcome, LumpedOnlyControl, Reject, SafeState, Slave, SlaveConfig, SlaveCounters,
-    SlaveEvent, TorqueOffCause,
+    FrameOutcome, Reject, SafeState, Slave, SlaveConfig, SlaveCounters, SlaveEvent, TorqueOffCause,
 };
 use ringsync_proto::{CyclePlan, Duration, Instant, RingParams};
 use ringsync_wire::{CommandRepr, Flags, Frame, ResponseRepr, Status};
@@ -220,16 +218,14 @@ impl Harness {
                 .unwrap_or_else(|e| panic!("law: {e}"));
             let traj =
                 Cosine::with_peak_speed(15.12, 2.0).unwrap_or_else(|e| panic!("trajectory: {e}"));
-            let resolution = cfg.resolution;
-            Slave::with_law(
-                cfg,
-                LumpedOnlyControl {
-                    law: Box::new(law),
-                    velocity: VelocitySource::Reported,
-                    trajectories: vec![AxisTrajectory::Cosine(traj); N],
-                    resolution: vec![resolution; N],
-                },
-            )
+            let control = SlaveControl::new(
+                Box::new(law),
+                VelocitySource::Reported,
+                vec![AxisTrajectory::Cosine(traj); N],
+                vec![cfg.resolution; N],
+                cfg.cycle,
+            );
+            Slave::with_law(cfg, Box::new(control))
         } else {
             Slave::new(cfg)
         };
@@ -540,14 +536,13 @@ impl Harness {
             self.window_next = true;
         }
         // Acquisition started afresh from this frame: a new time line, whose cycles are new
-        // (as after a re-lock).
+        // (as after a re-lock), and the slave forgets the command it took on the abandoned
+        // one (F4, fixed in 02bbcce): the liveness check expects the new line's commands to
+        // be taken whatever cycle the old line had reached.
         if a.acquisitions_restarted != b.acquisitions_restarted {
             self.applied.clear();
             self.last_applied = None;
-            // Known finding F4 (docs/fuzzing.md): a restart keeps the last command taken on
-            // the abandoned time line, and the slave refuses the new line's commands as stale
-            // until its cycles pass that one. Excluded until fixed: the harness keeps it too
-            // (reset `last_taken` here once the slave does).
+            self.last_taken = None;
         }
         let mut applies = Vec::new();
         for &ev in &events {
