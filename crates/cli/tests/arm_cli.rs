@@ -26,7 +26,7 @@ fn bad_arm_files_give_one_line_naming_the_key_and_exit_2() {
         (
             "p3.toml",
             format!("{ARM}p3 = 0.2\n"),
-            "plant.p3 = 0.2 is out of range: allowed 0 ..< 0.050990 kg·m²",
+            "plant.p3 = 0.2 is out of range: allowed 0 ..< 0.05099 kg·m²",
         ),
         (
             "friction.toml",

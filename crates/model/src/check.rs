@@ -172,7 +172,10 @@ pub fn check(s: &Scenario, points: usize) -> Result<CheckReport, CheckError> {
     let robust = robust_term(s, points)?;
     let law: Box<dyn ControlLaw> = match robust {
         // Inside the layer K_N·sat(Ė/φ) = (K_N/φ)·Ė: one more derivative gain on the Ė
-        // the law already forms.
+        // the law already forms. Only the sync law has the robust term (robust_term is Off
+        // for every other registered law), and it takes no parameters of its own
+        // (`[control.params]`); should it gain some, build it here through its registry
+        // entry with the raised K_D instead.
         RobustTerm::BoundaryLayer { .. } | RobustTerm::ExactSign { .. } => {
             let mut g = s.gains();
             for kd in &mut g.kd {

@@ -48,6 +48,11 @@ pub fn reproduce(base: &Scenario) -> Result<Reproduction> {
             .map(|&(plan, law)| {
                 let mut s = base.clone();
                 s.control.law = law.to_string();
+                // The base's own law parameters belong to its law: keep those this one takes.
+                let entry = ringsync_model::law::registry::find(law);
+                s.control
+                    .params
+                    .retain(|k, _| entry.is_some_and(|e| e.param(k).is_some()));
                 s.ring.plan = plan;
                 let trace = plan == PlanKind::P2pLumped && law != ring::ENTRY.name;
                 scope.spawn(move || {

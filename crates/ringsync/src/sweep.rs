@@ -207,7 +207,10 @@ pub fn cases(base: &Loaded, axes: &[SweepAxis], seeds: u32, auto_cycle: bool) ->
                 message: e.message().to_string(),
             }
         })?;
-        s.validate()?;
+        s.validate().map_err(|e| ScenarioError::Syntax {
+            origin: with(),
+            message: e.to_string(),
+        })?;
         for k in 0..u64::from(seeds.max(1)) {
             let seed = s.seed.wrapping_add(k);
             let mut tk = t.clone();

@@ -152,7 +152,7 @@ impl LawEntry {
             let values = match p.get(spec.key) {
                 Some(v) if v.len() != n => {
                     return Err(ControlError::LengthMismatch {
-                        what: "law parameter values",
+                        what: spec.key,
                         expected: n,
                         got: v.len(),
                     });

@@ -124,20 +124,16 @@ impl Scenario {
             let at = format!("control.params.{key}");
             let Some(spec) = entry.param(key) else {
                 let others = registry::laws_with_param(key);
-                let owner = if others.is_empty() {
-                    String::new()
-                } else {
-                    format!("; {key} is a parameter of {others}")
-                };
-                return Err(out_of_range(
-                    at,
-                    value,
-                    format!(
-                        "the parameters of control.law = \"{}\": {}{owner}",
-                        entry.name,
-                        entry.param_list()
-                    ),
-                ));
+                return Err(ScenarioError::UnknownParameter {
+                    key: key.clone(),
+                    law: entry.name.to_string(),
+                    known: entry.param_list(),
+                    owners: if others.is_empty() {
+                        String::new()
+                    } else {
+                        format!("; {key} is a parameter of {others}")
+                    },
+                });
             };
             let values = match value {
                 PerAxis::One(v) => vec![*v; n],

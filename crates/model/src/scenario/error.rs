@@ -28,6 +28,20 @@ pub enum ScenarioError {
         /// The allowed range, with units.
         allowed: String,
     },
+    /// A key in `[control.params]` that the chosen law does not declare.
+    #[error(
+        "control.params.{key} is not a parameter of control.law = \"{law}\": its parameters are {known}{owners}"
+    )]
+    UnknownParameter {
+        /// The key given.
+        key: String,
+        /// The chosen law's registry name.
+        law: String,
+        /// The keys the law declares, comma-separated, or `none`.
+        known: String,
+        /// `; <key> is a parameter of "<law>"` when another law declares it, else empty.
+        owners: String,
+    },
     /// A name that is not a built-in scenario or a readable file.
     #[error("unknown scenario '{0}': not a built-in scenario ({1}) and no such file")]
     Unknown(String, String),

@@ -84,10 +84,23 @@ impl Default for ArmSpec {
     }
 }
 
-/// The values of a per-joint key: one number, or a list of one or two.
+/// Shortest RK4 step of the arm's integration [s]: 1 µs (1000 steps per 1 ms cycle).
+pub const MIN_ARM_STEP: f64 = 1e-6;
+
+/// A computed figure for an error message: rounded to 6 decimals, in exponent form (6
+/// significant digits) when very small or large.
+fn number(x: f64) -> String {
+    if x != 0.0 && !(1e-4..1e6).contains(&x.abs()) {
+        format!("{x:.5e}")
+    } else {
+        format!("{}", (x * 1e6).round() / 1e6)
+    }
+}
+
+/// The values of a per-joint key: one number for both joints, or a list of two.
 fn per_joint(key: &str, v: &PerAxis) -> Result<[f64; 2], ScenarioError> {
     match v {
-        PerAxis::Each(list) if !(1..=2).contains(&list.len()) => Err(out_of_range(
+        PerAxis::Each(list) if list.len() != 2 => Err(out_of_range(
             key,
             format!("{list:?}"),
             "a number or a list of 2 values (joint 1, joint 2)",
@@ -104,7 +117,7 @@ impl ArmSpec {
             if ok {
                 Ok(())
             } else {
-                Err(out_of_range(key, v, allowed))
+                Err(out_of_range(key, number(v), allowed))
             }
         };
         finite_above("plant.p2", self.p2, 0.0, true, "> 0 kg·m²")?;
@@ -124,8 +137,10 @@ impl ArmSpec {
                 "plant.p3",
                 self.p3,
                 format!(
-                    "0 ..< {p3_max:.6} kg·m² with p1 = {}, p2 = {} (M(q) positive definite in every configuration needs p3² < p2·(p1 − p2))",
-                    self.p1, self.p2
+                    "0 ..< {} kg·m² with p1 = {:?}, p2 = {:?} (M(q) positive definite in every configuration needs p3² < p2·(p1 − p2))",
+                    number(p3_max),
+                    self.p1,
+                    self.p2
                 ),
             ));
         }
@@ -142,6 +157,22 @@ impl ArmSpec {
         {
             let key = format!("plant.torque_constant (joint {})", j + 1);
             finite_above(&key, k, 0.0, true, "> 0 N·m/V")?;
+        }
+        // The arm is integrated in RK4 steps of at most a tenth of its fastest friction time
+        // constant (`params`): refuse what would take steps too short to finish.
+        let f_max = self.friction.get(0).max(self.friction.get(1));
+        if self.params([1.0; 2]).max_step < MIN_ARM_STEP {
+            let inertia = self.params([1.0; 2]).min_inertia([1.0; 2]);
+            return Err(out_of_range(
+                "plant.friction",
+                format!("{f_max:?}"),
+                format!(
+                    "at most {} N·m·s/rad with this arm (λ_min(M) = {} kg·m²): it is integrated in steps of a tenth of its fastest friction time constant λ_min(M)/f, which must stay at or above {} s",
+                    number(0.1 * inertia / MIN_ARM_STEP),
+                    number(inertia),
+                    number(MIN_ARM_STEP)
+                ),
+            ));
         }
         Ok(())
     }
@@ -181,7 +212,8 @@ impl ArmSpec {
                 "faults.brake_gain",
                 k_b,
                 format!(
-                    "a gain the slaves' brake (u = −K_b·v once a cycle) can use on the two-link arm: its loop factor is {factor:.3}, it must stay under 2.000"
+                    "a gain the slaves' brake (u = −K_b·v once a cycle) can use on the two-link arm: its loop factor is {}, it must stay under 2",
+                    number(factor)
                 ),
             ));
         }
@@ -233,6 +265,27 @@ mod tests {
             Scenario::from_toml("[plant]\nkind = \"independent\"\n", "named").expect("valid");
         assert_eq!(named, none);
         assert!(named.arm_params().is_none());
+    }
+
+    /// A friction so large that the arm's integration step would fall under 1 µs is refused
+    /// (it would take hours of RK4 steps per simulated second, or never end), naming the key
+    /// and the largest allowed value; extreme values print in exponent form.
+    #[test]
+    fn a_friction_too_stiff_to_integrate_is_refused() {
+        let e = err(&format!("{ARM}friction = 1e12\n"));
+        assert!(
+            e.starts_with("plant.friction = 1000000000000.0 is out of range: allowed at most 764.544723 N·m·s/rad"),
+            "{e}"
+        );
+        let ok = Scenario::from_toml(&format!("{ARM}friction = 700.0\n"), "ok").expect("valid");
+        assert!(ok.arm_params().expect("arm").max_step >= MIN_ARM_STEP);
+        let e = err(&format!("{ARM}friction = [0.1]\n"));
+        assert!(e.contains("a number or a list of 2 values"), "{e}");
+        let e = err(&format!("{ARM}p2 = -1e-300\n"));
+        assert!(
+            e.starts_with("plant.p2 = -1.00000e-300 is out of range"),
+            "{e}"
+        );
     }
 
     #[test]
@@ -296,7 +349,7 @@ mod tests {
             ),
             (
                 "p3 = 0.06\n",
-                "plant.p3 = 0.06 is out of range: allowed 0 ..< 0.050990 kg·m² with p1 = 0.15, p2 = 0.02 (M(q) positive definite in every configuration needs p3² < p2·(p1 − p2))",
+                "plant.p3 = 0.06 is out of range: allowed 0 ..< 0.05099 kg·m² with p1 = 0.15, p2 = 0.02 (M(q) positive definite in every configuration needs p3² < p2·(p1 − p2))",
             ),
             ("p3 = -0.01\n", "plant.p3 = -0.01 is out of range"),
             (

@@ -302,7 +302,7 @@ fn laws_and_their_parameters_come_from_the_registry() {
         ),
         (
             "[control]\nlaw = \"sync\"\n[control.params]\nkx = 1.0\n".to_string(),
-            "control.params.kx = 1 is out of range: allowed the parameters of control.law = \"sync\": none; kx is a parameter of \"adjacent\"",
+            "control.params.kx is not a parameter of control.law = \"sync\": its parameters are none; kx is a parameter of \"adjacent\"",
         ),
         (
             format!("{adj}kx = -1.0\n"),
