@@ -2,6 +2,7 @@
 //! a timing diagram (the paper's Fig. 1); the stability check of a scenario.
 
 pub mod check;
+pub mod fixed;
 pub mod pcap;
 pub mod plan;
 pub mod plot;

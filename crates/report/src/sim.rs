@@ -128,27 +128,41 @@ pub fn summary_json(s: &Scenario, hash: u64, r: &RunResult) -> Value {
 
 /// `trace.csv`: one row per cycle and axis.
 pub fn trace_csv(r: &RunResult) -> String {
-    let mut o = String::with_capacity(r.trace.len() * 120);
-    o.push_str(
-        "t_s,axis,x_d_rad,x_rad,e_rad,eps_rad,u_v,sample_time_s,apply_time_s,clock_error_ns\n",
-    );
-    for row in r.trace.rows() {
-        let _ = writeln!(
-            o,
-            "{:.6},{},{:.9},{:.9},{:.9},{:.9},{:.6},{:.9},{:.9},{:.0}",
-            row.t,
-            row.axis,
-            row.x_d,
-            row.x,
-            row.e,
-            row.eps,
-            row.u,
-            row.sample_time,
-            row.apply_time,
-            row.clock_error_ns
-        );
-    }
-    o
+    let mut o = Vec::with_capacity(r.trace.len() * 120);
+    // Writing to a Vec cannot fail.
+    let _ = write_trace_csv(r, &mut o);
+    String::from_utf8(o).unwrap_or_default()
+}
+
+/// The header of trace.csv: the columns and their units.
+pub const TRACE_CSV_HEADER: &str =
+    "t_s,axis,x_d_rad,x_rad,e_rad,eps_rad,u_v,sample_time_s,apply_time_s,clock_error_ns\n";
+
+/// Streams trace.csv to `w`, a row at a time through one line buffer (the trace is never
+/// held whole as text), with the bytes of [`trace_csv`]: times and positions to 9 decimals
+/// (t and u to 6), the clock error to whole ns ([`crate::fixed`]).
+pub fn write_trace_csv(r: &RunResult, w: &mut impl std::io::Write) -> std::io::Result<()> {
+    use crate::fixed::{push_fixed, push_u64};
+    w.write_all(TRACE_CSV_HEADER.as_bytes())?;
+    crate::fixed::write_lines(w, r.trace.rows(), |o, row| {
+        push_fixed(o, row.t, 6);
+        o.push(b',');
+        push_u64(o, row.axis as u64);
+        for (v, d) in [
+            (row.x_d, 9),
+            (row.x, 9),
+            (row.e, 9),
+            (row.eps, 9),
+            (row.u, 6),
+            (row.sample_time, 9),
+            (row.apply_time, 9),
+            (row.clock_error_ns, 0),
+        ] {
+            o.push(b',');
+            push_fixed(o, v, d);
+        }
+        o.push(b'\n');
+    })
 }
 
 /// The paper's Table 1 (rad): (Track-RMSE this paper, ref. [3]; Sync-RMSE this paper, ref. [3]).
@@ -464,13 +478,15 @@ fn per_axis(
     f: fn(&ringsync_model::result::TraceRow) -> f64,
 ) -> Vec<crate::plot::Series<'static>> {
     use crate::plot::{PALETTE, Series};
+    // The trace holds one group of n rows per cycle: axis a's rows are every n-th, from a − 1.
+    let n = r.trace.axes;
     (1..=r.summary.axes.len())
         .map(|a| Series {
             name: format!("axis {a}"),
             colour: PALETTE[(a - 1) % PALETTE.len()],
-            points: r
-                .trace
-                .rows()
+            points: (a - 1..r.trace.len())
+                .step_by(n.max(1))
+                .map(|i| r.trace.row(i))
                 .filter(|row| row.axis == a)
                 .map(|row| (row.t, f(&row)))
                 .collect(),

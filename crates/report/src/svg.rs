@@ -64,8 +64,18 @@ impl Svg {
     }
 
     pub(crate) fn polyline(&mut self, pts: &[(f64, f64)], style: &str) {
-        let p: Vec<String> = pts.iter().map(|(x, y)| format!("{x:.2},{y:.2}")).collect();
-        let _ = writeln!(self.body, r#"<polyline points="{}" {style}/>"#, p.join(" "));
+        use crate::fixed::push_fixed;
+        let mut p = Vec::with_capacity(pts.len() * 16);
+        for (i, &(x, y)) in pts.iter().enumerate() {
+            if i > 0 {
+                p.push(b' ');
+            }
+            push_fixed(&mut p, x, 2);
+            p.push(b',');
+            push_fixed(&mut p, y, 2);
+        }
+        let p = String::from_utf8(p).unwrap_or_default();
+        let _ = writeln!(self.body, r#"<polyline points="{p}" {style}/>"#);
     }
 
     /// Text; `anchor` is start, middle or end.

@@ -147,6 +147,26 @@ impl OutDir {
         })
     }
 
+    /// Streams the file `name` of the results: `fill` writes it through a buffer, so a large
+    /// output is never held whole in memory.
+    pub fn write_with(
+        &self,
+        name: &str,
+        fill: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> std::io::Result<()>,
+    ) -> Result<()> {
+        let p = self.tmp.join(name);
+        if let Some(dir) = p.parent() {
+            std::fs::create_dir_all(dir)
+                .map_err(|e| failure(e, format!("cannot create {}", dir.display())))?;
+        }
+        let what = || format!("cannot write {}", self.path.join(name).display());
+        let file = std::fs::File::create(&p).map_err(|e| failure(e, what()))?;
+        let mut w = std::io::BufWriter::with_capacity(1 << 16, file);
+        fill(&mut w)
+            .and_then(|()| std::io::Write::flush(&mut w))
+            .map_err(|e| failure(e, what()))
+    }
+
     /// Writes `bytes` to the file `path` given by an option (e.g. `--pcap`): inside the
     /// results directory with the rest, elsewhere beside its place until [`OutDir::commit`].
     pub fn write_file(&mut self, path: &Path, bytes: impl AsRef<[u8]>) -> Result<()> {

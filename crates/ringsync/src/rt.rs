@@ -17,7 +17,7 @@ use std::sync::atomic::AtomicBool;
 
 use ringsync_model::Scenario;
 use ringsync_model::observer::Observer;
-use ringsync_report::sim::{summary_json, trace_csv};
+use ringsync_report::sim::{summary_json, write_trace_csv};
 use ringsync_rt::host::{HostError, HostLatency, HostOptions};
 use ringsync_rt::run::ASSUMPTIONS;
 use ringsync_rt::stats::Percentiles;
@@ -70,7 +70,7 @@ pub fn write_rt(
         "summary.json",
         format!("{}\n", serde_json::to_string_pretty(&summary)?),
     )?;
-    dir.write("trace.csv", trace_csv(&r.run))?;
+    dir.write_with("trace.csv", |w| write_trace_csv(&r.run, w))?;
     if let Some(p) = pcap {
         dir.write_file(
             p,

@@ -6,7 +6,7 @@ use std::path::Path;
 use ringsync_model::observer::Observer;
 use ringsync_model::{RunResult, Scenario};
 use ringsync_proto::PlanKind;
-use ringsync_report::sim::{run_figures, run_html, summary_json, trace_csv};
+use ringsync_report::sim::{run_figures, run_html, summary_json, write_trace_csv};
 pub use ringsync_sim::RunOptions as SimOptions;
 
 use crate::error::Result;
@@ -86,7 +86,7 @@ pub fn write_sim(
     }
     let summary = serde_json::to_string_pretty(&summary_json(s, hash, r))?;
     dir.write("summary.json", format!("{summary}\n"))?;
-    dir.write("trace.csv", trace_csv(r))?;
+    dir.write_with("trace.csv", |w| write_trace_csv(r, w))?;
     let timing = match s.ring.plan {
         PlanKind::P2pLumped => ringsync_proto::CyclePlan::new(&s.ring_params())
             .ok()
