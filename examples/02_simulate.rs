@@ -60,7 +60,7 @@ fn main() -> Result<(), ringsync::Error> {
         },
     )?;
     let mut dir = ringsync::OutDir::create("out", &out)?;
-    ringsync::write_sim(&mut dir, &s, 0, &r, None)?;
+    ringsync::write_sim(&mut dir, &s, 0, &r, None, ringsync::Outputs::ALL)?;
     dir.commit()?;
     println!("wrote {}", out.join("summary.json").display());
     // The trace in columns: e of axis 1 at every computed cycle.

@@ -24,6 +24,14 @@ pub struct SimArgs {
     /// Also write every frame the nodes send, with its simulated send time, as pcapng.
     #[arg(long, value_name = "FILE")]
     pcap: Option<PathBuf>,
+    /// What to write, comma-separated: summary (summary.json), trace (trace.csv), figures
+    /// (*.svg), report (report.html), or all. `--outputs summary` keeps no trace.
+    #[arg(long, value_name = "LIST", default_value = "all", value_parser = outputs)]
+    outputs: ringsync::Outputs,
+}
+
+fn outputs(list: &str) -> Result<ringsync::Outputs, String> {
+    list.parse().map_err(|e: ringsync::Error| e.to_string())
 }
 
 /// The results directory for `--out`, which must not hold the scenario file: it is replaced.
@@ -45,7 +53,7 @@ pub(crate) fn sim(args: &SimArgs) -> Result<Outcome, CliError> {
     let mut dir = out_dir(&args.out, &loaded)?;
     let wall = WallClock::now();
     let opts = SimOptions {
-        trace: true,
+        trace: args.outputs.needs_trace(),
         capture: args.pcap.is_some(),
         ..SimOptions::default()
     };
@@ -69,12 +77,20 @@ pub(crate) fn sim(args: &SimArgs) -> Result<Outcome, CliError> {
         eprintln!();
     }
     let elapsed = wall.elapsed();
-    ringsync::write_sim(&mut dir, &s, loaded.hash, &r, args.pcap.as_deref())?;
+    ringsync::write_sim(
+        &mut dir,
+        &s,
+        loaded.hash,
+        &r,
+        args.pcap.as_deref(),
+        args.outputs,
+    )?;
     dir.commit()?;
     out(&format!(
-        "{}  wrote {}/summary.json, trace.csv, report.html and the figures (*.svg) in {:.1} ms\n",
+        "{}  wrote {}: {} in {:.1} ms\n",
         ringsync::sim_text(&s, &r),
         args.out.display(),
+        args.outputs.files(),
         elapsed.as_secs_f64() * 1e3
     ))?;
     Ok(Outcome::flagged_if(r.group_stop.is_some()))

@@ -399,3 +399,50 @@ fn pd_with_feed_forward_is_named_pd_ff() {
     }
     let _ = std::fs::remove_dir_all(&d);
 }
+
+/// `--outputs` writes the named files only, each byte-identical to the full run's; an unknown
+/// name is a usage error that names it.
+#[test]
+fn outputs_selects_the_files_written() {
+    let sc = short_scenario();
+    let full = dir("outputs-full");
+    let run = |d: &PathBuf, outputs: &str| {
+        ringsync(&[
+            "sim",
+            sc.to_str().expect("p"),
+            "--out",
+            d.to_str().expect("p"),
+            "--outputs",
+            outputs,
+        ])
+    };
+    assert!(run(&full, "all").status.success());
+    let listed = |d: &PathBuf| {
+        let mut v: Vec<String> = std::fs::read_dir(d)
+            .expect("dir")
+            .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+            .collect();
+        v.sort();
+        v
+    };
+    for (outputs, want) in [
+        ("summary", vec!["summary.json"]),
+        ("trace,report", vec!["report.html", "trace.csv"]),
+    ] {
+        let d = dir(&format!("outputs-{}", outputs.replace(',', "-")));
+        let o = run(&d, outputs);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        assert_eq!(listed(&d), want, "{outputs}");
+        for f in want {
+            assert_eq!(
+                std::fs::read(d.join(f)).expect("read"),
+                std::fs::read(full.join(f)).expect("read"),
+                "{outputs}: {f}"
+            );
+        }
+    }
+    let o = run(&dir("outputs-bad"), "summary,plots");
+    assert_eq!(o.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("unknown output 'plots'"), "{err}");
+}

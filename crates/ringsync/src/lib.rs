@@ -51,7 +51,7 @@ pub use output::OutDir;
 pub use plan::{plan, plan_of};
 pub use reproduce::{Reproduction, reproduce, write_reproduction};
 pub use rt::{SimPrediction, predict, run_rt};
-pub use simulate::{SimOptions, sim_text, simulate, simulate_with, write_sim};
+pub use simulate::{Outputs, SimOptions, sim_text, simulate, simulate_with, write_sim};
 pub use sweep::run_case;
 
 pub use ringsync_model::observer::Observer;

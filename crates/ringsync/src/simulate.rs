@@ -68,15 +68,105 @@ pub fn simulate_with(
     )?)
 }
 
-/// Writes a run's results into `dir`: `summary.json`, `trace.csv` (when the run kept its
-/// trace), the figures (`*.svg`), `report.html`; the frames it captured as pcapng to `pcap`
-/// when given. `s` is the scenario as run, `hash` its text's hash.
+/// Which files [`write_sim`] writes (`ringsync sim --outputs`): any of `summary`
+/// (summary.json), `trace` (trace.csv), `figures` (the `*.svg`), `report` (report.html, which
+/// holds the figures). Parsed from a comma-separated list; `all` is every one.
+///
+/// ```
+/// let o: ringsync::Outputs = "summary".parse()?;
+/// assert!(o.summary && !o.needs_trace());
+/// assert_eq!("all".parse::<ringsync::Outputs>()?, ringsync::Outputs::ALL);
+/// assert!("summary,plots".parse::<ringsync::Outputs>().is_err());
+/// # Ok::<(), ringsync::Error>(())
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Outputs {
+    /// summary.json: the metrics, counters, faults and assumptions.
+    pub summary: bool,
+    /// trace.csv: one row per cycle and axis.
+    pub trace: bool,
+    /// The figures, one `*.svg` each.
+    pub figures: bool,
+    /// report.html, with the figures inline.
+    pub report: bool,
+}
+
+impl Outputs {
+    /// Every output (the default).
+    pub const ALL: Outputs = Outputs {
+        summary: true,
+        trace: true,
+        figures: true,
+        report: true,
+    };
+    /// The names in `--outputs`, in the order files are written.
+    pub const NAMES: [&'static str; 4] = ["summary", "trace", "figures", "report"];
+
+    /// Whether the run must keep its trace (for trace.csv, the figures or the report).
+    pub fn needs_trace(self) -> bool {
+        self.trace || self.figures || self.report
+    }
+
+    /// The files these outputs write, for messages: `summary.json, trace.csv, …`.
+    pub fn files(self) -> String {
+        let f = [
+            (self.summary, "summary.json"),
+            (self.trace, "trace.csv"),
+            (self.figures, "the figures (*.svg)"),
+            (self.report, "report.html"),
+        ];
+        let v: Vec<&str> = f.iter().filter(|(on, _)| *on).map(|(_, n)| *n).collect();
+        v.join(", ")
+    }
+}
+
+impl Default for Outputs {
+    fn default() -> Self {
+        Outputs::ALL
+    }
+}
+
+impl std::str::FromStr for Outputs {
+    type Err = crate::Error;
+    fn from_str(list: &str) -> Result<Self> {
+        let mut o = Outputs {
+            summary: false,
+            trace: false,
+            figures: false,
+            report: false,
+        };
+        for name in list.split(',').map(str::trim) {
+            match name {
+                "summary" => o.summary = true,
+                "trace" => o.trace = true,
+                "figures" => o.figures = true,
+                "report" => o.report = true,
+                "all" => o = Outputs::ALL,
+                other => {
+                    return Err(crate::Error::Input(format!(
+                        "unknown output '{}' in '{}': expected a comma-separated list of {} or all",
+                        ringsync_model::scenario::clip(other, 40),
+                        ringsync_model::scenario::clip(list, 120),
+                        Outputs::NAMES.join(", ")
+                    )));
+                }
+            }
+        }
+        Ok(o)
+    }
+}
+
+/// Writes a run's results into `dir`: those of `outputs` among `summary.json`, `trace.csv`
+/// (when the run kept its trace), the figures (`*.svg`) and `report.html`; the frames it
+/// captured as pcapng to `pcap` when given. `s` is the scenario as run, `hash` its text's
+/// hash.
 pub fn write_sim(
     dir: &mut OutDir,
     s: &Scenario,
     hash: u64,
     r: &RunResult,
     pcap: Option<&Path>,
+    outputs: Outputs,
 ) -> Result<()> {
     if let Some(p) = pcap {
         dir.write_file(
@@ -84,9 +174,16 @@ pub fn write_sim(
             ringsync_report::pcap::pcapng(&r.captured, s.axes_count()),
         )?;
     }
-    let summary = serde_json::to_string_pretty(&summary_json(s, hash, r))?;
-    dir.write("summary.json", format!("{summary}\n"))?;
-    dir.write_with("trace.csv", |w| write_trace_csv(r, w))?;
+    if outputs.summary {
+        let summary = serde_json::to_string_pretty(&summary_json(s, hash, r))?;
+        dir.write("summary.json", format!("{summary}\n"))?;
+    }
+    if outputs.trace {
+        dir.write_with("trace.csv", |w| write_trace_csv(r, w))?;
+    }
+    if !(outputs.figures || outputs.report) {
+        return Ok(());
+    }
     let timing = match s.ring.plan {
         PlanKind::P2pLumped => ringsync_proto::CyclePlan::new(&s.ring_params())
             .ok()
@@ -94,10 +191,14 @@ pub fn write_sim(
         PlanKind::LumpedOnly => None,
     };
     let figures = run_figures(timing, r);
-    for (name, svg) in &figures {
-        dir.write(name, svg)?;
+    if outputs.figures {
+        for (name, svg) in &figures {
+            dir.write(name, svg)?;
+        }
     }
-    dir.write("report.html", run_html(s, hash, r, &figures))?;
+    if outputs.report {
+        dir.write("report.html", run_html(s, hash, r, &figures))?;
+    }
     Ok(())
 }
 
