@@ -216,8 +216,10 @@ fn pcap_holds_every_frame_sent() {
         &0x0A0D_0D0Au32.to_le_bytes(),
         "section header block"
     );
-    // Walk the blocks and count the packets: per cycle 5 lumped hops (master and 4 slaves),
-    // 4 commands and 4 responses.
+    // Walk the blocks and count the packets: per cycle every hop, as `rt --pcap` records
+    // them: 5 lumped hops (master and 4 slaves), 4 commands with the 0 + 1 + 2 + 3 relays of
+    // the slaves before their targets, 4 responses with the 3 + 2 + 1 + 0 relays of the
+    // slaves behind their sources.
     let (mut at, mut packets) = (0usize, 0usize);
     while at < b.len() {
         let kind = u32::from_le_bytes(b[at..at + 4].try_into().expect("4"));
@@ -226,7 +228,7 @@ fn pcap_holds_every_frame_sent() {
         at += len;
     }
     assert_eq!(at, b.len());
-    assert_eq!(packets, 5 * 13);
+    assert_eq!(packets, 5 * 25);
 }
 
 fn files(d: &std::path::Path) -> Vec<String> {

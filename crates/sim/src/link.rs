@@ -7,6 +7,14 @@
 //! `loss` and `corruption` are probabilities per full trip round the ring (n + 1 hops): a
 //! hop loses a frame with 1 − (1 − loss)^(1/(n+1)), or flips one of its bits (its CRC then
 //! fails where it is checked) likewise.
+//!
+//! When capturing (`--pcap`), every hop is recorded as the runtime records it: the sender's
+//! transmission and each forwarding slave's, at its first bit out (T_t after its first bit
+//! in, the jitter of the hops before included), with the bytes it relays. With jitter the
+//! draws say on which hop a frame was lost or corrupted; without, one draw covers the whole
+//! path and the capture puts the loss or the flipped bit on the first hop. A frame lost after
+//! it was corrupted is relayed unchanged up to the loss (the simulator flips a bit only in a
+//! frame that arrives). Recording changes no draw and no delivery.
 
 use ringsync_model::Spec;
 use ringsync_model::result::{Captured, LinkCounters};
@@ -154,19 +162,46 @@ impl Link {
         let stop = if stop == 0 && from == 0 { ring } else { stop };
         let hops = ((stop + ring - from) % ring).max(1) as i64;
         let stop = stop % ring;
+        let capturing = self.captured.is_some();
+        // The slaves between sender and receiver relay the frame; a dead one forwards nothing
+        // (the frame is gone unless a hop before loses it).
+        let mut relays = hops - 1;
+        let mut gone = false;
+        if let Some((silent, _)) = self.silent
+            && silent != stop
+        {
+            let d = (silent + ring - from) % ring;
+            if d > 0 && (d as i64) < hops {
+                let at = t_tx + d as i64 * self.hop + (d as i64 - 1) * self.residence;
+                if self.is_silent(silent, at) {
+                    relays = d as i64 - 1;
+                    gone = true;
+                }
+            }
+        }
         let rng = &mut self.rng[from];
         let mut rx = t_tx + hops * self.hop + (hops - 1) * self.residence;
-        let mut corrupted = false;
+        // For the capture: the jitter of hops 1..=d at index d - 1.
+        let mut jitter_sums = Vec::new();
+        // The first hop (1-based) that corrupted the frame.
+        let mut corrupted_on = None;
         if self.jitter > 0 {
             // Per hop: jitter, loss and corruption draws hop by hop.
-            for _ in 0..hops {
-                rx += (rng.unit() * (self.jitter + 1) as f64) as i64;
+            for h in 1..=hops {
+                let j = (rng.unit() * (self.jitter + 1) as f64) as i64;
+                rx += j;
+                if capturing {
+                    jitter_sums.push(jitter_sums.last().copied().unwrap_or(0) + j);
+                }
                 if rng.chance(self.hop_loss) {
                     self.counters.lost += 1;
+                    // Lost on hop h: the slaves before it relayed the frame.
+                    let count = relays.min(h - 1);
+                    self.capture_relays(from, t_tx, count, &jitter_sums, &bytes, None);
                     return Delivery::Lost(bytes);
                 }
                 if rng.chance(self.hop_corruption) {
-                    corrupted = true;
+                    corrupted_on.get_or_insert(h);
                 }
             }
         } else {
@@ -176,30 +211,70 @@ impl Link {
                 self.counters.lost += 1;
                 return Delivery::Lost(bytes);
             }
-            corrupted = rng.chance(corruption);
+            if rng.chance(corruption) {
+                corrupted_on = Some(1);
+            }
         }
-        if corrupted {
+        // The bytes as sent, when a hop corrupts them and the hops before relay them.
+        let mut as_sent = None;
+        if corrupted_on.is_some() {
+            if capturing {
+                as_sent = Some(bytes.clone());
+            }
             let bit = (rng.next_u64() % (bytes.len() as u64 * 8)) as usize;
             bytes[bit / 8] ^= 1 << (bit % 8);
             self.counters.corrupted += 1;
         }
-        // A dead slave between sender and receiver forwards nothing.
-        if let Some((silent, _)) = self.silent
-            && silent != stop
-        {
-            let d = (silent + ring - from) % ring;
-            if d > 0 && (d as i64) < hops {
-                let at = t_tx + d as i64 * self.hop + (d as i64 - 1) * self.residence;
-                if self.is_silent(silent, at) {
-                    return Delivery::Gone;
-                }
-            }
+        if capturing {
+            let (first, corrupted) = match (&as_sent, corrupted_on) {
+                (Some(sent), Some(h)) => (&sent[..], Some((h, &bytes[..]))),
+                _ => (&bytes[..], None),
+            };
+            self.capture_relays(from, t_tx, relays, &jitter_sums, first, corrupted);
+        }
+        if gone {
+            return Delivery::Gone;
         }
         Delivery::Arrive {
             node: stop,
             rx_start: rx,
             at: rx + dur,
             bytes,
+        }
+    }
+
+    /// Records the first `count` relays of a frame that node `from` sent at `t_tx`: the slave
+    /// d hops on forwards it with its first bit out at t_tx + d·(L + T_t) plus the jitter of
+    /// hops 1..=d (`jitter_sums`, empty without jitter); from hop h of `corrupted` = (h,
+    /// relayed) on, the slaves relay `relayed` in place of `bytes`.
+    fn capture_relays(
+        &mut self,
+        from: usize,
+        t_tx: i64,
+        count: i64,
+        jitter_sums: &[i64],
+        bytes: &[u8],
+        corrupted: Option<(i64, &[u8])>,
+    ) {
+        let (ring, hop, residence, end) = (self.n + 1, self.hop, self.residence, self.end);
+        let Some(c) = &mut self.captured else {
+            return;
+        };
+        for d in 1..=count {
+            let jitter = jitter_sums.get(d as usize - 1).copied().unwrap_or(0);
+            let t = t_tx + d * (hop + residence) + jitter;
+            if t >= end {
+                break;
+            }
+            let relayed = match corrupted {
+                Some((h, relayed)) if d >= h => relayed,
+                _ => bytes,
+            };
+            c.push(Captured {
+                t,
+                node: (from + d as usize) % ring,
+                bytes: relayed.to_vec(),
+            });
         }
     }
 }

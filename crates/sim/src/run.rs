@@ -362,7 +362,10 @@ impl Sim {
 
     fn finish(self, scenario: &str) -> RunResult {
         let Net { link, .. } = self.net;
-        let captured = link.captured.unwrap_or_default();
+        let mut captured = link.captured.unwrap_or_default();
+        // Relays are recorded when their frame is sent: put every hop in time order (stable,
+        // so frames sent at one instant keep their order).
+        captured.sort_by_key(|c| c.t);
         self.dev
             .finish(scenario, link.counters, self.passages, captured)
     }

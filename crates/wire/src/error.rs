@@ -104,12 +104,11 @@ impl fmt::Display for Error {
             Error::WrongKind { expected, got } => {
                 write!(f, "wrong frame kind: expected {expected}, got {got}")
             }
-            Error::ReservedFlags(b) => {
-                write!(
-                    f,
-                    "reserved header flag bits set: 0x{b:02x} (allowed: 0x01)"
-                )
-            }
+            Error::ReservedFlags(b) => write!(
+                f,
+                "reserved header flag bits set: 0x{b:02x} (allowed: 0x{:02x})",
+                crate::Flags::DEFINED
+            ),
             Error::ReservedStatus(b) => write!(
                 f,
                 "reserved status bits set: 0x{b:04x} (allowed: 0x{:04x})",

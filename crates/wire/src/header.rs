@@ -30,7 +30,7 @@ pub mod field {
     pub const VERSION: Field = 0..1;
     /// Frame kind, u8 (1 lumped, 2 command, 3 response, 4 lumped-only).
     pub const KIND: Field = 1..2;
-    /// Flags, u8 (bit 0 `STOP`, bit 1 `TORQUE_OFF`, bits 2-7 reserved).
+    /// Flags, u8 (bit 0 `STOP`, bit 1 `TORQUE_OFF`, bit 2 `BRAKE`, bits 3-7 reserved).
     pub const FLAGS: Field = 2..3;
     /// Retry count, u8 (0 for the first attempt).
     pub const RETRY: Field = 3..4;

@@ -443,3 +443,98 @@ fn the_adjacent_law_runs_and_couples_over_seeds() {
     assert!(r.group_stop.is_none(), "lumped-only: stopped");
     assert_eq!(s.law_name(), "adjacent");
 }
+
+/// A run of `s` with its trace and its capture.
+fn run_captured(s: &Scenario) -> RunResult {
+    run(
+        s,
+        RunOptions {
+            trace: true,
+            capture: true,
+            ..RunOptions::default()
+        },
+    )
+    .expect("run")
+}
+
+/// `--pcap` records every hop as the runtime does: per cycle of the reference ring 5 lumped
+/// hops, 4 commands with the 0 + 1 + 2 + 3 relays of the slaves before their targets, and 4
+/// responses with the 3 + 2 + 1 + 0 relays of the slaves behind their sources: 25 frames.
+/// Each relay leaves its slave L + T_t after the previous hop, with the bytes as sent; and
+/// capturing changes nothing else.
+#[test]
+fn the_capture_holds_every_hop_as_the_runtime_records_it() {
+    let s = scenario(&format!("duration = \"20ms\"\n{IDEAL}"));
+    let r = run_captured(&s);
+    assert_eq!(r.captured.len(), 20 * 25);
+    assert!(
+        r.captured.windows(2).all(|w| w[0].t <= w[1].t),
+        "in time order"
+    );
+    let plan = CyclePlan::new(&s.ring_params()).expect("plan");
+    let step = plan.hop.as_ns() + s.ring.residence.0.as_ns();
+    let n = s.axes_count();
+    let t_cyc = s.ring.cycle.0.as_ns();
+    for k in 0..20 {
+        let cycle: Vec<_> = r
+            .captured
+            .iter()
+            .filter(|c| c.t >= k * t_cyc && c.t < (k + 1) * t_cyc)
+            .collect();
+        assert_eq!(cycle.len(), 25, "cycle {k}");
+        for c in &cycle {
+            let f = Frame::new_checked(&c.bytes[..]).expect("frame");
+            f.validate().expect("valid");
+            let (origin, to) = match f.route().expect("route") {
+                Route::Command { target } => (0, usize::from(target)),
+                Route::Response { source } => (usize::from(source), 0),
+                _ => continue,
+            };
+            // The frame as its origin sent it: the same bytes, d hops earlier.
+            let d = (c.node + n + 1 - origin) % (n + 1);
+            let hops = (to + n + 1 - origin) % (n + 1);
+            assert!(d < hops, "node {} relays only on the way: {f}", c.node);
+            let sent = cycle
+                .iter()
+                .find(|o| o.node == origin && o.bytes == c.bytes)
+                .expect("sent by its origin");
+            assert_eq!(c.t - sent.t, d as i64 * step, "{f} at node {}", c.node);
+        }
+    }
+    // Capturing changes no result.
+    let plain = run_traced(&s);
+    assert_eq!(plain.trace, r.trace);
+    assert_eq!(plain.master, r.master);
+    assert!(plain.captured.is_empty());
+}
+
+/// With jitter, loss, corruption and a slave that dies, the capture changes no draw: the
+/// results equal those of a run without it; relays after a corrupting hop carry the
+/// corrupted frame; nobody relays past the dead slave.
+#[test]
+fn capturing_a_faulty_ring_changes_no_draw() {
+    let s = scenario(
+        "duration = \"300ms\"\n[ring]\njitter = \"200ns\"\n\
+         [faults]\nloss = 0.05\ncorruption = 0.05\nsilent_slave = 3\nsilent_from = \"150ms\"\n",
+    );
+    let r = run_captured(&s);
+    let plain = run_traced(&s);
+    // (The trace holds NaN for the axes after the stop: compare the text.)
+    let same = |a: &RunResult, b: &RunResult| {
+        format!("{:?}{:?}{:?}", a.trace, a.master, a.summary)
+            == format!("{:?}{:?}{:?}", b.trace, b.master, b.summary)
+    };
+    assert!(same(&plain, &r), "capturing changed the run");
+    let bad = r
+        .captured
+        .iter()
+        .filter(|c| Frame::new_checked(&c.bytes[..]).is_ok_and(|f| f.check().is_err()))
+        .count();
+    assert!(bad > 0, "some relays carry a corrupted frame");
+    let after = r.captured.iter().filter(|c| c.t >= 151_000_000);
+    assert!(after.clone().all(|c| c.node != 3), "slave 3 is dead");
+    assert!(
+        after.clone().any(|c| c.node == 2),
+        "slave 2, before it, still relays"
+    );
+}
