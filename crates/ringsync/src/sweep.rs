@@ -137,7 +137,7 @@ impl Case {
 }
 
 /// What a case gives: the metrics (eq. 26-27) and the counters a sweep compares.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct CaseResult {
     /// Track-RMSE [rad].
     pub track_rmse: f64,
@@ -153,6 +153,22 @@ pub struct CaseResult {
     pub clock_error_max_ns: f64,
     /// When the group stopped [s], if it did.
     pub group_stop_s: Option<f64>,
+    /// Why the group stopped, if it did: the name `summary.json` gives it
+    /// (`faults.group_stop.reason`: `following-error`, `axis-fault`, `no-response`,
+    /// `no-feedback`, `command-mismatch`); see [`stop_reason`].
+    #[serde(default)]
+    pub group_stop_reason: Option<String>,
+}
+
+/// The name of a group stop's reason in outputs, as `summary.json` writes it
+/// (`faults.group_stop.reason`) and a sweep's [`CaseResult::group_stop_reason`] holds it.
+///
+/// ```
+/// use ringsync::layers::proto::node::StopReason;
+/// assert_eq!(ringsync::sweep::stop_reason(&StopReason::NoResponse { axis: 1 }), "no-response");
+/// ```
+pub fn stop_reason(r: &ringsync_proto::node::StopReason) -> String {
+    r.name().replace(' ', "-")
 }
 
 /// Every case: each combination of values, `seeds` seeds each (the scenario's seed, +1, …).
@@ -256,6 +272,7 @@ pub fn run_case(case: &Case) -> Result<CaseResult> {
         commands_lost: r.master.commands_lost,
         clock_error_max_ns: r.clock_error_max_ns.iter().copied().fold(0.0, f64::max),
         group_stop_s: r.group_stop.map(|(t, _)| t),
+        group_stop_reason: r.group_stop.map(|(_, why)| stop_reason(&why)),
     })
 }
 
@@ -593,6 +610,25 @@ mod tests {
     }
 
     #[test]
+    fn a_stopped_case_names_its_reason_as_summary_json_does() {
+        let base = crate::parse(
+            "duration = \"300ms\"\n[faults]\nsilent_slave = 2\nsilent_from = \"100ms\"\n",
+            "t",
+        )
+        .expect("text");
+        let c = cases(&base, &[], 1, false).expect("cases");
+        let r = run_case(&c[0]).expect("run");
+        let s = c[0].scenario().expect("valid");
+        let full = crate::simulate(&s, &crate::SimOptions::default()).expect("run");
+        let json = ringsync_report::sim::summary_json(&s, 0, &full);
+        assert!(r.group_stop_reason.is_some(), "{r:?}");
+        assert_eq!(
+            r.group_stop_reason.as_deref(),
+            json["faults"]["group_stop"]["reason"].as_str()
+        );
+    }
+
+    #[test]
     fn means_over_seeds() {
         let c = |v: &str, seed| Case {
             labels: vec![("k".into(), v.into())],
@@ -607,6 +643,7 @@ mod tests {
             commands_lost: 0,
             clock_error_max_ns: 0.0,
             group_stop_s: None,
+            group_stop_reason: None,
         };
         let m = aggregate(
             &[c("a", 1), c("a", 2), c("b", 1)],

@@ -1,0 +1,286 @@
+"""Simulating and checking a scenario: :func:`simulate` gives a :class:`Run` (numpy arrays,
+metrics, the CLI's files), :func:`check` a :class:`Check` (stability)."""
+
+from __future__ import annotations
+
+import os
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from . import _ringsync as _rs
+from ._scenario import Scenario, ScenarioLike, load
+
+if TYPE_CHECKING:
+    import pandas
+
+__all__ = ["Run", "simulate", "Check", "check"]
+
+#: The per-cycle, per-axis columns of a run's trace, with their units.
+COLUMNS: dict[str, str] = {
+    "x_d": "rad",
+    "x": "rad",
+    "e": "rad",
+    "eps": "rad",
+    "u": "V",
+    "sample_time": "s",
+    "apply_time": "s",
+    "clock_error_ns": "ns",
+}
+
+
+def _pandas(what: str) -> Any:
+    try:
+        import pandas
+    except ImportError as e:  # pragma: no cover - depends on the environment
+        raise ImportError(
+            f"{what} needs pandas: pip install 'ringsync[pandas]' (or pip install pandas)"
+        ) from e
+    return pandas
+
+
+def _with(scenario: ScenarioLike, overrides: dict[str, Any]) -> Scenario:
+    s = load(scenario)
+    return s.set(**overrides) if overrides else s
+
+
+class Run:
+    """One simulated run: the trace as numpy arrays, the metrics, the CLI's summary.
+
+    Arrays: one row per cycle the master computed, one column per axis (``time`` is 1-D):
+
+    - ``time`` (cycles,): cycle start k·T_cyc [s]
+    - ``x_d``, ``x`` (cycles, axes): desired and true position at the cycle start [rad]
+    - ``e`` (cycles, axes): tracking error e = x_d − x [rad]
+    - ``eps`` (cycles, axes): synchronisation error ε = T·e [rad]
+    - ``u`` (cycles, axes): the command computed in the cycle [V]
+    - ``sample_time`` (cycles, axes): when the sample the command used was taken [s]
+    - ``apply_time`` (cycles, axes): when the command took effect at the slave [s]
+      (NaN: it never arrived)
+    - ``clock_error_ns`` (cycles, axes): slave clock minus true time at the cycle start
+      [ns]
+
+    ``metrics`` is a flat dict of the run's figures: ``track_rmse`` and ``sync_rmse``
+    (eq. 26-27) [rad], ``samples``, ``cycles``, ``t_cyc_s`` [s], ``clock_error_max_ns``
+    [ns], ``group_stop_s`` [s] and ``group_stop_reason`` (None without a stop), the frame
+    counters, and per-axis lists ``rms_e``, ``max_e``, ``rms_eps``, ``max_eps`` [rad],
+    ``rms_u``, ``peak_u`` [V], ``saturations``, ``clock_error_rms_ns``. ``summary`` is the
+    dict ``ringsync sim`` writes as summary.json, to the last bit.
+
+    Example::
+
+        >>> import ringsync
+        >>> r = ringsync.simulate("paper-2015", duration="0.5s")
+        >>> r.x.shape, r.time.shape
+        ((500, 4), (500,))
+        >>> r.metrics["sync_rmse"] < r.metrics["track_rmse"]
+        True
+        >>> r.summary["controller"]
+        'sync'
+    """
+
+    time: np.ndarray
+    """Cycle starts [s], shape (cycles,)."""
+    x_d: np.ndarray
+    """Desired positions [rad], shape (cycles, axes)."""
+    x: np.ndarray
+    """True positions [rad], shape (cycles, axes)."""
+    e: np.ndarray
+    """Tracking errors e = x_d − x [rad], shape (cycles, axes)."""
+    eps: np.ndarray
+    """Synchronisation errors ε [rad], shape (cycles, axes)."""
+    u: np.ndarray
+    """Commands [V], shape (cycles, axes)."""
+    sample_time: np.ndarray
+    """Sampling instant of the sample each command used [s], shape (cycles, axes)."""
+    apply_time: np.ndarray
+    """When each command took effect at its slave [s] (NaN if never), shape (cycles, axes)."""
+    clock_error_ns: np.ndarray
+    """Slave clock minus true time at each cycle start [ns], shape (cycles, axes)."""
+
+    def __init__(self, core: _rs.SimRun, scenario: Scenario) -> None:
+        """Made by :func:`simulate`; not called directly."""
+        self._core = core
+        self.scenario: Scenario = scenario
+        """The scenario as given (its ``seed`` may differ from :attr:`seed`)."""
+        self.seed: int = core.seed
+        """The seed the run used."""
+        cols = core.columns()
+        self.time = cols["time"]
+        for name in COLUMNS:
+            setattr(self, name, cols[name])
+        self.metrics: dict[str, Any] = core.metrics()
+        """The run's figures (see the class docstring); ``track_rmse``, ``sync_rmse`` [rad]."""
+        self._summary: dict[str, Any] | None = None
+
+    @property
+    def summary(self) -> dict[str, Any]:
+        """The content of the CLI's ``summary.json`` for this run (``ringsync sim
+        SCENARIO --seed SEED``), parsed: the same numbers to the last bit."""
+        if self._summary is None:
+            self._summary = self._core.summary()
+        return self._summary
+
+    @property
+    def axes(self) -> int:
+        """Number of axes."""
+        return int(self._core.axes)
+
+    @property
+    def stopped(self) -> bool:
+        """Whether the run ended in a group stop (the CLI's exit status 3)."""
+        return self.metrics["group_stop_s"] is not None
+
+    def text(self) -> str:
+        """The few lines ``ringsync sim`` prints about the run.
+
+        Example::
+
+            >>> print(ringsync.simulate("paper-2015", duration="0.2s").text())  # doctest: +ELLIPSIS
+            paper-2015: 200 cycles of 4 axes, sync controller, estimator paper
+            ...
+        """
+        return str(self._core.text())
+
+    def to_pandas(self) -> pandas.DataFrame:
+        """The trace in long format, one row per cycle and axis, as ``trace.csv``: columns
+        ``time`` [s], ``axis`` (1-based), then ``x_d``, ``x``, ``e``, ``eps`` [rad], ``u``
+        [V], ``sample_time``, ``apply_time`` [s], ``clock_error_ns`` [ns]. Needs pandas.
+
+        Example::
+
+            >>> df = ringsync.simulate("paper-2015", duration="0.2s").to_pandas()
+            >>> list(df.columns[:4]), len(df)
+            (['time', 'axis', 'x_d', 'x'], 800)
+        """
+        pd = _pandas("Run.to_pandas()")
+        cycles, n = self.x.shape
+        data: dict[str, Any] = {
+            "time": np.repeat(self.time, n),
+            "axis": np.tile(np.arange(1, n + 1), cycles),
+        }
+        for name in COLUMNS:
+            data[name] = getattr(self, name).reshape(-1)
+        return pd.DataFrame(data)
+
+    def save(self, directory: str | os.PathLike[str]) -> str:
+        """Writes the CLI's files into ``directory`` (``summary.json``, ``trace.csv``, the
+        figures ``*.svg``, ``report.html``), replacing it as a whole as ``ringsync sim
+        --out`` does: it must be new, empty, or hold earlier ringsync results. Returns the
+        directory.
+
+        Example::
+
+            >>> import tempfile, os
+            >>> d = os.path.join(tempfile.mkdtemp(), "run")
+            >>> _ = ringsync.simulate("paper-2015", duration="0.2s").save(d)
+            >>> sorted(f for f in os.listdir(d) if f.endswith((".json", ".csv")))
+            ['summary.json', 'trace.csv']
+        """
+        path = os.fspath(directory)
+        self._core.save(path)
+        return path
+
+    def __repr__(self) -> str:
+        m = self.metrics
+        stop = f", GROUP STOP at {m['group_stop_s']:.3f} s ({m['group_stop_reason']})" if self.stopped else ""
+        return (
+            f"<Run {self.scenario.name!r} seed {self.seed}: {len(self.time)} cycles × {self.axes} axes, "
+            f"Track-RMSE {m['track_rmse']:.6f} rad, Sync-RMSE {m['sync_rmse']:.7f} rad{stop}>"
+        )
+
+
+def simulate(scenario: ScenarioLike, *, seed: int | None = None, **overrides: Any) -> Run:
+    """Simulates a scenario deterministically (frames on links, drifting clocks, servo
+    axes) and returns the :class:`Run`: arrays, metrics, the CLI's summary.
+
+    ``scenario`` is anything :func:`load` takes. ``seed`` replaces the scenario's seed
+    (as ``ringsync sim --seed``). ``overrides`` set scenario keys first, dotted keys through
+    ``**``: ``simulate("paper-2015", **{"control.alpha": 0.3})``, top-level ones directly:
+    ``simulate("paper-2015", duration="1s")``. Same scenario and seed, same numbers, to the
+    last bit, as ``ringsync sim``. The GIL is released while it runs.
+
+    Raises :class:`ringsync.ScenarioError` for a bad scenario, key or value.
+
+    Example::
+
+        >>> pd = ringsync.simulate("paper-2015", duration="1s", **{"control.law": "pd"})
+        >>> sync = ringsync.simulate("paper-2015", duration="1s")
+        >>> sync.metrics["sync_rmse"] < pd.metrics["sync_rmse"]
+        True
+    """
+    s = _with(scenario, overrides)
+    return Run(_rs.simulate(s.to_toml(), s.origin, seed), s)
+
+
+class Check:
+    """The stability check of a scenario's loop, as ``ringsync check`` does it: the
+    spectral radius of the linearised sampled closed loop with each axis's delay, and the
+    paper's continuous-time conditions.
+
+    ``verdict`` is ``"stable"`` (spectral radius < 1, every term modelled),
+    ``"unstable"`` or ``"not shown"`` (a loop the check does not model: the lumped-only
+    plan, the coupled arm, the exact sign with K_N ≠ 0). ``report`` is the dict
+    ``ringsync check --json`` prints.
+
+    Example::
+
+        >>> c = ringsync.check("paper-2015")
+        >>> c.stable, c.verdict, round(c.spectral_radius, 3) < 1
+        (True, 'stable', True)
+    """
+
+    def __init__(self, report: dict[str, Any], text: str, stable: bool) -> None:
+        """Made by :func:`check`; not called directly."""
+        self.report: dict[str, Any] = report
+        """``ringsync check --json``'s object."""
+        self.stable: bool = stable
+        """Whether the verdict is ``"stable"``."""
+        self._text = text
+
+    @property
+    def verdict(self) -> str:
+        """``"stable"``, ``"unstable"`` or ``"not shown"``."""
+        return str(self.report["verdict"])
+
+    @property
+    def spectral_radius(self) -> float | None:
+        """Spectral radius of the sampled closed loop (stable below 1); None when the
+        check does not model the loop."""
+        d = self.report.get("discrete")
+        return None if d is None else float(d["spectral_radius"])
+
+    @property
+    def delays(self) -> list[float]:
+        """Sample-to-actuation delay of each axis [s]."""
+        return [ns * 1e-9 for ns in self.report["delays_ns"]]
+
+    @property
+    def conditions(self) -> dict[str, Any] | None:
+        """The paper's continuous-time conditions (sync law on independent axes), else
+        None."""
+        c = self.report.get("conditions")
+        return None if c is None else dict(c)
+
+    def text(self) -> str:
+        """What ``ringsync check`` prints."""
+        return self._text
+
+    def __repr__(self) -> str:
+        rho = self.spectral_radius
+        radius = "not modelled" if rho is None else f"spectral radius {rho:.4f}"
+        return f"<Check {self.report['scenario']!r}: {self.verdict}, {radius}>"
+
+
+def check(scenario: ScenarioLike, *, points: int = 4001, **overrides: Any) -> Check:
+    """Checks a scenario's stability (``ringsync check``); ``points`` instants of the
+    motion evaluate the paper's conditions; ``overrides`` as for :func:`simulate`.
+
+    Example::
+
+        >>> ringsync.check("paper-2015", **{"control.kp": 3000.0}).verdict
+        'unstable'
+    """
+    s = _with(scenario, overrides)
+    report, text, stable = _rs.check(s.to_toml(), s.origin, points)
+    return Check(report, text, stable)

@@ -1,0 +1,301 @@
+"""Scenarios: load one (a built-in name, a path, TOML text, a dict), read its values by
+dotted key, change them into a new validated scenario."""
+
+from __future__ import annotations
+
+import os
+import re
+from collections.abc import Iterator, Mapping
+from typing import Any, Union
+
+from . import _ringsync as _rs
+
+__all__ = ["Scenario", "ScenarioLike", "load", "scenarios", "laws"]
+
+#: What the functions of ringsync take as a scenario: a :class:`Scenario`, a built-in name,
+#: a path, TOML text, or a dict of scenario keys.
+ScenarioLike = Union["Scenario", str, "os.PathLike[str]", Mapping[str, Any]]
+
+_MISSING: Any = object()
+_INDEXED = re.compile(r"^([A-Za-z_][A-Za-z0-9_]*)\[(\d+)\]$")
+
+
+class Scenario(Mapping[str, Any]):
+    """A validated scenario: every parameter of one run.
+
+    Tables and keys are those of the scenario files (``ringsync scenario show
+    paper-2015`` prints the reference one, commented, with units): ``duration``, ``seed``,
+    ``ring.*`` (slaves, cycle, bit rate, PHY and cable delays), ``clock.*`` (oscillator
+    drift [ppm], offsets, sync), ``faults.*`` (loss and corruption probabilities, watchdog
+    cycles, following-error limit [rad]), ``control.*`` (the law, estimator, gains
+    ``kp`` [V/rad], ``kd``, ``ke`` [V·s/rad], coupling weight ``alpha``), ``trajectory.*``
+    (``peak_speed`` [rad/s], ``period``), ``axis`` (one table per axis: ``u_max`` [V],
+    ``rated_torque`` [N·m], ``encoder_bits``, …). Durations are strings with a unit
+    (``"1ms"``, ``"250us"``, ``"4s"``).
+
+    A scenario reads like a read-only dict keyed by dotted names, with the values in effect
+    (the scenario's own, and the reference scenario's where it says nothing);
+    ``s["axis[1].u_max"]`` reads axis 1's table (0-based, as error messages count).
+    :meth:`set` returns a new, validated scenario; :meth:`to_toml` gives its text, which
+    ``ringsync sim FILE`` runs identically.
+
+    Example::
+
+        >>> import ringsync
+        >>> s = ringsync.load("paper-2015")
+        >>> s.name, s.axes, s["control.alpha"], s["ring.cycle"]
+        ('paper-2015', 4, 0.5, '1ms')
+        >>> t = s.set("control.alpha", 0.3)
+        >>> t["control.alpha"], s["control.alpha"]
+        (0.3, 0.5)
+        >>> s.set(**{"ring.slaves": 2, "duration": "0.5s"}).axes
+        2
+    """
+
+    __slots__ = ("_text", "_origin", "_info", "_values")
+
+    def __init__(self, text: str, origin: str = "<text>") -> None:
+        """Validates the TOML ``text``; ``origin`` names it in error messages.
+
+        Raises :class:`ringsync.ScenarioError` with the CLI's one-line message when the
+        text is not a valid scenario. Prefer :func:`ringsync.load`, which also takes names,
+        paths and dicts.
+
+        Example::
+
+            >>> ringsync.Scenario('duration = "1s"\\n[ring]\\nslaves = 2\\n').axes
+            2
+        """
+        self._text: str = text
+        self._origin: str = origin
+        self._info: dict[str, Any] = _rs.parse(text, origin)
+        self._values: dict[str, Any] | None = None
+
+    # -- facts --------------------------------------------------------------------------
+
+    @property
+    def name(self) -> str:
+        """The scenario's name (``name``), as outputs show it."""
+        return str(self._info["name"])
+
+    @property
+    def description(self) -> str:
+        """Its one line of description (``description``)."""
+        return str(self._info["description"])
+
+    @property
+    def axes(self) -> int:
+        """Number of axes n (one per slave, ``ring.slaves``)."""
+        return int(self._info["axes"])
+
+    @property
+    def seed(self) -> int:
+        """The seed of every random draw (``seed``)."""
+        return int(self._info["seed"])
+
+    @property
+    def duration(self) -> float:
+        """Simulated time [s] (``duration``)."""
+        return float(self._info["duration_s"])
+
+    @property
+    def cycle(self) -> float:
+        """Cycle time T_cyc [s] (``ring.cycle``)."""
+        return float(self._info["cycle_s"])
+
+    @property
+    def law(self) -> str:
+        """The control law's name as outputs give it (e.g. ``sync``, ``pd``)."""
+        return str(self._info["law"])
+
+    @property
+    def origin(self) -> str:
+        """Where it came from: a built-in name, a path, ``<text>``, ``<dict>``, plus the keys
+        set since (``paper-2015 with control.alpha=0.3``)."""
+        return self._origin
+
+    @property
+    def hash(self) -> str:
+        """FNV-1a 64-bit hash of its text (hex), as ``summary.json`` names it."""
+        return str(self._info["hash"])
+
+    # -- the mapping --------------------------------------------------------------------
+
+    def to_dict(self) -> dict[str, Any]:
+        """Every value in effect as nested dicts (tables) and lists (``axis``): a copy.
+
+        Example::
+
+            >>> ringsync.load("paper-2015").to_dict()["ring"]["slaves"]
+            4
+        """
+        import copy
+
+        return copy.deepcopy(self._effective())
+
+    def _effective(self) -> dict[str, Any]:
+        if self._values is None:
+            self._values = _rs.values(self._text)
+        return self._values
+
+    def __getitem__(self, key: str) -> Any:
+        node: Any = self._effective()
+        for part in key.split("."):
+            m = _INDEXED.match(part)
+            name, index = (m.group(1), int(m.group(2))) if m else (part, None)
+            if not isinstance(node, dict) or name not in node:
+                raise KeyError(key)
+            node = node[name]
+            if index is not None:
+                if not isinstance(node, list) or index >= len(node):
+                    raise KeyError(key)
+                node = node[index]
+        return node
+
+    def __iter__(self) -> Iterator[str]:
+        def walk(prefix: str, table: dict[str, Any]) -> Iterator[str]:
+            for k, v in table.items():
+                full = f"{prefix}{k}"
+                if isinstance(v, dict) and v:
+                    yield from walk(full + ".", v)
+                else:
+                    yield full
+
+        return walk("", self._effective())
+
+    def __len__(self) -> int:
+        return sum(1 for _ in self)
+
+    def __contains__(self, key: object) -> bool:
+        if not isinstance(key, str):
+            return False
+        try:
+            self[key]
+        except KeyError:
+            return False
+        return True
+
+    # -- changes ------------------------------------------------------------------------
+
+    def set(self, key: str | None = None, value: Any = _MISSING, /, **items: Any) -> Scenario:
+        """A new scenario with keys set, validated; this one is unchanged.
+
+        ``s.set("control.alpha", 0.3)`` or ``s.set(**{"control.alpha": 0.3, "duration":
+        "1s"})``. Values are numbers, strings (durations with a unit, names such as
+        ``"pd"``), bools, lists (one value per axis) or dicts (tables). A key or value the
+        scenario does not accept raises :class:`ringsync.ScenarioError` with the message
+        ``ringsync sweep --set KEY=VALUE`` prints for it.
+
+        Example::
+
+            >>> s = ringsync.load("paper-2015").set("control.kp", [3.0, 3.2, 3.4, 3.6])
+            >>> s["control.kp"]
+            [3.0, 3.2, 3.4, 3.6]
+            >>> ringsync.load("paper-2015").set("faults.loss", 2.0)
+            Traceback (most recent call last):
+              ...
+            ringsync.ScenarioError: faults.loss = 2 is out of range: allowed 0 ..= 1 (a probability)
+        """
+        pairs: list[tuple[str, Any]] = []
+        if key is not None:
+            if value is _MISSING:
+                raise TypeError("Scenario.set(key, value): the value is missing")
+            pairs.append((key, value))
+        elif value is not _MISSING:
+            raise TypeError("Scenario.set(key, value): the key is missing")
+        pairs.extend(items.items())
+        if not pairs:
+            return self
+        text, origin = _rs.with_values(self._text, self._origin, pairs)
+        return Scenario(text, origin)
+
+    def to_toml(self) -> str:
+        """The scenario as TOML text: the file it was loaded from as written (comments and
+        all), or the text made when keys were set. ``ringsync sim`` runs it identically.
+
+        Example::
+
+            >>> 'alpha = 0.3' in ringsync.load("paper-2015").set("control.alpha", 0.3).to_toml()
+            True
+        """
+        return self._text
+
+    # -- plumbing -----------------------------------------------------------------------
+
+    def __repr__(self) -> str:
+        return (
+            f"<Scenario {self.name!r} from {self._origin!r}: {self.axes} axes, "
+            f"{self.law} law, {self.duration:g} s of {self.cycle * 1e3:g} ms cycles, seed {self.seed}>"
+        )
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        return (Scenario, (self._text, self._origin))
+
+    def _repr_pretty_(self, p: Any, cycle: bool) -> None:  # IPython
+        p.text(repr(self))
+
+
+def scenarios() -> list[str]:
+    """The names of the built-in scenarios, for :func:`load`.
+
+    Example::
+
+        >>> ringsync.scenarios()
+        ['paper-2015', 'arm-2link']
+    """
+    return list(_rs.scenarios())
+
+
+def laws() -> str:
+    """The control laws (``control.law``) with their own ``[control.params]``, as
+    ``ringsync scenario laws`` prints them.
+
+    Example::
+
+        >>> "sync" in ringsync.laws()
+        True
+    """
+    return str(_rs.laws())
+
+
+def _looks_like_toml(text: str) -> bool:
+    return "\n" in text or "=" in text or text.lstrip().startswith("[")
+
+
+def load(source: ScenarioLike) -> Scenario:
+    """A scenario from a built-in name, a path, TOML text or a dict, validated.
+
+    - a name from :func:`scenarios` (``"paper-2015"``), or a path (``str`` or
+      ``pathlib.Path``) to a scenario file;
+    - TOML text (anything with ``=`` or a newline that is not an existing file): every key
+      is optional, the reference scenario fills in the rest;
+    - a dict of dotted keys (``{"control.alpha": 0.3}``) and/or nested tables
+      (``{"ring": {"slaves": 2}}``);
+    - a :class:`Scenario`, returned as it is.
+
+    Raises :class:`ringsync.ScenarioError` with the CLI's one-line message (an unknown name
+    lists the built-in ones; a bad key or value names it).
+
+    Example::
+
+        >>> a = ringsync.load("paper-2015")
+        >>> b = ringsync.load({"ring.slaves": 2, "control": {"alpha": 0.25}})
+        >>> c = ringsync.load('[ring]\\nslaves = 2\\n[control]\\nalpha = 0.25\\n')
+        >>> (a.axes, b.axes, b["control.alpha"] == c["control.alpha"])
+        (4, 2, True)
+    """
+    if isinstance(source, Scenario):
+        return source
+    if isinstance(source, Mapping):
+        return Scenario(_rs.from_dict(dict(source)), "<dict>")
+    if isinstance(source, os.PathLike):
+        text, origin = _rs.load(os.fspath(source))
+        return Scenario(text, origin)
+    if isinstance(source, str):
+        if source in _rs.scenarios() or os.path.exists(source) or not _looks_like_toml(source):
+            text, origin = _rs.load(source)
+            return Scenario(text, origin)
+        return Scenario(source, "<text>")
+    raise TypeError(
+        f"ringsync.load takes a scenario name, a path, TOML text, a dict or a Scenario, not {type(source).__name__}"
+    )

@@ -1,0 +1,176 @@
+"""Parameter sweeps: the product of a grid of scenario keys, several seeds each, run in
+parallel inside Rust (the GIL released), as ``ringsync sweep`` runs them."""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping, Sequence
+from typing import TYPE_CHECKING, Any
+
+from . import _ringsync as _rs
+from ._run import _pandas
+from ._scenario import Scenario, ScenarioLike, load
+
+if TYPE_CHECKING:
+    import pandas
+
+__all__ = ["Sweep", "sweep"]
+
+#: The columns of a sweep's rows after the grid's keys, with their units.
+ROW_COLUMNS: dict[str, str] = {
+    "seed": "",
+    "track_rmse": "rad",
+    "sync_rmse": "rad",
+    "group_stop_s": "s",
+    "group_stop_reason": "",
+    "lumped_lost": "frames",
+    "retries": "commands",
+    "commands_lost": "commands",
+    "clock_error_max_ns": "ns",
+}
+
+
+class Sweep:
+    """A finished sweep: one row per run (every combination of the grid's values, each
+    seed), and means over the seeds per combination.
+
+    Each row holds the grid's keys with the values given, then ``seed``, ``track_rmse``
+    and ``sync_rmse`` (eq. 26-27) [rad], ``group_stop_s`` [s] and ``group_stop_reason``
+    (None without a group stop; else e.g. ``"following-error"``, as summary.json names
+    it), ``lumped_lost``, ``retries``, ``commands_lost``, and ``clock_error_max_ns`` [ns].
+    Rows come in the grid's order (the first key outermost), seeds innermost; a row has the
+    same numbers as ``simulate(scenario, seed=row["seed"], **values)``.
+
+    Example::
+
+        >>> import ringsync
+        >>> sw = ringsync.sweep("paper-2015", {"faults.loss": [0.0, 0.05]}, seeds=2,
+        ...                     duration="0.5s")
+        >>> len(sw.rows), sw.keys
+        (4, ['faults.loss'])
+        >>> [(m["faults.loss"], m["runs"]) for m in sw.mean_rows]
+        [(0.0, 2), (0.05, 2)]
+    """
+
+    def __init__(
+        self,
+        scenario: Scenario,
+        grid: dict[str, list[Any]],
+        seeds: int,
+        rows: list[dict[str, Any]],
+        mean_rows: list[dict[str, Any]],
+        jobs: int,
+    ) -> None:
+        """Made by :func:`sweep`; not called directly."""
+        self.scenario: Scenario = scenario
+        """The base scenario (the grid's values set on it case by case)."""
+        self.grid: dict[str, list[Any]] = grid
+        """The swept keys and their values, as given."""
+        self.seeds: int = seeds
+        """Seeds per combination: the scenario's seed, +1, …"""
+        self.rows: list[dict[str, Any]] = rows
+        """One dict per run (see the class docstring)."""
+        self.mean_rows: list[dict[str, Any]] = mean_rows
+        """One dict per combination: the grid's keys, ``runs``, ``track_rmse``,
+        ``sync_rmse`` (means over the seeds) and ``sync_rmse_std`` (population standard
+        deviation over the seeds) [rad]."""
+        self.jobs: int = jobs
+        """Threads the runs were spread over."""
+
+    @property
+    def keys(self) -> list[str]:
+        """The swept keys, in order."""
+        return list(self.grid)
+
+    @property
+    def stopped(self) -> int:
+        """How many runs ended in a group stop."""
+        return sum(1 for r in self.rows if r["group_stop_s"] is not None)
+
+    def to_pandas(self) -> pandas.DataFrame:
+        """The rows as a DataFrame, one row per run: the grid's keys, ``seed``,
+        ``track_rmse``, ``sync_rmse``, ``group_stop_s``, ``group_stop_reason``, the
+        counters. Needs pandas.
+
+        Example::
+
+            >>> df = ringsync.sweep("paper-2015", {"control.law": ["pd", "sync"]}, seeds=1,
+            ...                     duration="0.5s").to_pandas()
+            >>> list(df.columns[:4])
+            ['control.law', 'seed', 'track_rmse', 'sync_rmse']
+        """
+        pd = _pandas("Sweep.to_pandas()")
+        return pd.DataFrame(self.rows, columns=[*self.grid, *ROW_COLUMNS])
+
+    def means(self) -> pandas.DataFrame:
+        """Means over the seeds, one row per combination of the grid's values: the keys,
+        ``runs``, ``track_rmse``, ``sync_rmse`` [rad] (means) and ``sync_rmse_std`` [rad].
+        Needs pandas (:attr:`mean_rows` has the same as dicts).
+
+        Example::
+
+            >>> m = ringsync.sweep("paper-2015", {"control.law": ["pd", "sync"]}, seeds=2,
+            ...                    duration="0.5s").means()
+            >>> m.set_index("control.law")["sync_rmse"].idxmin()
+            'sync'
+        """
+        pd = _pandas("Sweep.means()")
+        cols = [*self.grid, "runs", "track_rmse", "sync_rmse", "sync_rmse_std"]
+        return pd.DataFrame(self.mean_rows, columns=cols)
+
+    def __repr__(self) -> str:
+        return (
+            f"<Sweep of {self.scenario.name!r} over {', '.join(self.grid) or 'nothing'}: "
+            f"{len(self.rows)} runs ({len(self.mean_rows)} combinations × {self.seeds} seeds), "
+            f"{self.stopped} stopped>"
+        )
+
+
+def sweep(
+    scenario: ScenarioLike,
+    grid: Mapping[str, Sequence[Any] | Any],
+    *,
+    seeds: int = 8,
+    jobs: int | None = None,
+    **overrides: Any,
+) -> Sweep:
+    """Runs every combination of ``grid``'s values (``{"faults.loss": [0, 0.01, 0.02],
+    "control.law": ["pd", "sync"]}``), ``seeds`` seeds each (the scenario's seed, +1, …),
+    in parallel on ``jobs`` threads inside Rust (default: the CPUs), the GIL released; as
+    ``ringsync sweep SCENARIO --set KEY=V1,V2 … --seeds SEEDS``. ``overrides`` set keys
+    of the base scenario first, as for :func:`ringsync.simulate`. A single value in the
+    grid counts as a list of one.
+
+    Raises :class:`ringsync.ScenarioError` naming the case and its bad key or value.
+
+    Example::
+
+        >>> sw = ringsync.sweep("paper-2015", {"control.alpha": [0.25, 0.5]}, seeds=2,
+        ...                     duration="0.5s")
+        >>> r = sw.rows[1]
+        >>> one = ringsync.simulate("paper-2015", seed=r["seed"], duration="0.5s",
+        ...                         **{"control.alpha": r["control.alpha"]})
+        >>> one.metrics["sync_rmse"] == r["sync_rmse"]
+        True
+    """
+    if isinstance(seeds, bool) or not isinstance(seeds, int) or not 1 <= seeds <= 1_000_000:
+        raise ValueError(f"seeds must be a whole number of at least 1, not {seeds!r}")
+    s = load(scenario)
+    if overrides:
+        s = s.set(**overrides)
+    g: dict[str, list[Any]] = {}
+    for key, values in grid.items():
+        if isinstance(values, (str, bytes, Mapping)) or not isinstance(values, Iterable):
+            values = [values]
+        g[str(key)] = list(values)
+        if not g[str(key)]:
+            raise ValueError(f"the grid gives no values for {key}")
+    out = _rs.sweep(s.to_toml(), s.origin, list(g.items()), seeds, jobs)
+    keys = list(g)
+
+    def named(row: dict[str, Any]) -> dict[str, Any]:
+        idx = row.pop("values")
+        return {**{k: g[k][i] for k, i in zip(keys, idx)}, **row}
+
+    rows = [named(r) for r in out["rows"]]
+    means = [named(m) for m in out["means"]]
+    return Sweep(s, g, seeds, rows, means, int(out["jobs"]))

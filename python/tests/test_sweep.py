@@ -1,0 +1,66 @@
+"""Sweeps: rows equal single runs, means equal the rows' means, the table as pandas."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+import ringsync
+
+
+def test_rows_equal_single_simulate_calls() -> None:
+    grid = {"faults.loss": [0.0, 0.05], "control.estimator": ["hold", "paper"]}
+    sw = ringsync.sweep("paper-2015", grid, seeds=2, duration="0.5s")
+    assert len(sw.rows) == 2 * 2 * 2 and len(sw.mean_rows) == 4
+    assert [(r["faults.loss"], r["control.estimator"], r["seed"]) for r in sw.rows[:3]] == [
+        (0.0, "hold", 1), (0.0, "hold", 2), (0.0, "paper", 1)]
+    for row in sw.rows:
+        one = ringsync.simulate(
+            "paper-2015", seed=row["seed"], duration="0.5s",
+            **{"faults.loss": row["faults.loss"], "control.estimator": row["control.estimator"]},
+        )
+        m = one.metrics
+        assert (row["track_rmse"], row["sync_rmse"]) == (m["track_rmse"], m["sync_rmse"])
+        assert row["lumped_lost"] == m["lumped_lost"] and row["retries"] == m["retries"]
+        assert row["group_stop_reason"] == m["group_stop_reason"]
+    for mean in sw.mean_rows:
+        mine = [r["sync_rmse"] for r in sw.rows
+                if (r["faults.loss"], r["control.estimator"]) == (mean["faults.loss"], mean["control.estimator"])]
+        assert mean["runs"] == len(mine) == 2
+        assert math.isclose(mean["sync_rmse"], sum(mine) / 2, rel_tol=1e-15)
+
+
+def test_the_same_on_one_thread_or_many() -> None:
+    grid = {"control.alpha": [0.25, 0.5, 0.75]}
+    a = ringsync.sweep("paper-2015", grid, seeds=2, jobs=1, duration="0.3s")
+    b = ringsync.sweep("paper-2015", grid, seeds=2, jobs=3, duration="0.3s")
+    assert a.rows == b.rows and a.jobs == 1 and b.jobs == 3
+
+
+def test_stops_are_named_and_to_pandas_has_one_row_per_run() -> None:
+    pd = pytest.importorskip("pandas")
+    sw = ringsync.sweep(
+        {"duration": "0.5s", "faults.silent_from": "200ms"},
+        {"faults.silent_slave": [0, 2]}, seeds=1,
+    )
+    df = sw.to_pandas()
+    assert isinstance(df, pd.DataFrame)
+    assert list(df.columns[:4]) == ["faults.silent_slave", "seed", "track_rmse", "sync_rmse"]
+    assert "group_stop_reason" in df.columns and len(df) == 2
+    assert pd.isna(df["group_stop_reason"].iloc[0]) and not pd.isna(df["group_stop_reason"].iloc[1])
+    assert sw.rows[0]["group_stop_reason"] is None
+    assert sw.stopped == 1
+    means = sw.means()
+    assert list(means["faults.silent_slave"]) == [0, 2] and list(means["runs"]) == [1, 1]
+
+
+def test_bad_grids_are_errors() -> None:
+    with pytest.raises(ringsync.ScenarioError, match="faults.lost"):
+        ringsync.sweep("paper-2015", {"faults.lost": [0.1]}, seeds=1)
+    with pytest.raises(ringsync.ScenarioError, match="faults.loss = 2"):
+        ringsync.sweep("paper-2015", {"faults.loss": [0.0, 2.0]}, seeds=1)
+    with pytest.raises(ValueError, match="seeds"):
+        ringsync.sweep("paper-2015", {"faults.loss": [0.0]}, seeds=0)
+    with pytest.raises(ValueError, match="no values"):
+        ringsync.sweep("paper-2015", {"faults.loss": []}, seeds=1)
