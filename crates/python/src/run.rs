@@ -147,7 +147,14 @@ impl SimRun {
     fn save(&self, py: Python<'_>, dir: PathBuf) -> PyResult<()> {
         guard(py, || {
             let mut out = OutDir::create("save: directory", &dir)?;
-            ringsync::write_sim(&mut out, &self.scenario, self.hash, &self.result, None)?;
+            ringsync::write_sim(
+                &mut out,
+                &self.scenario,
+                self.hash,
+                &self.result,
+                None,
+                ringsync::Outputs::ALL,
+            )?;
             out.commit()
         })
     }
