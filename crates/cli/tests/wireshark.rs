@@ -463,6 +463,31 @@ fn an_rt_capture_decodes_frame_by_frame() {
     let _ = std::fs::remove_dir_all(&d);
 }
 
+/// Writes `frames` as a pcapng of Ethernet frames (one per ms) to `d/<name>.pcapng`; returns
+/// its path and each frame's Ethernet payload as the file holds it (padded to 46 bytes).
+fn ethernet_capture(
+    d: &Path,
+    name: &str,
+    frames: &[(&'static str, Vec<u8>)],
+) -> (PathBuf, Vec<Vec<u8>>) {
+    let captured: Vec<Captured> = frames
+        .iter()
+        .enumerate()
+        .map(|(i, (_, b))| Captured {
+            t: i as i64 * 1000,
+            node: 0,
+            bytes: b.clone(),
+        })
+        .collect();
+    let cap = d.join(format!("{name}.pcapng"));
+    std::fs::write(&cap, pcap::pcapng(&captured, 4)).expect("write");
+    let payloads = packets(&std::fs::read(&cap).expect("read"))
+        .into_iter()
+        .map(|(_, b)| b[14..].to_vec())
+        .collect();
+    (cap, payloads)
+}
+
 /// Frames with known contents, valid, then broken in each way a receiver rejects.
 fn known_frames() -> Vec<(&'static str, Vec<u8>)> {
     let common = |cycle, seq| Common {
@@ -647,21 +672,7 @@ fn check_known(
 fn known_frames_on_ethernet_claimed_checked_or_decoded_as() {
     let d = dir("eth");
     let frames = known_frames();
-    let captured: Vec<Captured> = frames
-        .iter()
-        .enumerate()
-        .map(|(i, (_, b))| Captured {
-            t: i as i64 * 1000,
-            node: 0,
-            bytes: b.clone(),
-        })
-        .collect();
-    let cap = d.join("known.pcapng");
-    std::fs::write(&cap, pcap::pcapng(&captured, 4)).expect("write");
-    let payloads: Vec<Vec<u8>> = packets(&std::fs::read(&cap).expect("read"))
-        .into_iter()
-        .map(|(_, b)| b[14..].to_vec())
-        .collect();
+    let (cap, payloads) = ethernet_capture(&d, "known", &frames);
 
     // EtherType 0x88B5 as it comes: only what checks as a ringsync PDU is claimed.
     check_known(&cap, &[], &frames, &payloads, &|b| claimed(b, false));
@@ -857,21 +868,7 @@ fn mutated_frames_never_break_the_dissector() {
         }
         frames.push(("mutated", b));
     }
-    let captured: Vec<Captured> = frames
-        .iter()
-        .enumerate()
-        .map(|(i, (_, b))| Captured {
-            t: i as i64 * 1000,
-            node: 0,
-            bytes: b.clone(),
-        })
-        .collect();
-    let cap = d.join("mutated.pcapng");
-    std::fs::write(&cap, pcap::pcapng(&captured, 4)).expect("write");
-    let payloads: Vec<Vec<u8>> = packets(&std::fs::read(&cap).expect("read"))
-        .into_iter()
-        .map(|(_, b)| b[14..].to_vec())
-        .collect();
+    let (cap, payloads) = ethernet_capture(&d, "mutated", &frames);
     // (An Ethernet payload the writer padded from nothing is still 46 bytes: never empty.)
     check_known(
         &cap,
