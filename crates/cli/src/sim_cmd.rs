@@ -21,6 +21,10 @@ pub struct SimArgs {
     /// Seed for every random draw, instead of the scenario's.
     #[arg(long)]
     seed: Option<u64>,
+    /// Set a scenario key, e.g. `control.law=pd` or `faults.loss=0.01` (repeatable;
+    /// the dotted keys of `sweep --set`, one value each).
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    set: Vec<String>,
     /// Also write every frame the nodes send, with its simulated send time, as pcapng.
     #[arg(long, value_name = "FILE")]
     pcap: Option<PathBuf>,
@@ -45,12 +49,13 @@ pub(crate) fn out_dir(out: &Path, scenario: &Loaded) -> Result<OutDir, CliError>
 
 /// Runs `ringsync sim`: exit status 3 when the run ends in a group stop.
 pub(crate) fn sim(args: &SimArgs) -> Result<Outcome, CliError> {
-    let loaded = ringsync::load(&args.scenario)?;
+    let file = ringsync::load(&args.scenario)?;
+    let loaded = ringsync::with_values(&file, &key_values(&args.set)?)?;
+    let mut dir = out_dir(&args.out, &file)?;
     let mut s = loaded.scenario.clone();
     if let Some(seed) = args.seed {
         s.seed = seed;
     }
-    let mut dir = out_dir(&args.out, &loaded)?;
     let wall = WallClock::now();
     let opts = SimOptions {
         trace: args.outputs.needs_trace(),
@@ -96,6 +101,24 @@ pub(crate) fn sim(args: &SimArgs) -> Result<Outcome, CliError> {
     Ok(Outcome::flagged_if(r.group_stop.is_some()))
 }
 
+/// `KEY=VALUE` options as (key, value) pairs; the value is one TOML value (a bare word is a
+/// string).
+pub(crate) fn key_values(items: &[String]) -> Result<Vec<(String, String)>, CliError> {
+    items
+        .iter()
+        .map(|kv| {
+            kv.split_once('=')
+                .map(|(k, v)| (k.trim().to_string(), v.trim().to_string()))
+                .filter(|(k, v)| !k.is_empty() && !v.is_empty())
+                .ok_or_else(|| {
+                    CliError::Usage(format!(
+                        "--set '{kv}': expected KEY=VALUE, e.g. --set control.law=pd"
+                    ))
+                })
+        })
+        .collect()
+}
+
 /// Options of `ringsync reproduce`.
 #[derive(Args, Debug)]
 pub struct ReproduceArgs {
@@ -106,6 +129,14 @@ pub struct ReproduceArgs {
     /// Scenario to reproduce (default: the built-in paper-2015).
     #[arg(long, default_value = "paper-2015")]
     scenario: String,
+    /// Seeds per case (the scenario's seed, +1, …): the tables give mean ± standard
+    /// deviation and range over them.
+    #[arg(long, default_value_t = ringsync::reproduce::DEFAULT_SEEDS,
+          value_parser = clap::value_parser!(u32).range(1..=i64::from(ringsync::reproduce::MAX_SEEDS)))]
+    seeds: u32,
+    /// Parallel simulations (default: the number of CPUs).
+    #[arg(long)]
+    jobs: Option<usize>,
 }
 
 /// Runs `ringsync reproduce`: exit status 3 when any case ends in a group stop.
@@ -114,16 +145,32 @@ pub(crate) fn reproduce(args: &ReproduceArgs) -> Result<Outcome, CliError> {
     let base = &loaded.scenario;
     let dir = out_dir(&args.out, &loaded)?;
     let wall = WallClock::now();
-    let r = ringsync::reproduce(base)?;
+    let tty = std::io::stderr().is_terminal();
+    let progress = |done: usize, total: usize| {
+        if tty {
+            eprint!("\r  run {done}/{total}");
+        }
+    };
+    let opts = ringsync::ReproOptions {
+        seeds: args.seeds,
+        jobs: args.jobs.unwrap_or_else(ringsync::sweep::default_jobs),
+        progress: &progress,
+    };
+    let r = ringsync::reproduce_with(base, &opts)?;
+    if tty {
+        eprintln!();
+    }
     ringsync::write_reproduction(&dir, &r)?;
     dir.commit()?;
     let stopped = r.stopped();
     out(&format!(
-        "Scenario {} ({} axes, {} s, estimator {}), Table 1 [rad]:\n\n{}\nAssumptions of the scenario: scenarios/{}.toml; of the simulator: summary.json of `ringsync sim`.\nWrote {}/summary.json, table.md, report.html and the figures (fig*.svg) in {:.1} ms.\n",
+        "Scenario {} ({} axes, {} s, estimator {}), Table 1 [rad] over {} seed{} per case:\n\n{}\nAssumptions of the scenario: scenarios/{}.toml; of the simulator: summary.json of `ringsync sim`.\nWrote {}/summary.json, table.md, report.html and the figures (fig*.svg) in {:.1} ms.\n",
         base.name,
         base.axes_count(),
         base.duration.secs(),
         base.control.estimator.name(),
+        args.seeds,
+        if args.seeds == 1 { "" } else { "s" },
         r.table(),
         base.name,
         args.out.display(),

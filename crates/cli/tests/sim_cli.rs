@@ -79,13 +79,13 @@ fn sim_outputs_are_byte_identical_for_one_seed() {
 }
 
 #[test]
-fn reproduce_writes_the_table_and_rows() {
+fn reproduce_writes_the_table_and_rows_over_seeds() {
     let d = dir("repro");
     let o = ringsync(&["reproduce", "--out", d.to_str().expect("p")]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let text = String::from_utf8(o.stdout).expect("utf-8");
     assert!(
-        text.contains("0.23267") && text.contains("49.270 %"),
+        text.contains("0.23267") && text.contains("49.270 %") && text.contains("over 8 seeds"),
         "{text}"
     );
     let rows: serde_json::Value =
@@ -95,14 +95,9 @@ fn reproduce_writes_the_table_and_rows() {
     let get = |ctl: &str| {
         rows.iter()
             .find(|r| r["controller"] == ctl && r["plan"] == "p2p-lumped")
-            .map(|r| {
-                (
-                    r["track_rmse"].as_f64().expect("t"),
-                    r["sync_rmse"].as_f64().expect("s"),
-                )
-            })
             .expect("row")
     };
+    let f = |r: &serde_json::Value, k: &str| r[k].as_f64().expect(k);
     let (pd, sync) = (get("pd"), get("sync"));
     get("ring-coupled");
     assert_eq!(rows.len(), 6, "three controllers on both plans");
@@ -110,13 +105,143 @@ fn reproduce_writes_the_table_and_rows() {
         rows.iter()
             .any(|r| r["plan"] == "lumped-only" && r["controller"] == "sync")
     );
-    // The acceptance of the paper's result: the sync controller lowers both errors.
-    assert!(sync.0 < pd.0 && sync.1 < pd.1, "pd {pd:?} sync {sync:?}");
+    for r in rows {
+        // The default: 8 seeds per case, the means and spreads from every seed's value.
+        assert_eq!(r["seeds"], 8, "{r}");
+        let per: Vec<f64> = r["sync_rmse_per_seed"]
+            .as_array()
+            .expect("per seed")
+            .iter()
+            .map(|v| v.as_f64().expect("f64"))
+            .collect();
+        assert_eq!(per.len(), 8);
+        let mean = per.iter().sum::<f64>() / 8.0;
+        assert!((f(r, "sync_rmse") - mean).abs() <= 1e-15 * mean, "{r}");
+        assert!(
+            f(r, "sync_rmse_sd") > 0.0 && f(r, "track_rmse_sd") > 0.0,
+            "{r}"
+        );
+        assert!(f(r, "sync_rmse_min") <= mean && mean <= f(r, "sync_rmse_max"));
+    }
+    // The acceptance of the paper's result: the sync controller lowers both errors, in
+    // the mean and in every seed.
+    assert!(f(sync, "track_rmse") < f(pd, "track_rmse"));
     assert!(
-        std::fs::read_to_string(d.join("table.md"))
-            .expect("table")
-            .contains("| reduction |")
+        f(sync, "sync_rmse_max") < f(pd, "sync_rmse_min"),
+        "pd {pd} sync {sync}"
     );
+    let table = std::fs::read_to_string(d.join("table.md")).expect("table");
+    assert!(
+        table.contains("| Sync-RMSE, proposed (P2P + lumped) | 49.270 % |")
+            && table.contains("Verdict:")
+            && table.contains("the sync controller lowers it in every seed"),
+        "{table}"
+    );
+    let html = std::fs::read_to_string(d.join("report.html")).expect("html");
+    assert!(html.contains("<li>Sync-RMSE, proposed") && html.contains("seeds 1–8"));
+}
+
+/// Each seed's runs are the same whichever thread ran them: the reproduction's files do
+/// not depend on `--jobs`; fewer seeds, fewer values; 0 seeds is bad input.
+#[test]
+fn reproduce_is_the_same_on_one_thread_or_two() {
+    let d = dir("repro-jobs");
+    let (a, b) = (d.join("a"), d.join("b"));
+    for (out, jobs) in [(&a, "1"), (&b, "2")] {
+        let o = ringsync(&[
+            "reproduce",
+            "--seeds",
+            "3",
+            "--jobs",
+            jobs,
+            "--out",
+            out.to_str().expect("p"),
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    for f in ["summary.json", "table.md", "report.html"] {
+        assert_eq!(
+            std::fs::read(a.join(f)).expect("a"),
+            std::fs::read(b.join(f)).expect("b"),
+            "{f}"
+        );
+    }
+    let rows: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(a.join("summary.json")).expect("read"))
+            .expect("json");
+    assert_eq!(rows[0]["seed_values"], serde_json::json!([1, 2, 3]));
+    let o = ringsync(&["reproduce", "--seeds", "0", "--out", a.to_str().expect("p")]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("--seeds"), "{err}");
+    let _ = std::fs::remove_dir_all(&d);
+}
+
+/// `sim --set KEY=VALUE` runs the scenario with the keys set, as a sweep's case would;
+/// a bad key, value or form is one line and exit 2, and nothing is written.
+#[test]
+fn sim_set_changes_keys_like_a_sweep_case() {
+    let d = dir("sim-set");
+    let out = d.join("pd");
+    let o = ringsync(&[
+        "sim",
+        "paper-2015",
+        "--set",
+        "control.law=pd",
+        "--set",
+        "duration=\"0.3s\"",
+        "--outputs",
+        "summary",
+        "--out",
+        out.to_str().expect("p"),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("summary.json")).expect("read"))
+            .expect("json");
+    assert_eq!(v["controller"], "pd", "{v}");
+    assert_eq!(v["cycles"], 300, "{v}");
+    // The same case through `sweep --set` gives the same Track-RMSE.
+    let sw = d.join("sweep");
+    let o = ringsync(&[
+        "sweep",
+        "paper-2015",
+        "--set",
+        "control.law=pd",
+        "--set",
+        "duration=\"0.3s\"",
+        "--out",
+        sw.to_str().expect("p"),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let csv = std::fs::read_to_string(sw.join("sweep.csv")).expect("csv");
+    let track = v["track_rmse"].as_f64().expect("track");
+    assert!(
+        csv.contains(&format!(",{track:.9},")),
+        "{track} not in {csv}"
+    );
+    for (set, says) in [
+        ("control.law=nonesuch", "control.law"),
+        ("control.alpha=-1", "control.alpha"),
+        ("control.alpha", "KEY=VALUE"),
+        ("no such key=1", "scenario key"),
+    ] {
+        let bad = d.join("bad");
+        let o = ringsync(&[
+            "sim",
+            "paper-2015",
+            "--set",
+            set,
+            "--out",
+            bad.to_str().expect("p"),
+        ]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{set}: {err}");
+        assert_eq!(err.lines().count(), 1, "{set}: {err}");
+        assert!(err.contains(says), "{set}: {err}");
+        assert!(!bad.exists(), "{set}: wrote {}", bad.display());
+    }
+    let _ = std::fs::remove_dir_all(&d);
 }
 
 #[test]

@@ -6,6 +6,7 @@ pub mod fixed;
 pub mod pcap;
 pub mod plan;
 pub mod plot;
+pub mod repro;
 pub mod sim;
 mod svg;
 pub mod timing;

@@ -9,12 +9,12 @@
 //!
 //! | step | function | what comes back |
 //! |---|---|---|
-//! | load a scenario (name, path or text) | [`load`], [`parse`] | [`Loaded`] |
+//! | load a scenario (name, path or text), set keys | [`load`], [`parse`], [`with_values`] | [`Loaded`] |
 //! | plan the cycle (eq. 1-2) | [`plan`], [`plan_of`] | [`CyclePlan`] |
 //! | check the loop's stability | [`check`] | [`CheckReport`] |
 //! | simulate (deterministic) | [`simulate`], [`simulate_with`] (observers, progress) | [`RunResult`] |
 //! | sweep keys over seeds | [`sweep::cases`], [`run_case`], [`sweep::run_cases`], [`sweep::aggregate`] | [`sweep::Case`], [`sweep::CaseResult`], [`sweep::Mean`] |
-//! | reproduce the paper's Table 1 | [`reproduce`] | [`Reproduction`] |
+//! | reproduce the paper's Table 1 over seeds | [`reproduce`], [`reproduce_with`] | [`Reproduction`] |
 //! | run in real time | [`run_rt`] (stop flag, observers), [`predict`] | [`RtResult`], [`SimPrediction`] |
 //! | write results atomically | [`OutDir`], [`write_sim`], [`sweep::write_sweep`], [`write_reproduction`], [`rt::write_rt`] | files |
 //!
@@ -39,17 +39,17 @@ mod error;
 mod load;
 pub mod output;
 mod plan;
-mod reproduce;
+pub mod reproduce;
 pub mod rt;
 mod simulate;
 pub mod sweep;
 
 pub use check::{CheckReport, Verdict, check};
 pub use error::{Error, Result};
-pub use load::{Loaded, load, parse};
+pub use load::{Loaded, load, parse, with_values};
 pub use output::OutDir;
 pub use plan::{plan, plan_of};
-pub use reproduce::{Reproduction, reproduce, write_reproduction};
+pub use reproduce::{ReproOptions, Reproduction, reproduce, reproduce_with, write_reproduction};
 pub use rt::{SimPrediction, predict, run_rt};
 pub use simulate::{Outputs, SimOptions, sim_text, simulate, simulate_with, write_sim};
 pub use sweep::run_case;

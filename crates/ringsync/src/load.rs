@@ -61,3 +61,44 @@ pub fn parse(text: &str, origin: &str) -> Result<Loaded> {
         text: text.to_string(),
     })
 }
+
+/// `base` with each `(dotted key, value)` set and validated again, as `ringsync sweep --set`
+/// makes a case (the same keys, values and errors; a value is one TOML value, a bare word a
+/// string). The origin names the values, e.g. `paper-2015 with control.law=pd`; the hash is
+/// the new text's. No values: `base` as it is.
+///
+/// ```
+/// let base = ringsync::load("paper-2015")?;
+/// let pd = ringsync::with_values(&base, &[("control.law".into(), "pd".into())])?;
+/// assert_eq!(pd.scenario.control.law, "pd");
+/// assert_eq!(pd.origin, "paper-2015 with control.law=pd");
+/// let e = ringsync::with_values(&base, &[("control.alpha".into(), "-1".into())]).unwrap_err();
+/// assert!(e.is_usage() && e.to_string().contains("control.alpha"), "{e}");
+/// # Ok::<(), ringsync::Error>(())
+/// ```
+pub fn with_values(base: &Loaded, items: &[(String, String)]) -> Result<Loaded> {
+    if items.is_empty() {
+        return Ok(base.clone());
+    }
+    let axes = items
+        .iter()
+        .map(|(k, v)| {
+            let mut a: crate::sweep::SweepAxis = format!("{k}=0").parse()?;
+            a.values = vec![v.clone()];
+            Ok(a)
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let case = crate::sweep::cases(base, &axes, 1, false)?
+        .into_iter()
+        .next()
+        .ok_or_else(|| crate::Error::Failed("no case was made".into()))?;
+    let labels: Vec<String> = case
+        .labels
+        .iter()
+        .map(|(k, v)| format!("{k}={v}"))
+        .collect();
+    parse(
+        &case.scenario,
+        &format!("{} with {}", base.origin, labels.join(" ")),
+    )
+}

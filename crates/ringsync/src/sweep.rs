@@ -288,23 +288,34 @@ pub fn run_cases(
     jobs: usize,
     progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Vec<Result<CaseResult>> {
+    par_map(cases, jobs, run_case, progress)
+}
+
+/// `f` on every item, on `jobs` threads taking the next item as they finish one; results in
+/// item order. `progress(done, total)` is called after each item. A thread that panics
+/// leaves its item's result as an error.
+pub(crate) fn par_map<T: Sync, R: Send>(
+    items: &[T],
+    jobs: usize,
+    f: impl Fn(&T) -> Result<R> + Sync,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Vec<Result<R>> {
     let next = AtomicUsize::new(0);
     let done = AtomicUsize::new(0);
-    let slots: Vec<Mutex<Option<Result<CaseResult>>>> =
-        cases.iter().map(|_| Mutex::new(None)).collect();
+    let slots: Vec<Mutex<Option<Result<R>>>> = items.iter().map(|_| Mutex::new(None)).collect();
     std::thread::scope(|scope| {
-        for _ in 0..jobs.max(1).min(cases.len().max(1)) {
+        for _ in 0..jobs.max(1).min(items.len().max(1)) {
             scope.spawn(|| {
                 loop {
                     let i = next.fetch_add(1, Ordering::Relaxed);
-                    if i >= cases.len() {
+                    if i >= items.len() {
                         break;
                     }
-                    let r = run_case(&cases[i]);
+                    let r = f(&items[i]);
                     if let Ok(mut slot) = slots[i].lock() {
                         *slot = Some(r);
                     }
-                    progress(done.fetch_add(1, Ordering::Relaxed) + 1, cases.len());
+                    progress(done.fetch_add(1, Ordering::Relaxed) + 1, items.len());
                 }
             });
         }

@@ -60,7 +60,11 @@ fn a_case_setting_a_parameter_its_law_lacks_is_named() {
 #[test]
 fn reproduce_runs_from_a_base_with_law_parameters() {
     let s = short("[control]\nlaw = \"adjacent\"\n[control.params]\nkx = 6.0\n").scenario;
-    let r = ringsync::reproduce(&s).expect("reproduce");
+    let opts = ringsync::ReproOptions {
+        seeds: 1,
+        ..Default::default()
+    };
+    let r = ringsync::reproduce_with(&s, &opts).expect("reproduce");
     assert_eq!(r.rows.len(), 6);
 }
 
