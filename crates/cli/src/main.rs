@@ -102,6 +102,9 @@ enum Command {
     /// What this host gives a real-time loop, without the ring (cyclictest-like): cycle-start
     /// lateness and stalls, with the same loop and settings as `rt`.
     Latency(latency_cmd::LatencyArgs),
+    /// Identify a run's axes (H = J/K_a, C = b/K_a, F = T_c/K_a by least squares) and write
+    /// its scenario with them as feed-forward.
+    Identify(sim_cmd::IdentifyArgs),
     /// Sweep scenario keys (their product, several seeds each) in parallel: CSV and a figure.
     Sweep(sim_cmd::SweepArgs),
 }
@@ -156,6 +159,7 @@ fn main() -> ExitCode {
         Command::Sim(args) => sim_cmd::sim(&args),
         Command::Reproduce(args) => sim_cmd::reproduce(&args),
         Command::Sweep(args) => sim_cmd::sweep(&args),
+        Command::Identify(args) => sim_cmd::identify(&args),
         Command::Rt(args) => rt_cmd::rt(&args),
         Command::Latency(args) => latency_cmd::latency(&args),
     };

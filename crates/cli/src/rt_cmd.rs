@@ -187,6 +187,7 @@ pub(crate) fn rt(args: &RtArgs) -> Result<Outcome, CliError> {
         Some(ringsync::predict(&r.scenario, 8)?)
     };
     ringsync::rt::write_rt(&mut dir, &r, loaded.hash, prediction, args.pcap.as_deref())?;
+    ringsync::identify::write_scenario(&dir, &loaded, None)?;
     dir.commit()?;
     out(&format!(
         "{}  wrote {}/summary.json and trace.csv\n",

@@ -23,15 +23,20 @@ pub struct SimArgs {
     seed: Option<u64>,
     /// Set a scenario key, e.g. `control.law=pd` or `faults.loss=0.01` (repeatable;
     /// the dotted keys of `sweep --set`, one value each).
-    #[arg(long = "set", value_name = "KEY=VALUE")]
-    set: Vec<String>,
+    #[arg(long = "set", value_name = "KEY=VALUE", value_parser = key_value)]
+    set: Vec<(String, String)>,
     /// Also write every frame the nodes send, with its simulated send time, as pcapng.
     #[arg(long, value_name = "FILE")]
     pcap: Option<PathBuf>,
     /// What to write, comma-separated: summary (summary.json), trace (trace.csv), figures
-    /// (*.svg), report (report.html), or all. `--outputs summary` keeps no trace.
+    /// (*.svg), report (report.html), or all. `--outputs summary` keeps no trace. The run's
+    /// scenario.toml is always written.
     #[arg(long, value_name = "LIST", default_value = "all", value_parser = outputs)]
     outputs: ringsync::Outputs,
+}
+
+fn key_value(kv: &str) -> Result<(String, String), String> {
+    ringsync::key_value(kv).map_err(|e| e.to_string())
 }
 
 fn outputs(list: &str) -> Result<ringsync::Outputs, String> {
@@ -50,7 +55,7 @@ pub(crate) fn out_dir(out: &Path, scenario: &Loaded) -> Result<OutDir, CliError>
 /// Runs `ringsync sim`: exit status 3 when the run ends in a group stop.
 pub(crate) fn sim(args: &SimArgs) -> Result<Outcome, CliError> {
     let file = ringsync::load(&args.scenario)?;
-    let loaded = ringsync::with_values(&file, &key_values(&args.set)?)?;
+    let loaded = ringsync::with_values(&file, &args.set)?;
     let mut dir = out_dir(&args.out, &file)?;
     let mut s = loaded.scenario.clone();
     if let Some(seed) = args.seed {
@@ -90,6 +95,7 @@ pub(crate) fn sim(args: &SimArgs) -> Result<Outcome, CliError> {
         args.pcap.as_deref(),
         args.outputs,
     )?;
+    ringsync::identify::write_scenario(&dir, &loaded, args.seed)?;
     dir.commit()?;
     out(&format!(
         "{}  wrote {}: {} in {:.1} ms\n",
@@ -99,24 +105,6 @@ pub(crate) fn sim(args: &SimArgs) -> Result<Outcome, CliError> {
         elapsed.as_secs_f64() * 1e3
     ))?;
     Ok(Outcome::flagged_if(r.group_stop.is_some()))
-}
-
-/// `KEY=VALUE` options as (key, value) pairs; the value is one TOML value (a bare word is a
-/// string).
-pub(crate) fn key_values(items: &[String]) -> Result<Vec<(String, String)>, CliError> {
-    items
-        .iter()
-        .map(|kv| {
-            kv.split_once('=')
-                .map(|(k, v)| (k.trim().to_string(), v.trim().to_string()))
-                .filter(|(k, v)| !k.is_empty() && !v.is_empty())
-                .ok_or_else(|| {
-                    CliError::Usage(format!(
-                        "--set '{kv}': expected KEY=VALUE, e.g. --set control.law=pd"
-                    ))
-                })
-        })
-        .collect()
 }
 
 /// Options of `ringsync reproduce`.
@@ -239,4 +227,27 @@ pub(crate) fn sweep(args: &SweepArgs) -> Result<Outcome, CliError> {
         }
     ))?;
     Ok(Outcome::flagged_if(stopped > 0))
+}
+
+/// Options of `ringsync identify`.
+#[derive(Args, Debug)]
+pub struct IdentifyArgs {
+    /// A run directory written by `ringsync sim` or `ringsync rt` (scenario.toml,
+    /// summary.json, trace.csv).
+    run: PathBuf,
+    /// Where to write the run's scenario with the identified feed-forward (control.kh, kc,
+    /// kf); written beside and renamed into place.
+    #[arg(long, value_name = "FILE.toml")]
+    out: PathBuf,
+}
+
+/// Runs `ringsync identify`: the table of estimates, and the scenario with them.
+pub(crate) fn identify(args: &IdentifyArgs) -> Result<Outcome, CliError> {
+    let id = ringsync::identify::identify_run(&args.run)?;
+    ringsync::output::write_file(&args.out, ringsync::identify::identified_toml(&id)?)?;
+    out(&format!(
+        "{}\nWrote {}: the run's scenario with K_H = H, K_C = C, K_F = F per axis.\n",
+        id.text(),
+        args.out.display()
+    ))
 }

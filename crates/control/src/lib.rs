@@ -7,6 +7,8 @@
 //!   the error history (eq. 11-13);
 //! - [`law`]: the law registry; standard PD, the sync controller (eq. 9, 14), the ring-coupled
 //!   baseline, adjacent cross-coupling;
+//! - [`identify`]: H = J/K_a, C = b/K_a and F = T_c/K_a of a torque axis from a run (least
+//!   squares on the integrated axis model), the feed-forward that cancels it;
 //! - [`metrics`]: Track-RMSE and Sync-RMSE (eq. 26-27) and per-axis figures;
 //! - [`stability`]: the paper's conditions along a trajectory and a discrete-time check.
 //!
@@ -16,6 +18,7 @@
 pub mod coupling;
 mod error;
 pub mod estimator;
+pub mod identify;
 pub mod law;
 pub mod metrics;
 pub mod stability;

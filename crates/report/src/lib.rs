@@ -3,6 +3,7 @@
 
 pub mod check;
 pub mod fixed;
+pub mod identify;
 pub mod pcap;
 pub mod plan;
 pub mod plot;

@@ -14,6 +14,7 @@
 //! | check the loop's stability | [`check`] | [`CheckReport`] |
 //! | simulate (deterministic) | [`simulate`], [`simulate_with`] (observers, progress) | [`RunResult`] |
 //! | sweep keys over seeds | [`sweep::cases`], [`run_case`], [`sweep::run_cases`], [`sweep::aggregate`] | [`sweep::Case`], [`sweep::CaseResult`], [`sweep::Mean`] |
+//! | identify the axes of a run (H, C, F) | [`identify::identify_run`], [`identify::identified_toml`] | [`identify::Identification`] |
 //! | reproduce the paper's Table 1 over seeds | [`reproduce`], [`reproduce_with`] | [`Reproduction`] |
 //! | run in real time | [`run_rt`] (stop flag, observers), [`predict`] | [`RtResult`], [`SimPrediction`] |
 //! | write results atomically | [`OutDir`], [`write_sim`], [`sweep::write_sweep`], [`write_reproduction`], [`rt::write_rt`] | files |
@@ -36,6 +37,7 @@
 
 mod check;
 mod error;
+pub mod identify;
 mod load;
 pub mod output;
 mod plan;
@@ -46,7 +48,7 @@ pub mod sweep;
 
 pub use check::{CheckReport, Verdict, check};
 pub use error::{Error, Result};
-pub use load::{Loaded, load, parse, with_values};
+pub use load::{Loaded, key_value, load, parse, with_values};
 pub use output::OutDir;
 pub use plan::{plan, plan_of};
 pub use reproduce::{ReproOptions, Reproduction, reproduce, reproduce_with, write_reproduction};

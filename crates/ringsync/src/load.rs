@@ -102,3 +102,22 @@ pub fn with_values(base: &Loaded, items: &[(String, String)]) -> Result<Loaded> 
         &format!("{} with {}", base.origin, labels.join(" ")),
     )
 }
+
+/// Parses `KEY=VALUE` (a `--set` option of `ringsync sim`) into (key, value); the value is
+/// one TOML value, a bare word a string.
+///
+/// ```
+/// assert_eq!(ringsync::key_value("control.law=pd")?, ("control.law".into(), "pd".into()));
+/// assert!(ringsync::key_value("control.law").is_err());
+/// # Ok::<(), ringsync::Error>(())
+/// ```
+pub fn key_value(kv: &str) -> Result<(String, String)> {
+    kv.split_once('=')
+        .map(|(k, v)| (k.trim().to_string(), v.trim().to_string()))
+        .filter(|(k, v)| !k.is_empty() && !v.is_empty())
+        .ok_or_else(|| {
+            crate::Error::Input(format!(
+                "'{kv}': expected KEY=VALUE, e.g. --set control.law=pd"
+            ))
+        })
+}

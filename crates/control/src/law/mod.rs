@@ -29,6 +29,10 @@ use crate::error::{ControlError, check, check_len};
 use crate::estimator::{ErrorHistory, Estimator};
 use crate::trajectory::State;
 
+/// v_F of the Coulomb feed-forward by default [rad/s]: about 1 % of the reference
+/// trajectory's peak speed.
+pub const DEFAULT_KF_VELOCITY: f64 = 0.1;
+
 /// Per-axis gains (diagonal matrices as vectors) and drive limits. Gains are in volts:
 /// K_P [V/rad], K_D and K_E [V·s/rad], K_C [V·s/rad], K_H [V·s²/rad].
 #[derive(Debug, Clone, PartialEq)]
@@ -43,6 +47,11 @@ pub struct Gains {
     pub kh: Vec<f64>,
     /// Velocity feed-forward K_C [V·s/rad].
     pub kc: Vec<f64>,
+    /// Coulomb friction feed-forward K_F [V], ≥ 0: K_F·sat(ẋ^d / v_F) is added, so the
+    /// term follows the desired velocity's sign without chattering at standstill.
+    pub kf: Vec<f64>,
+    /// v_F of the Coulomb feed-forward's sat(ẋ^d / v_F) [rad/s], > 0.
+    pub kf_velocity: f64,
     /// Drive range ±u_max [V], > 0.
     pub u_max: Vec<f64>,
 }
@@ -56,6 +65,8 @@ impl Gains {
             ke: vec![ke; n],
             kh: vec![0.0; n],
             kc: vec![0.0; n],
+            kf: vec![0.0; n],
+            kf_velocity: DEFAULT_KF_VELOCITY,
             u_max: vec![10.0; n],
         }
     }
@@ -73,6 +84,7 @@ impl Gains {
             ("ke", &self.ke),
             ("kh", &self.kh),
             ("kc", &self.kc),
+            ("kf", &self.kf),
             ("u_max", &self.u_max),
         ] {
             check_len(what, n, v.len())?;
@@ -95,15 +107,34 @@ impl Gains {
                 false,
                 "a finite gain in V·s/rad",
             )?;
+            check(&format!("kf[{i}]"), self.kf[i], 0.0, false, ">= 0 V")?;
             check(&format!("u_max[{i}]"), self.u_max[i], 0.0, true, "> 0 V")?;
         }
+        check("kf_velocity", self.kf_velocity, 0.0, true, "> 0 rad/s")?;
         Ok(())
     }
 
-    /// Feed-forward K_H·ẍ^d + K_C·ẋ^d of axis `i` [V].
+    /// Whether any feed-forward gain (K_H, K_C, K_F) is not zero.
+    pub fn has_feed_forward(&self) -> bool {
+        self.kh
+            .iter()
+            .chain(&self.kc)
+            .chain(&self.kf)
+            .any(|g| *g != 0.0)
+    }
+
+    /// Feed-forward K_H·ẍ^d + K_C·ẋ^d (eq. 9) + K_F·sat(ẋ^d/v_F) of axis `i` [V]. The
+    /// Coulomb term is not in the paper: it cancels the axes' Coulomb friction from the
+    /// desired velocity (a function of the trajectory alone, so it leaves the loop's
+    /// stability unchanged).
     #[inline]
     pub(crate) fn feed_forward(&self, i: usize, d: &State) -> f64 {
-        self.kh[i] * d.a + self.kc[i] * d.v
+        let coulomb = if self.kf[i] == 0.0 {
+            0.0
+        } else {
+            self.kf[i] * (d.v / self.kf_velocity).clamp(-1.0, 1.0)
+        };
+        self.kh[i] * d.a + self.kc[i] * d.v + coulomb
     }
 }
 

@@ -24,7 +24,7 @@ pub struct Pd {
 }
 
 impl Pd {
-    /// A checked PD law; with `feed_forward` the K_H and K_C terms are added.
+    /// A checked PD law; with `feed_forward` the K_H, K_C and K_F terms are added.
     pub fn new(gains: Gains, feed_forward: bool) -> Result<Self, ControlError> {
         gains.validate()?;
         Ok(Pd {

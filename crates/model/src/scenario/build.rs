@@ -48,6 +48,8 @@ impl Scenario {
             ke: c.ke.expand(n),
             kh: c.kh.expand(n),
             kc: c.kc.expand(n),
+            kf: c.kf.expand(n),
+            kf_velocity: c.kf_velocity,
             // NaN without [[axis]] tables: Gains::validate rejects it.
             u_max: (0..n)
                 .map(|i| self.axis_spec(i).map_or(f64::NAN, |a| a.u_max))
@@ -61,14 +63,14 @@ impl Scenario {
         self.axis.get(i % self.axis.len().max(1))
     }
 
-    /// Whether standard PD adds the feed-forward K_H·ẍ^d + K_C·ẋ^d: when any K_H or K_C is
-    /// not zero.
+    /// Whether standard PD adds the feed-forward K_H·ẍ^d + K_C·ẋ^d + K_F·sat(ẋ^d/v_F): when
+    /// any K_H, K_C or K_F is not zero.
     pub fn pd_feed_forward(&self) -> bool {
         let g = |p: &PerAxis| match p {
             PerAxis::One(v) => *v != 0.0,
             PerAxis::Each(v) => v.iter().any(|v| *v != 0.0),
         };
-        g(&self.control.kh) || g(&self.control.kc)
+        g(&self.control.kh) || g(&self.control.kc) || g(&self.control.kf)
     }
 
     /// The controller's name in outputs: the built law's ([`ControlLaw::name`]), e.g. `pd+ff`

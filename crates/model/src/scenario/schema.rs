@@ -295,6 +295,10 @@ pub struct ControlSpec {
     pub kh: PerAxis,
     /// K_C [V·s/rad].
     pub kc: PerAxis,
+    /// K_F, Coulomb friction feed-forward [V] (not in the paper).
+    pub kf: PerAxis,
+    /// v_F of the Coulomb feed-forward's sat(ẋ^d/v_F) [rad/s].
+    pub kf_velocity: f64,
     /// α.
     pub alpha: f64,
     /// Δ_H [V·s²/rad].
@@ -336,6 +340,8 @@ impl Default for ControlSpec {
             ke: PerAxis::One(0.75),
             kh: PerAxis::One(0.0),
             kc: PerAxis::One(0.0),
+            kf: PerAxis::One(0.0),
+            kf_velocity: ringsync_control::law::DEFAULT_KF_VELOCITY,
             alpha: 0.5,
             delta_h: 0.0,
             delta_c: 0.0,

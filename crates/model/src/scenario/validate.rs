@@ -166,6 +166,7 @@ impl Scenario {
             ("control.ke", &self.control.ke),
             ("control.kh", &self.control.kh),
             ("control.kc", &self.control.kc),
+            ("control.kf", &self.control.kf),
         ] {
             if matches!(list, PerAxis::Each(v) if v.is_empty()) {
                 return Err(out_of_range(key, "[]", "a number or a non-empty list"));

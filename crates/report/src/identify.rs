@@ -1,0 +1,53 @@
+//! The text of `ringsync identify`: per axis the estimates of H = J/K_a, C = b/K_a and
+//! F = T_c/K_a with their 95 % intervals, beside the scenario's values.
+
+use std::fmt::Write as _;
+
+use ringsync_control::identify::AxisIdentification;
+
+/// One axis for [`identify_text`]: (axis, 1-based; the estimates; the scenario's (H, C, F)).
+pub type AxisRow = (usize, AxisIdentification, (f64, f64, f64));
+
+/// A table of the estimates beside the scenario's values, with each estimate's error
+/// against them; then what the fit used.
+pub fn identify_text(rows: &[AxisRow]) -> String {
+    let mut o = String::new();
+    let _ = writeln!(
+        o,
+        "| axis | H = J/K_a [V·s²/rad] | scenario | error | C = b/K_a [V·s/rad] | scenario | error | F = T_c/K_a [V] | scenario | error |"
+    );
+    let _ = writeln!(o, "|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
+    let err = |e: f64, t: f64| {
+        if t == 0.0 {
+            "–".to_string()
+        } else {
+            format!("{:+.2} %", (e / t - 1.0) * 100.0)
+        }
+    };
+    for (axis, id, (h, c, f)) in rows {
+        let _ = writeln!(
+            o,
+            "| {axis} | {:.6} ± {:.1e} | {h:.6} | {} | {:.3e} ± {:.1e} | {c:.3e} | {} | {:.4} ± {:.1e} | {f:.4} | {} |",
+            id.h.value,
+            id.h.ci95,
+            err(id.h.value, *h),
+            id.c.value,
+            id.c.ci95,
+            err(id.c.value, *c),
+            id.f.value,
+            id.f.ci95,
+            err(id.f.value, *f),
+        );
+    }
+    if let Some((_, id, _)) = rows.first() {
+        let _ = writeln!(
+            o,
+            "\n± is the 95 % interval. Fit: {} windows of ±{:.1} ms moving one way at ≥ {:.3} rad/s (axis 1), positions quantised to the encoder; residual {:.1} mV RMS (axis 1). \"scenario\" is the simulated plant's value.",
+            id.windows,
+            id.half_window * 1e3,
+            id.v_min,
+            id.residual_v * 1e3
+        );
+    }
+    o
+}

@@ -1,0 +1,279 @@
+//! Identifying a run's axes (`ringsync identify RUN_DIR --out FILE.toml`): H = J/K_a,
+//! C = b/K_a and F = T_c/K_a of every torque axis from the run's `trace.csv`, by least
+//! squares on the axis model ([`ringsync_control::identify`]), and the run's scenario with
+//! them as feed-forward gains (K_H, K_C, K_F).
+
+use std::path::Path;
+
+use ringsync_control::identify::{AxisIdentification, AxisRecord, identify_axis};
+use ringsync_plant::AxisModel;
+
+use crate::error::{Error, Result};
+use crate::load::Loaded;
+
+/// The file a run directory keeps its scenario in ([`write_scenario`]).
+pub const SCENARIO_FILE: &str = "scenario.toml";
+
+/// One axis identified, beside the scenario's own values.
+#[derive(Debug, Clone, PartialEq)]
+pub struct IdentifiedAxis {
+    /// Axis, 1-based.
+    pub axis: usize,
+    /// The estimates.
+    pub id: AxisIdentification,
+    /// The scenario's (H, C, F) of this axis (the simulated plant's) [V·s²/rad, V·s/rad, V].
+    pub scenario: (f64, f64, f64),
+}
+
+/// A run identified: every axis, and the scenario it ran.
+#[derive(Debug, Clone)]
+pub struct Identification {
+    /// The run's scenario (from its `scenario.toml`).
+    pub run: Loaded,
+    /// Every axis, in order.
+    pub axes: Vec<IdentifiedAxis>,
+}
+
+/// Writes `scenario.toml` into `dir`: the scenario file a run ran, `seed` set when the run
+/// was given another than the file's (`ringsync identify` reads it; `ringsync rt` applies
+/// its options, such as `--cycle`, on top, and its summary.json names them).
+pub fn write_scenario(dir: &crate::OutDir, run: &Loaded, seed: Option<u64>) -> Result<()> {
+    let text = match seed {
+        Some(seed) if seed != run.scenario.seed => {
+            crate::with_values(run, &[("seed".into(), seed.to_string())])?.text
+        }
+        _ => run.text.clone(),
+    };
+    dir.write(
+        SCENARIO_FILE,
+        format!("# The scenario of this run, from {}.\n{text}", run.origin),
+    )
+}
+
+fn read(dir: &Path, name: &str) -> Result<String> {
+    let p = dir.join(name);
+    std::fs::read_to_string(&p).map_err(|e| {
+        Error::Input(format!(
+            "{}: {e}; expected a run directory written by `ringsync sim` or `ringsync rt` (with {name})",
+            p.display()
+        ))
+    })
+}
+
+/// Identifies every axis of the run in `dir` (its `scenario.toml`, `trace.csv` and
+/// `summary.json`). Refused, naming the reason: a run that stopped, a plant that is not
+/// independent torque axes, an axis the run does not excite enough.
+///
+/// ```no_run
+/// let id = ringsync::identify::identify_run(std::path::Path::new("out/pd"))?;
+/// for a in &id.axes {
+///     println!("axis {}: H = {:.5} V·s²/rad", a.axis, a.id.h.value);
+/// }
+/// std::fs::write("id.toml", ringsync::identify::identified_toml(&id)?)?;
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+pub fn identify_run(dir: &Path) -> Result<Identification> {
+    let text = read(dir, SCENARIO_FILE)?;
+    let run = crate::parse(&text, &dir.join(SCENARIO_FILE).display().to_string())?;
+    let s = &run.scenario;
+    let summary: serde_json::Value = serde_json::from_str(&read(dir, "summary.json")?)
+        .map_err(|e| Error::Input(format!("{}/summary.json: {e}", dir.display())))?;
+    if let Some(t) = summary["faults"]["group_stop"]["time_s"].as_f64() {
+        return Err(Error::Input(format!(
+            "{}: the run ended in a group stop at {t} s; identify from a run that did not stop",
+            dir.display()
+        )));
+    }
+    if s.plant.arm().is_some() {
+        return Err(Error::Input(
+            "identify fits independent torque axes; this run's plant is the two-link arm"
+                .to_string(),
+        ));
+    }
+    let models = s
+        .axis_models()
+        .map_err(|(i, e)| Error::Input(format!("axis[{i}]: {e}")))?;
+    let n = models.len();
+    let trace = Trace::read(&dir.join("trace.csv"), n)?;
+    let mut axes = Vec::with_capacity(n);
+    for (i, m) in models.iter().enumerate() {
+        let AxisModel::Torque(ax) = m else {
+            return Err(Error::Input(format!(
+                "axis {}: identify fits torque-mode axes; this one is velocity-mode",
+                i + 1
+            )));
+        };
+        let spec = s
+            .axis_spec(i)
+            .ok_or_else(|| Error::Input("no [[axis]] table".into()))?;
+        let resolution = std::f64::consts::TAU / 2f64.powi(spec.encoder_bits as i32);
+        let col = &trace.axes[i];
+        let id = identify_axis(&AxisRecord {
+            t: &trace.t,
+            x: &col.x,
+            u: &col.u,
+            apply_time: &col.apply_time,
+            resolution,
+            u_max: ax.u_max,
+        })
+        .map_err(|e| Error::Input(format!("axis {}: {e}", i + 1)))?;
+        let kt = ax.torque_constant;
+        axes.push(IdentifiedAxis {
+            axis: i + 1,
+            id,
+            scenario: (
+                ax.inertia / kt,
+                ax.friction.viscous / kt,
+                ax.friction.coulomb / kt,
+            ),
+        });
+    }
+    Ok(Identification { run, axes })
+}
+
+impl Identification {
+    /// The estimates beside the scenario's values, as a Markdown table.
+    pub fn text(&self) -> String {
+        let rows: Vec<_> = self
+            .axes
+            .iter()
+            .map(|a| (a.axis, a.id, a.scenario))
+            .collect();
+        let mut t = ringsync_report::identify::identify_text(&rows);
+        if let Some((why, _)) = velocity_choice(&self.run.scenario) {
+            t.push_str(&format!("The written scenario also sets {why}\n"));
+        }
+        t
+    }
+}
+
+/// The run's scenario with the identified H, C, F as `control.kh`, `control.kc` and
+/// `control.kf` (one value per axis; a negative F, which friction cannot be, becomes 0),
+/// behind a header that gives every estimate with its interval.
+pub fn identified_toml(id: &Identification) -> Result<String> {
+    let mut table: toml::Table = toml::from_str(&id.run.text)
+        .map_err(|e| Error::Failed(format!("the run's scenario: {e}")))?;
+    let list = |f: &dyn Fn(&IdentifiedAxis) -> f64| {
+        toml::Value::Array(id.axes.iter().map(|a| toml::Value::Float(f(a))).collect())
+    };
+    let control = table
+        .entry("control")
+        .or_insert_with(|| toml::Value::Table(toml::Table::new()))
+        .as_table_mut()
+        .ok_or_else(|| Error::Failed("the run's scenario: control is not a table".into()))?;
+    control.insert("kh".into(), list(&|a| a.id.h.value));
+    control.insert("kc".into(), list(&|a| a.id.c.value));
+    control.insert("kf".into(), list(&|a| a.id.f.value.max(0.0)));
+    let velocity = velocity_choice(&id.run.scenario);
+    if let Some((_, to)) = &velocity {
+        control.insert("velocity".into(), toml::Value::String(to.to_string()));
+    }
+    let body = toml::to_string(&table)
+        .map_err(|e| Error::Failed(format!("cannot write the scenario: {e}")))?;
+    let mut head = format!(
+        "# Identified by `ringsync identify` from the run of {}: per axis H = J/K_a [V·s²/rad],\n\
+         # C = b/K_a [V·s/rad] and F = T_c/K_a [V] (least squares on H·ẍ + C·ẋ + F·sgn(ẋ) = u,\n\
+         # 95 % intervals), set as the feed-forward gains control.kh, control.kc and control.kf\n\
+         # (every law adds K_H·ẍ^d + K_C·ẋ^d + K_F·sat(ẋ^d/kf_velocity)).\n",
+        id.run.origin
+    );
+    if let Some((why, _)) = &velocity {
+        head.push_str(&format!("# {why}\n"));
+    }
+    for a in &id.axes {
+        head.push_str(&format!(
+            "#   axis {}: H = {:.6} ± {:.1e}, C = {:.3e} ± {:.1e}, F = {:.5} ± {:.1e}\n",
+            a.axis, a.id.h.value, a.id.h.ci95, a.id.c.value, a.id.c.ci95, a.id.f.value, a.id.f.ci95
+        ));
+    }
+    Ok(format!("{head}{body}"))
+}
+
+/// The velocity source a compensated scenario should use, when not the run's: with the
+/// axes cancelled by the feed-forward, what is left of the errors is mostly the encoder's
+/// quantisation through K_D, and the slave's velocity over its short window
+/// (`axis.velocity_window`) has a quantum of one count per window where the difference of
+/// successive samples has one count per cycle. (why, the source's name).
+pub fn velocity_choice(s: &ringsync_model::Scenario) -> Option<(String, &'static str)> {
+    use ringsync_model::scenario::VelocityKind;
+    let a = s.axis_spec(0)?;
+    let (window, cycle) = (a.velocity_window.secs(), s.ring.cycle.secs());
+    (s.control.velocity == VelocityKind::Reported && window < cycle).then(|| {
+        let count = std::f64::consts::TAU / 2f64.powi(a.encoder_bits as i32);
+        (
+            format!(
+                "control.velocity: \"reported\" -> \"differenced\": one encoder count is {:.4} rad/s over the slave's {:.0} µs window, {:.4} rad/s over the {:.0} µs cycle.",
+                count / window,
+                window * 1e6,
+                count / cycle,
+                cycle * 1e6
+            ),
+            "differenced",
+        )
+    })
+}
+
+/// The columns of a trace.csv that identification reads, per axis.
+#[derive(Default)]
+struct Column {
+    x: Vec<f64>,
+    u: Vec<f64>,
+    apply_time: Vec<f64>,
+}
+
+struct Trace {
+    t: Vec<f64>,
+    axes: Vec<Column>,
+}
+
+impl Trace {
+    /// Reads `trace.csv` of a run of `n` axes: one row per cycle and axis, axes in order.
+    fn read(path: &Path, n: usize) -> Result<Trace> {
+        let bad = |what: String| Error::Input(format!("{}: {what}", path.display()));
+        let mut rd = csv::Reader::from_path(path).map_err(|e| bad(e.to_string()))?;
+        let head = rd.headers().map_err(|e| bad(e.to_string()))?.clone();
+        let col = |name: &str| {
+            head.iter()
+                .position(|h| h == name)
+                .ok_or_else(|| bad(format!("no column {name}")))
+        };
+        let (ct, ca, cx, cu, cap) = (
+            col("t_s")?,
+            col("axis")?,
+            col("x_rad")?,
+            col("u_v")?,
+            col("apply_time_s")?,
+        );
+        let mut tr = Trace {
+            t: Vec::new(),
+            axes: (0..n).map(|_| Column::default()).collect(),
+        };
+        for (k, rec) in rd.records().enumerate() {
+            let rec = rec.map_err(|e| bad(e.to_string()))?;
+            let num = |c: usize| -> Result<f64> {
+                let v = rec.get(c).unwrap_or("");
+                v.parse::<f64>()
+                    .map_err(|_| bad(format!("row {}: '{v}' is not a number", k + 2)))
+            };
+            let axis = num(ca)?;
+            if axis != (k % n + 1) as f64 {
+                return Err(bad(format!(
+                    "row {}: axis {axis}, expected {} (rows of {n} axes in order)",
+                    k + 2,
+                    k % n + 1
+                )));
+            }
+            let a = &mut tr.axes[k % n];
+            if k % n == 0 {
+                tr.t.push(num(ct)?);
+            }
+            a.x.push(num(cx)?);
+            a.u.push(num(cu)?);
+            a.apply_time.push(num(cap)?);
+        }
+        if tr.axes.iter().any(|a| a.x.len() != tr.t.len()) {
+            return Err(bad("the last cycle has fewer rows than axes".into()));
+        }
+        Ok(tr)
+    }
+}
