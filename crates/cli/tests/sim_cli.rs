@@ -558,7 +558,10 @@ fn outputs_selects_the_files_written() {
     for (outputs, want) in [
         // scenario.toml, the run's scenario, comes with every selection.
         ("summary", vec!["scenario.toml", "summary.json"]),
-        ("trace,report", vec!["report.html", "scenario.toml", "trace.csv"]),
+        (
+            "trace,report",
+            vec!["report.html", "scenario.toml", "trace.csv"],
+        ),
     ] {
         let d = dir(&format!("outputs-{}", outputs.replace(',', "-")));
         let o = run(&d, outputs);

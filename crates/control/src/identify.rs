@@ -131,7 +131,11 @@ pub fn identify_axis(r: &AxisRecord<'_>) -> Result<AxisIdentification, IdentifyE
         )));
     }
     let dt = (r.t[n - 1] - r.t[0]) / (n - 1) as f64;
-    if !(dt > 0.0 && dt.is_finite()) || r.t.windows(2).any(|w| w[1].partial_cmp(&w[0]) != Some(std::cmp::Ordering::Greater)) {
+    if !(dt > 0.0 && dt.is_finite())
+        || r.t
+            .windows(2)
+            .any(|w| w[1].partial_cmp(&w[0]) != Some(std::cmp::Ordering::Greater))
+    {
         return Err(IdentifyError::BadRecord(
             "cycle times must increase".to_string(),
         ));

@@ -54,7 +54,7 @@ impl std::str::FromStr for SweepAxis {
         if key.is_empty()
             || !key
                 .chars()
-                .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '.')
+                .all(|c| c.is_ascii_alphanumeric() || "_.[]".contains(c))
         {
             return Err(Error::Input(format!(
                 "'{key}' is not a scenario key like ring.slaves"
@@ -83,24 +83,74 @@ fn toml_value(v: &str) -> toml::Value {
         .unwrap_or_else(|| toml::Value::String(v.to_string()))
 }
 
+/// Sets `key` (dotted; `axis.KEY` sets KEY in every `[[axis]]` table, `axis[i].KEY` in the
+/// i-th, 0-based) to `value` in a scenario's TOML table.
 fn set(table: &mut toml::Table, key: &str, value: toml::Value) -> Result<(), ScenarioError> {
-    let mut parts: Vec<&str> = key.split('.').collect();
-    let last = parts.pop().unwrap_or(key);
-    let mut t = table;
-    for p in parts {
-        let entry = t
-            .entry(p.to_string())
-            .or_insert_with(|| toml::Value::Table(toml::Table::new()));
-        t = entry
-            .as_table_mut()
-            .ok_or_else(|| ScenarioError::OutOfRange {
-                key: key.to_string(),
-                value: "?".into(),
-                allowed: format!("a key inside a table; {p} is not a table"),
-            })?;
+    let parts: Vec<&str> = key.split('.').collect();
+    set_in(table, &parts, key, &value)
+}
+
+fn set_in(
+    t: &mut toml::Table,
+    parts: &[&str],
+    key: &str,
+    value: &toml::Value,
+) -> Result<(), ScenarioError> {
+    let bad = |allowed: String| ScenarioError::OutOfRange {
+        key: key.to_string(),
+        value: "?".into(),
+        allowed,
+    };
+    let Some((p, rest)) = parts.split_first() else {
+        return Err(bad("a key".into()));
+    };
+    let (name, index) = match p.split_once('[') {
+        Some((n, i)) => {
+            let i = i
+                .strip_suffix(']')
+                .and_then(|i| i.parse::<usize>().ok())
+                .ok_or_else(|| bad(format!("{p}: an index is a whole number, e.g. axis[0]")))?;
+            (n, Some(i))
+        }
+        None => (*p, None),
+    };
+    if rest.is_empty() {
+        if index.is_some() {
+            return Err(bad(format!("a key after {p}, e.g. {p}.encoder_bits")));
+        }
+        t.insert(name.to_string(), value.clone());
+        return Ok(());
     }
-    t.insert(last.to_string(), value);
-    Ok(())
+    if !t.contains_key(name) {
+        // The axes a file leaves out are the reference scenario's: set them explicitly.
+        let default = (name == "axis")
+            .then(|| ringsync_model::builtin("paper-2015"))
+            .flatten()
+            .and_then(|text| toml::from_str::<toml::Table>(text).ok())
+            .and_then(|mut r| r.remove("axis"))
+            .unwrap_or_else(|| toml::Value::Table(toml::Table::new()));
+        t.insert(name.to_string(), default);
+    }
+    match (t.get_mut(name), index) {
+        (Some(toml::Value::Table(inner)), None) => set_in(inner, rest, key, value),
+        (Some(toml::Value::Array(items)), index) => {
+            let n = items.len();
+            let chosen: Vec<&mut toml::Value> = match index {
+                Some(i) => items.get_mut(i).map(|v| vec![v]).ok_or_else(|| {
+                    bad(format!("{name}[0] to {name}[{}]: {n} tables", n.max(1) - 1))
+                })?,
+                None => items.iter_mut().collect(),
+            };
+            for item in chosen {
+                let inner = item
+                    .as_table_mut()
+                    .ok_or_else(|| bad(format!("a key inside a table; {name} holds no tables")))?;
+                set_in(inner, rest, key, value)?;
+            }
+            Ok(())
+        }
+        _ => Err(bad(format!("a key inside a table; {p} is not a table"))),
+    }
 }
 
 /// The (key, value) pairs that name one case of a sweep.
@@ -600,6 +650,30 @@ mod tests {
         let s = c[0].scenario().expect("valid");
         assert!(s.ring.cycle.0 > Duration::from_ms(8));
         assert_eq!(s.ring.cycle.0.as_ns() % 100_000, 0);
+    }
+
+    /// `axis.KEY` sets every `[[axis]]` table (those of the reference scenario when a file
+    /// has none), `axis[i].KEY` one of them; a bad index is named.
+    #[test]
+    fn axis_keys_set_every_axis_or_one() {
+        let one = |text: &str, key: &str| {
+            let base = crate::parse(text, "t").expect("text");
+            cases(&base, &[key.parse().expect("axis")], 1, false)
+                .map(|c| c[0].scenario().expect("valid"))
+        };
+        let all = one("duration = \"1s\"\n", "axis.encoder_bits=28").expect("every axis");
+        assert_eq!(all.axis.len(), 4, "the reference axes, made explicit");
+        assert!(all.axis.iter().all(|a| a.encoder_bits == 28));
+        assert_eq!(all.axis[3].j_over_ka, 0.0164, "the rest as the reference's");
+        let second = one(&base().text, "axis[1].j_over_ka=0.02").expect("axis 1");
+        let j: Vec<f64> = second.axis.iter().map(|a| a.j_over_ka).collect();
+        assert_eq!(j, [0.0156, 0.02, 0.0158, 0.0164]);
+        let e = one(&base().text, "axis[9].j_over_ka=0.02").expect_err("no axis 9");
+        assert!(e.to_string().contains("axis[0] to axis[3]"), "{e}");
+        let e = one(&base().text, "axis[x].j_over_ka=0.02").expect_err("not an index");
+        assert!(e.to_string().contains("whole number"), "{e}");
+        let e = one(&base().text, "axis.encoder_bits=1").expect_err("range");
+        assert!(e.to_string().contains("encoder_bits"), "{e}");
     }
 
     #[test]
