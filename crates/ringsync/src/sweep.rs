@@ -208,6 +208,9 @@ pub struct CaseResult {
     /// `no-feedback`, `command-mismatch`); see [`stop_reason`].
     #[serde(default)]
     pub group_stop_reason: Option<String>,
+    /// Largest |command| over the run and the axes [V] (the effort a law spends).
+    #[serde(default)]
+    pub peak_u: f64,
 }
 
 /// The name of a group stop's reason in outputs, as `summary.json` writes it
@@ -323,6 +326,7 @@ pub fn run_case(case: &Case) -> Result<CaseResult> {
         clock_error_max_ns: r.clock_error_max_ns.iter().copied().fold(0.0, f64::max),
         group_stop_s: r.group_stop.map(|(t, _)| t),
         group_stop_reason: r.group_stop.map(|(_, why)| stop_reason(&why)),
+        peak_u: r.summary.axes.iter().map(|a| a.peak_u).fold(0.0, f64::max),
     })
 }
 
@@ -394,15 +398,18 @@ pub struct Mean {
     pub sync_rmse: f64,
     /// Standard deviation of Sync-RMSE over the seeds (population) [rad].
     pub sync_rmse_std: f64,
+    /// Mean over the seeds of the peak |command| [V].
+    pub peak_u: f64,
 }
 
 /// Means over the seeds, per combination of values, in the cases' order.
 pub fn aggregate(cases: &[Case], results: &[CaseResult]) -> Vec<Mean> {
-    let mut groups: Vec<(Labels, Vec<(f64, f64)>)> = Vec::new();
+    let mut groups: Vec<(Labels, Vec<(f64, f64, f64)>)> = Vec::new();
     for (c, r) in cases.iter().zip(results) {
+        let x = (r.track_rmse, r.sync_rmse, r.peak_u);
         match groups.last_mut() {
-            Some((l, v)) if *l == c.labels => v.push((r.track_rmse, r.sync_rmse)),
-            _ => groups.push((c.labels.clone(), vec![(r.track_rmse, r.sync_rmse)])),
+            Some((l, v)) if *l == c.labels => v.push(x),
+            _ => groups.push((c.labels.clone(), vec![x])),
         }
     }
     groups
@@ -418,6 +425,7 @@ pub fn aggregate(cases: &[Case], results: &[CaseResult]) -> Vec<Mean> {
                 track_rmse: track,
                 sync_rmse: sync,
                 sync_rmse_std: sd,
+                peak_u: v.iter().map(|x| x.2).sum::<f64>() / n,
             }
         })
         .collect()
@@ -480,7 +488,7 @@ impl Sweep {
     /// The means as a Markdown table.
     pub fn table(&self) -> String {
         let mut table = format!(
-            "| {} | runs | Track-RMSE [rad] | Sync-RMSE [rad] (± std over seeds) |\n|{}---:|---:|---:|\n",
+            "| {} | runs | Track-RMSE [rad] | Sync-RMSE [rad] (± std over seeds) | peak \\|u\\| [V] |\n|{}---:|---:|---:|---:|\n",
             self.keys.join(" | "),
             "---|".repeat(self.keys.len())
         );
@@ -488,12 +496,13 @@ impl Sweep {
             let vals: Vec<&str> = m.labels.iter().map(|(_, v)| v.as_str()).collect();
             let _ = writeln!(
                 table,
-                "| {} | {} | {:.5} | {:.7} ± {:.7} |",
+                "| {} | {} | {:.5} | {:.7} ± {:.7} | {:.3} |",
                 vals.join(" | "),
                 m.runs,
                 m.track_rmse,
                 m.sync_rmse,
-                m.sync_rmse_std
+                m.sync_rmse_std,
+                m.peak_u
             );
         }
         table
@@ -506,13 +515,13 @@ impl Sweep {
 pub fn write_sweep(dir: &OutDir, sw: &Sweep) -> Result<()> {
     let keys = sw.keys.join(",");
     let mut csv = format!(
-        "{keys},seed,track_rmse,sync_rmse,lumped_lost,retries,commands_lost,clock_error_max_ns,group_stop_s\n"
+        "{keys},seed,track_rmse,sync_rmse,lumped_lost,retries,commands_lost,clock_error_max_ns,group_stop_s,peak_u_v\n"
     );
     for (c, r) in sw.cases.iter().zip(&sw.results) {
         let vals: Vec<&str> = c.labels.iter().map(|(_, v)| v.as_str()).collect();
         let _ = writeln!(
             csv,
-            "{},{},{:.9},{:.9},{},{},{},{:.0},{}",
+            "{},{},{:.9},{:.9},{},{},{},{:.0},{},{:.6}",
             vals.join(","),
             c.seed,
             r.track_rmse,
@@ -521,21 +530,24 @@ pub fn write_sweep(dir: &OutDir, sw: &Sweep) -> Result<()> {
             r.retries,
             r.commands_lost,
             r.clock_error_max_ns,
-            r.group_stop_s.map_or(String::new(), |t| format!("{t:.4}"))
+            r.group_stop_s.map_or(String::new(), |t| format!("{t:.4}")),
+            r.peak_u
         );
     }
     dir.write("sweep.csv", &csv)?;
-    let mut mcsv = format!("{keys},runs,track_rmse_mean,sync_rmse_mean,sync_rmse_std\n");
+    let mut mcsv =
+        format!("{keys},runs,track_rmse_mean,sync_rmse_mean,sync_rmse_std,peak_u_mean_v\n");
     for m in &sw.means {
         let vals: Vec<&str> = m.labels.iter().map(|(_, v)| v.as_str()).collect();
         let _ = writeln!(
             mcsv,
-            "{},{},{:.9},{:.9},{:.9}",
+            "{},{},{:.9},{:.9},{:.9},{:.6}",
             vals.join(","),
             m.runs,
             m.track_rmse,
             m.sync_rmse,
-            m.sync_rmse_std
+            m.sync_rmse_std,
+            m.peak_u
         );
     }
     dir.write("means.csv", &mcsv)?;
@@ -728,6 +740,7 @@ mod tests {
             commands_lost: 0,
             clock_error_max_ns: 0.0,
             group_stop_s: None,
+            peak_u: 0.0,
             group_stop_reason: None,
         };
         let m = aggregate(
