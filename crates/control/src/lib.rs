@@ -28,8 +28,8 @@ pub use coupling::Coupling;
 pub use error::ControlError;
 pub use estimator::{ErrorHistory, Estimator, EstimatorKind, Signal};
 pub use law::{
-    ControlInput, ControlLaw, ControlOutput, Controller, Feedback, Gains, Pd, RingCoupled, Sign,
-    SyncController, SyncParams, VelocitySource,
+    ControlInput, ControlLaw, ControlOutput, Controller, ErrorObserver, Feedback, Gains, Pd,
+    RingCoupled, Sign, SyncController, SyncParams, VelocitySource,
 };
 pub use metrics::{Metrics, Summary};
 pub use trajectory::{AxisTrajectory, Cosine, Sequence, State, Trajectory, Trapezoid};

@@ -266,13 +266,46 @@ pub trait ControlLaw: Send {
 }
 
 /// Where the velocity error ė comes from.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub enum VelocitySource {
     /// ė = ẋ^d − v with the velocity the slave reports.
     Reported,
     /// ė = (e[m] − e[m−1]) / (t_m − t_{m−1}) from successive position samples (0 for the
     /// first sample).
     Differenced,
+    /// ė from a tracking observer on the error samples ([`ErrorObserver`]): smooths the
+    /// encoder's quantisation instead of dividing it by a short time.
+    Observer(ErrorObserver),
+}
+
+/// A tracking observer of the error e and its rate ė (an α-β filter, critically damped):
+/// at each sample, spaced h, the prediction ê + h·ė̂ is corrected by the residual
+/// r = e − (ê + h·ė̂): ê ← ê + h·ė̂ + α·r, ė̂ ← ė̂ + (β/h)·r, with α = 1 − λ², β = (1 − λ)²,
+/// λ = exp(−2π·f_b·T_cyc) (both poles at λ). It runs in the master on e = x^d − x, not on
+/// x: the error moves slowly even when the axis accelerates hard, so the observer's lag
+/// (about (α − β/2)/β cycles times ë) stays small. Not in the paper.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ErrorObserver {
+    /// Bandwidth f_b [Hz], > 0.
+    pub bandwidth_hz: f64,
+}
+
+impl ErrorObserver {
+    /// The gains (α, β) for cycle `t_cyc` [s].
+    pub fn gains(&self, t_cyc: f64) -> (f64, f64) {
+        let lambda = (-std::f64::consts::TAU * self.bandwidth_hz * t_cyc).exp();
+        (1.0 - lambda * lambda, (1.0 - lambda) * (1.0 - lambda))
+    }
+
+    /// One step over `h` [s] from the estimate `(e, ė)` with the new sample `e_new` [rad]:
+    /// the corrected `(ê, ė̂)`. `alpha_beta` from [`ErrorObserver::gains`].
+    #[inline]
+    pub fn step(state: (f64, f64), e_new: f64, h: f64, alpha_beta: (f64, f64)) -> (f64, f64) {
+        let (a, b) = alpha_beta;
+        let pred = state.0 + h * state.1;
+        let r = e_new - pred;
+        (pred + a * r, state.1 + b / h * r)
+    }
 }
 
 /// Feedback of one cycle: the latest sample of every axis.
@@ -312,6 +345,8 @@ pub struct Controller<L> {
     pub history: ErrorHistory,
     /// Where ė comes from.
     pub velocity: VelocitySource,
+    /// The observer's (ê, ė̂) per axis, with [`VelocitySource::Observer`].
+    observed: Vec<(f64, f64)>,
 }
 
 impl<L: ControlLaw> Controller<L> {
@@ -322,6 +357,7 @@ impl<L: ControlLaw> Controller<L> {
             law,
             history: ErrorHistory::new(n),
             velocity,
+            observed: vec![(0.0, 0.0); n],
         }
     }
 
@@ -372,6 +408,10 @@ impl<L: ControlLaw> Controller<L> {
                     let de_new = match self.velocity {
                         VelocitySource::Reported => fb.desired[i].v - fb.velocity[i],
                         VelocitySource::Differenced => (e - e0) / (t - t0),
+                        VelocitySource::Observer(o) => {
+                            let g = o.gains(input.t_cyc);
+                            ErrorObserver::step(self.observed[i], e, t - t0, g).1
+                        }
                     };
                     let g = steps as usize - 1;
                     for j in 1..=g {
@@ -397,6 +437,16 @@ impl<L: ControlLaw> Controller<L> {
                     } else {
                         0.0
                     }
+                }
+                VelocitySource::Observer(o) => {
+                    let dt = fb.sample_time[i] - self.history.t[i];
+                    self.observed[i] = if self.history.count[i] > 0 && dt > 0.0 {
+                        ErrorObserver::step(self.observed[i], e, dt, o.gains(input.t_cyc))
+                    } else {
+                        // Start from the sample and the slave's velocity.
+                        (e, fb.desired[i].v - fb.velocity[i])
+                    };
+                    self.observed[i].1
                 }
             };
             self.history.push(i, e, de, fb.sample_time[i])?;

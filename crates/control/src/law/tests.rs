@@ -575,3 +575,50 @@ fn law_parameters_are_checked_by_key() {
     let err = pd.build(&p).map(|_| ()).expect_err("pd has none");
     assert!(err.to_string().contains("none"), "{err}");
 }
+
+/// The error observer tracks a ramp of e with no steady error in ė, and takes the
+/// quantisation out where differencing divides it by the cycle.
+#[test]
+fn the_error_observer_tracks_ramps_and_smooths_quantisation() {
+    let t_cyc = 1e-3;
+    let obs = crate::law::ErrorObserver {
+        bandwidth_hz: 100.0,
+    };
+    let g = obs.gains(t_cyc);
+    assert!(g.0 > 0.0 && g.0 < 1.0 && g.1 > 0.0 && g.1 < g.0, "{g:?}");
+    let mut s = (0.0, 0.0);
+    for k in 1..=400 {
+        s = crate::law::ErrorObserver::step(s, 0.3 * k as f64 * t_cyc, t_cyc, g);
+    }
+    assert!(
+        (s.1 - 0.3).abs() < 1e-9,
+        "ė̂ = {} on a ramp of 0.3 rad/s",
+        s.1
+    );
+    // A slow sine quantised to 6 µrad: the observer's rate error is far below the
+    // differences'.
+    let q = 6e-6;
+    let e = |k: usize| ((k as f64 * t_cyc * 3.0).sin() * 1e-3 / q).floor() * q;
+    let truth = |k: usize| 3.0e-3 * (k as f64 * t_cyc * 3.0).cos();
+    let (mut s, mut err_obs, mut err_diff) = ((e(0), 3.0e-3), 0.0_f64, 0.0_f64);
+    for k in 1..2000 {
+        s = crate::law::ErrorObserver::step(s, e(k), t_cyc, g);
+        if k > 200 {
+            err_obs = err_obs.max((s.1 - truth(k)).abs());
+            err_diff = err_diff.max(((e(k) - e(k - 1)) / t_cyc - truth(k)).abs());
+        }
+    }
+    assert!(
+        err_obs < 0.25 * err_diff,
+        "observer {err_obs}, differences {err_diff}"
+    );
+    // Through a Controller: the first sample starts from the reported velocity.
+    let law = Pd::new(Gains::uniform(1, 1.0, 1.0, 0.0), false).expect("pd");
+    let mut c = Controller::new(law, VelocitySource::Observer(obs));
+    let mut fb = Feedback::new(1);
+    fb.velocity[0] = -0.25;
+    let mut out = ControlOutput::new(1);
+    c.update(&fb, &ControlInput::new(1, t_cyc), &mut out)
+        .expect("update");
+    assert_eq!(c.history.de[0][0], 0.25);
+}

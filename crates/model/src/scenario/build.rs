@@ -173,6 +173,9 @@ impl Scenario {
         match self.control.velocity {
             VelocityKind::Reported => VelocitySource::Reported,
             VelocityKind::Differenced => VelocitySource::Differenced,
+            VelocityKind::Observer => VelocitySource::Observer(ringsync_control::ErrorObserver {
+                bandwidth_hz: self.control.observer_bandwidth,
+            }),
         }
     }
 

@@ -271,6 +271,8 @@ pub enum VelocityKind {
     Reported,
     /// From successive position samples.
     Differenced,
+    /// From a tracking observer on the error samples (`control.observer_bandwidth`).
+    Observer,
 }
 
 /// `[control]`: law, estimator and gains.
@@ -299,6 +301,8 @@ pub struct ControlSpec {
     pub kf: PerAxis,
     /// v_F of the Coulomb feed-forward's sat(ẋ^d/v_F) [rad/s].
     pub kf_velocity: f64,
+    /// Bandwidth f_b of the error observer (`velocity = "observer"`) [Hz].
+    pub observer_bandwidth: f64,
     /// α.
     pub alpha: f64,
     /// Δ_H [V·s²/rad].
@@ -342,6 +346,7 @@ impl Default for ControlSpec {
             kc: PerAxis::One(0.0),
             kf: PerAxis::One(0.0),
             kf_velocity: ringsync_control::law::DEFAULT_KF_VELOCITY,
+            observer_bandwidth: 100.0,
             alpha: 0.5,
             delta_h: 0.0,
             delta_c: 0.0,

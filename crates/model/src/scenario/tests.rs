@@ -99,6 +99,14 @@ fn out_of_range_values_name_key_value_and_range() {
     assert!(e.starts_with("ring.cycle") && e.contains("short by"), "{e}");
     let e = err("[trajectory]\nkind = \"trapezoid\"\ndistance = 3.0\nv_max = 15.0\na_max = 0.0\n");
     assert!(e.starts_with("trajectory.a_max = 0"), "{e}");
+    assert_eq!(
+        err("[control]\nvelocity = \"observer\"\nobserver_bandwidth = 600.0\n"),
+        "control.observer_bandwidth = 600 is out of range: allowed > 0 Hz ..= 500 Hz (half the cycle rate)"
+    );
+    assert_eq!(
+        err("[control]\nkf = [0.2, -0.1]\n"),
+        "control.kf (axis 1) = -0.1 is out of range: allowed >= 0 V"
+    );
 }
 
 #[test]

@@ -199,6 +199,15 @@ impl Scenario {
                 ));
             }
         }
+        let nyquist = 0.5 / self.ring.cycle.secs();
+        let fb = self.control.observer_bandwidth;
+        if !(fb > 0.0 && fb <= nyquist) {
+            return Err(out_of_range(
+                "control.observer_bandwidth",
+                fb,
+                format!("> 0 Hz ..= {nyquist} Hz (half the cycle rate)"),
+            ));
+        }
         self.validate_plant()?;
         self.check_brake()?;
         Ok(plan)
