@@ -32,20 +32,24 @@ fn a_signal_ends_a_veth_run_cleanly(signal: &str) {
         std::process::id()
     ));
     let out = dir.to_str().expect("utf-8 path");
-    let (mut child, seen) = start_until(
-        ringsync_with(&[
-            "rt",
-            "paper-2015",
-            "--transport",
-            "veth",
-            "--duration",
-            "30s",
-            "--no-sim-prediction",
-            "--out",
-            out,
-        ]),
-        "running paper-2015",
-    );
+    // With every signal at its default: a suite started under nohup (SIGHUP ignored, which
+    // the run rightly keeps ignoring) or in a background job (SIGINT ignored) still tests
+    // what a terminal's run gets. `env` execs ringsync, so the pid is the run's.
+    let mut cmd = Command::new("env");
+    cmd.args([
+        "--default-signal",
+        env!("CARGO_BIN_EXE_ringsync"),
+        "rt",
+        "paper-2015",
+        "--transport",
+        "veth",
+        "--duration",
+        "30s",
+        "--no-sim-prediction",
+        "--out",
+        out,
+    ]);
+    let (mut child, seen) = start_until(cmd, "running paper-2015");
     let pid = child.id();
     assert_eq!(
         namespaces_of(pid).len(),
