@@ -33,7 +33,7 @@ use ringsync_plant::{Discretised, Dynamics};
 
 use crate::error::{ControlError, check, check_len};
 use crate::estimator::{DEPTH, ErrorHistory};
-use crate::law::{ControlInput, ControlLaw, ControlOutput, Gains};
+use crate::law::{ControlInput, ControlLaw, ControlOutput, ErrorObserver, Gains, VelocitySource};
 use crate::trajectory::Trajectory;
 
 /// What the continuous-time conditions give along a trajectory.
@@ -172,7 +172,8 @@ impl DiscreteReport {
     }
 }
 
-/// States per axis in the discrete-time check.
+/// States per axis in the discrete-time check (11 with the error observer, see
+/// [`discrete_loop_with`]).
 pub const PER_AXIS: usize = 9;
 
 /// The spectral radius of the sampled closed loop of `law` on linear axes `(a, g)`
@@ -200,6 +201,8 @@ pub struct DiscreteLoop {
     /// The spectral radius of [`DiscreteLoop::matrix`] (its Schur eigenvalues) and the
     /// number of states.
     pub report: DiscreteReport,
+    /// States per axis: [`PER_AXIS`], or 2 more with the error observer.
+    pub states_per_axis: usize,
 }
 
 /// The sampled closed loop of [`discrete_check`] (same arguments) with its matrix M:
@@ -213,6 +216,21 @@ pub fn discrete_loop(
     axes: &[(f64, f64)],
     t_cyc: f64,
     delays: &[f64],
+) -> Result<DiscreteLoop, ControlError> {
+    discrete_loop_with(law, axes, t_cyc, delays, VelocitySource::Reported)
+}
+
+/// [`discrete_loop`] with ė from `velocity` as the controller takes it at each sample:
+/// `Reported`, the axis's velocity (−ẋ); `Differenced`, (e[k] − e[k−1])/T_cyc; `Observer`,
+/// the error observer's ė̂ ([`ErrorObserver`](crate::law::ErrorObserver)), whose estimate
+/// (ê, ė̂) of the last sample adds two states per axis after the nine (at `11·i + 9`,
+/// `11·i + 10`). The ė history holds the ė the law was given.
+pub fn discrete_loop_with(
+    law: &dyn ControlLaw,
+    axes: &[(f64, f64)],
+    t_cyc: f64,
+    delays: &[f64],
+    velocity: VelocitySource,
 ) -> Result<DiscreteLoop, ControlError> {
     let n = law.axes();
     check_len("axes", n, axes.len())?;
@@ -239,7 +257,22 @@ pub fn discrete_loop(
             }
         })?);
     }
-    let dim = PER_AXIS * n;
+    let per = match velocity {
+        VelocitySource::Observer(_) => PER_AXIS + 2,
+        _ => PER_AXIS,
+    };
+    // ė at the sample from the axis's states s (9 or 11): (ė, the observer's new (ê, ė̂)).
+    let rate = |s: &[f64]| -> (f64, [f64; 2]) {
+        match velocity {
+            VelocitySource::Reported => (-s[1], [0.0; 2]),
+            VelocitySource::Differenced => ((-s[0] - s[3]) / t_cyc, [0.0; 2]),
+            VelocitySource::Observer(o) => {
+                let (e, de) = ErrorObserver::step((s[9], s[10]), -s[0], t_cyc, o.gains(t_cyc));
+                (de, [e, de])
+            }
+        }
+    };
+    let dim = per * n;
     let mut m = DMatrix::<f64>::zeros(dim, dim);
     let mut hist = ErrorHistory::new(n);
     let mut input = ControlInput::new(n, t_cyc);
@@ -250,18 +283,19 @@ pub fn discrete_loop(
         z.fill(0.0);
         z[col] = 1.0;
         for i in 0..n {
-            let s = &z[i * PER_AXIS..(i + 1) * PER_AXIS];
-            // Regulation to x^d = 0: e = −x, ė = −ẋ.
+            let s = &z[i * per..(i + 1) * per];
+            // Regulation to x^d = 0: e = −x, ė from the velocity source.
             hist.e[i] = [-s[0], s[3], s[4], s[5]];
-            hist.de[i] = [-s[1], s[6], s[7], s[8]];
+            hist.de[i] = [rate(s).0, s[6], s[7], s[8]];
             hist.count[i] = 4;
             hist.t[i] = 0.0;
         }
         law.compute(&hist, &input, &mut out)?;
         for i in 0..n {
-            let s = &z[i * PER_AXIS..(i + 1) * PER_AXIS];
+            let s = &z[i * per..(i + 1) * per];
             let d = &disc[i];
             let (x, v, u_prev, u) = (s[0], s[1], s[2], out.u_raw[i]);
+            let (de, observed) = rate(s);
             let next = [
                 d.phi[0][0] * x + d.phi[0][1] * v + d.gamma1[0] * u_prev + d.gamma0[0] * u,
                 d.phi[1][0] * x + d.phi[1][1] * v + d.gamma1[1] * u_prev + d.gamma0[1] * u,
@@ -269,12 +303,14 @@ pub fn discrete_loop(
                 -x,
                 s[3],
                 s[4],
-                -v,
+                de,
                 s[6],
                 s[7],
+                observed[0],
+                observed[1],
             ];
-            for (r, val) in next.into_iter().enumerate() {
-                m[(i * PER_AXIS + r, col)] = val;
+            for (r, val) in next.into_iter().take(per).enumerate() {
+                m[(i * per + r, col)] = val;
             }
         }
     }
@@ -292,6 +328,7 @@ pub fn discrete_loop(
             spectral_radius: rho,
             states: dim,
         },
+        states_per_axis: per,
     })
 }
 

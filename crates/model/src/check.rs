@@ -2,7 +2,7 @@
 //! applied to a scenario, with the sample-to-actuation delays taken from the cycle plan.
 
 use ringsync_control::stability::{
-    ContinuousReport, DiscreteReport, continuous_conditions, discrete_loop,
+    ContinuousReport, DiscreteReport, continuous_conditions, discrete_loop_with,
 };
 use ringsync_control::{ControlError, ControlLaw, Sign, SyncController, SyncParams, Trajectory};
 use ringsync_plant::IndependentAxes;
@@ -104,9 +104,11 @@ pub struct CheckReport {
     /// The discrete-time check; `None` when it does not model the scenario.
     pub discrete: Option<DiscreteReport>,
     /// The closed-loop matrix M of the discrete-time check (z[k+1] = M·z[k] over one
-    /// cycle), row-major, `discrete.states` × `discrete.states`: 9 states per axis, in the
-    /// order of [`ringsync_control::stability::discrete_loop`] (x [rad], ẋ [rad/s], u[k−1]
-    /// [V], e[k−1..k−3] [rad], ė[k−1..k−3] [rad/s]); `None` with `discrete`.
+    /// cycle), row-major, `discrete.states` × `discrete.states`: 9 states per axis (11 with
+    /// `velocity = "observer"`), in the order of
+    /// [`ringsync_control::stability::discrete_loop_with`] (x [rad], ẋ [rad/s], u[k−1]
+    /// [V], e[k−1..k−3] [rad], ė[k−1..k−3] [rad/s], then the observer's ê [rad] and ė̂
+    /// [rad/s]); `None` with `discrete`.
     pub discrete_matrix: Option<Vec<f64>>,
     /// Why the discrete-time check did not run (`None` when it ran).
     pub not_modelled: Option<NotModelled>,
@@ -203,7 +205,13 @@ pub fn check(s: &Scenario, points: usize) -> Result<CheckReport, CheckError> {
         PlanKind::P2pLumped => {
             let delays = command_delays(&plan);
             let linear: Vec<(f64, f64)> = models.iter().map(|m| m.linear_part()).collect();
-            let r = discrete_loop(law.as_ref(), &linear, s.ring.cycle.secs(), &delays)?;
+            let r = discrete_loop_with(
+                law.as_ref(),
+                &linear,
+                s.ring.cycle.secs(),
+                &delays,
+                s.velocity_source(),
+            )?;
             (delays, Some(r), None)
         }
         PlanKind::LumpedOnly if coupled => (Vec::new(), None, Some(NotModelled::CoupledPlant)),

@@ -45,10 +45,19 @@ fn a_gain_pushed_far_too_high_is_flagged() {
 }
 
 /// The spectral radius predicts how fast the real loop decays: run the Controller on the
-/// stepped plant from an offset and compare the decay rate per cycle.
+/// stepped plant from an offset and compare the decay rate per cycle, for every source of ė.
 #[test]
-#[allow(clippy::needless_range_loop)] // one index over several per-axis arrays
 fn spectral_radius_matches_simulated_decay() {
+    let obs = VelocitySource::Observer(crate::law::ErrorObserver {
+        bandwidth_hz: 100.0,
+    });
+    for velocity in [VelocitySource::Reported, VelocitySource::Differenced, obs] {
+        decay_matches(velocity);
+    }
+}
+
+#[allow(clippy::needless_range_loop)] // one index over several per-axis arrays
+fn decay_matches(velocity: VelocitySource) {
     let models = reference_axes();
     let axes = linear(&models);
     let law = SyncController::new(
@@ -59,14 +68,15 @@ fn spectral_radius_matches_simulated_decay() {
         },
     )
     .expect("law");
-    let rho = discrete_check(&law, &axes, 1e-3, &DELAYS)
+    let rho = discrete_loop_with(&law, &axes, 1e-3, &DELAYS, velocity)
         .expect("check")
+        .report
         .spectral_radius;
     let mut plant = IndependentAxes::new(models.clone());
     for i in 0..4 {
         plant.set_state(i, 0.05 * (i as f64 + 1.0), 0.0);
     }
-    let mut ctl = Controller::new(law, VelocitySource::Reported);
+    let mut ctl = Controller::new(law, velocity);
     let mut fb = Feedback::new(4);
     let mut input = ControlInput::new(4, 1e-3);
     let mut out = ControlOutput::new(4);
@@ -96,7 +106,34 @@ fn spectral_radius_matches_simulated_decay() {
     }
     let (a, b) = (norms[1500], norms[2999]);
     let rate = (b / a).powf(1.0 / 1499.0);
-    assert!((rate - rho).abs() < 2e-4, "simulated {rate} vs ρ {rho}");
+    assert!(
+        (rate - rho).abs() < 2e-4,
+        "{velocity:?}: simulated {rate} vs ρ {rho}"
+    );
+}
+
+/// Where ė comes from changes the loop: with K_D = 30 V·s/rad, PD on the slave's velocity
+/// is stable, on differenced samples it is not (the simulator then drives the axes in a
+/// ±10 V limit cycle, which `ringsync sim` shows); the observer's two states per axis are
+/// in the matrix.
+#[test]
+fn the_velocity_source_is_part_of_the_loop() {
+    let axes = linear(&reference_axes());
+    let pd = Pd::new(Gains::uniform(4, 3.182, 30.0, 0.0), false).expect("pd");
+    let rho = |v| {
+        discrete_loop_with(&pd, &axes, 1e-3, &DELAYS, v)
+            .expect("check")
+            .report
+    };
+    assert!(rho(VelocitySource::Reported).is_stable());
+    let diff = rho(VelocitySource::Differenced);
+    assert!(diff.spectral_radius > 1.05, "{diff:?}");
+    let obs = VelocitySource::Observer(crate::law::ErrorObserver {
+        bandwidth_hz: 100.0,
+    });
+    let l = discrete_loop_with(&pd, &axes, 1e-3, &DELAYS, obs).expect("check");
+    assert_eq!((l.states_per_axis, l.report.states), (11, 44));
+    assert_eq!(l.matrix.nrows(), 44);
 }
 
 #[test]
