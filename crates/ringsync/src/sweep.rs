@@ -404,7 +404,9 @@ pub struct Mean {
 
 /// Means over the seeds, per combination of values, in the cases' order.
 pub fn aggregate(cases: &[Case], results: &[CaseResult]) -> Vec<Mean> {
-    let mut groups: Vec<(Labels, Vec<(f64, f64, f64)>)> = Vec::new();
+    // Per combination: (Track-RMSE, Sync-RMSE, peak |u|) of each seed.
+    type Seeds = Vec<(f64, f64, f64)>;
+    let mut groups: Vec<(Labels, Seeds)> = Vec::new();
     for (c, r) in cases.iter().zip(results) {
         let x = (r.track_rmse, r.sync_rmse, r.peak_u);
         match groups.last_mut() {
