@@ -5,7 +5,7 @@
 use ringsync_proto::PlanKind;
 
 use super::error::{ScenarioError, control_error, out_of_range, plant_error};
-use super::schema::{AxisKind, Dur, PerAxis, Scenario, TrajectorySpec};
+use super::schema::{AxisKind, Dur, PerAxis, Scenario, TrajectorySpec, VelocityKind};
 
 /// Fewest encoder bits: the plant's encoder needs at least 4 counts per revolution.
 pub const MIN_ENCODER_BITS: u32 = 2;
@@ -199,9 +199,11 @@ impl Scenario {
                 ));
             }
         }
+        // The observer's bandwidth counts only where the observer runs (a ring with a long
+        // cycle and another velocity source keeps the default).
         let nyquist = 0.5 / self.ring.cycle.secs();
         let fb = self.control.observer_bandwidth;
-        if !(fb > 0.0 && fb <= nyquist) {
+        if self.control.velocity == VelocityKind::Observer && !(fb > 0.0 && fb <= nyquist) {
             return Err(out_of_range(
                 "control.observer_bandwidth",
                 fb,
