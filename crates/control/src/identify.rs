@@ -319,28 +319,31 @@ impl Input {
 
     /// ∫ (T_m − |s|)·u(t + s) ds over |s| ≤ T_m [V·s²].
     fn weighted(&self, t: f64, tm: f64) -> f64 {
-        // W(s) = T_m·s − s·|s|/2, the weight's antiderivative.
-        let w = |s: f64| tm * s - s * s.abs() / 2.0;
-        let (lo, hi) = (t - tm, t + tm);
-        // The step in effect at lo: the last one applied at or before it (0 V before any).
-        let first = self.steps.partition_point(|s| s.0 <= lo);
-        let mut u = if first == 0 {
-            0.0
-        } else {
-            self.steps[first - 1].1
-        };
-        let mut from = lo;
-        let mut sum = 0.0;
-        for &(at, next) in &self.steps[first..] {
-            if at >= hi {
-                break;
-            }
-            sum += u * (w(at - t) - w(from - t));
-            from = at;
-            u = next;
-        }
-        sum + u * (w(hi - t) - w(from - t))
+        weighted_input(&self.steps, t, tm)
     }
+}
+
+/// ∫ (T_m − |s|)·u(t + s) ds over |s| ≤ T_m [V·s²] of a piecewise-constant input given as
+/// `steps` (from [s], u [V]) in time order: each held until the next; 0 V before the first.
+/// Exact. Shared by the identification and the disturbance observer.
+pub(crate) fn weighted_input(steps: &[(f64, f64)], t: f64, tm: f64) -> f64 {
+    // W(s) = T_m·s − s·|s|/2, the weight's antiderivative.
+    let w = |s: f64| tm * s - s * s.abs() / 2.0;
+    let (lo, hi) = (t - tm, t + tm);
+    // The step in effect at lo: the last one applied at or before it (0 V before any).
+    let first = steps.partition_point(|s| s.0 <= lo);
+    let mut u = if first == 0 { 0.0 } else { steps[first - 1].1 };
+    let mut from = lo;
+    let mut sum = 0.0;
+    for &(at, next) in &steps[first..] {
+        if at >= hi {
+            break;
+        }
+        sum += u * (w(at - t) - w(from - t));
+        from = at;
+        u = next;
+    }
+    sum + u * (w(hi - t) - w(from - t))
 }
 
 #[cfg(test)]

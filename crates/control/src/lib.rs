@@ -7,6 +7,7 @@
 //!   the error history (eq. 11-13);
 //! - [`law`]: the law registry; standard PD, the sync controller (eq. 9, 14), the ring-coupled
 //!   baseline, adjacent cross-coupling;
+//! - [`dob`]: a disturbance observer per axis (not in the paper), through the nominal model;
 //! - [`identify`]: H = J/K_a, C = b/K_a and F = T_c/K_a of a torque axis from a run (least
 //!   squares on the integrated axis model), the feed-forward that cancels it;
 //! - [`metrics`]: Track-RMSE and Sync-RMSE (eq. 26-27) and per-axis figures;
@@ -16,6 +17,7 @@
 //! construction.
 
 pub mod coupling;
+pub mod dob;
 mod error;
 pub mod estimator;
 pub mod identify;

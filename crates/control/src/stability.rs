@@ -201,7 +201,8 @@ pub struct DiscreteLoop {
     /// The spectral radius of [`DiscreteLoop::matrix`] (its Schur eigenvalues) and the
     /// number of states.
     pub report: DiscreteReport,
-    /// States per axis: [`PER_AXIS`], or 2 more with the error observer.
+    /// States per axis: [`PER_AXIS`], 2 more with the error observer, 3 more with the
+    /// disturbance observer.
     pub states_per_axis: usize,
 }
 
@@ -217,21 +218,44 @@ pub fn discrete_loop(
     t_cyc: f64,
     delays: &[f64],
 ) -> Result<DiscreteLoop, ControlError> {
-    discrete_loop_with(law, axes, t_cyc, delays, VelocitySource::Reported)
+    discrete_loop_with(law, axes, t_cyc, delays, &Measurement::default())
 }
 
-/// [`discrete_loop`] with ė from `velocity` as the controller takes it at each sample:
-/// `Reported`, the axis's velocity (−ẋ); `Differenced`, (e[k] − e[k−1])/T_cyc; `Observer`,
-/// the error observer's ė̂ ([`ErrorObserver`](crate::law::ErrorObserver)), whose estimate
-/// (ê, ė̂) of the last sample adds two states per axis after the nine (at `11·i + 9`,
-/// `11·i + 10`). The ė history holds the ė the law was given.
+/// What the controller adds around the law, for [`discrete_loop_with`]: where ė comes from,
+/// and the disturbance observer.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Measurement {
+    /// The source of ė.
+    pub velocity: VelocitySource,
+    /// The disturbance observer's parameters, if one runs ([`crate::dob`]).
+    pub dob: Option<crate::dob::DobParams>,
+}
+
+impl Default for Measurement {
+    /// The paper's: the slave's velocity, no observer.
+    fn default() -> Self {
+        Measurement {
+            velocity: VelocitySource::Reported,
+            dob: None,
+        }
+    }
+}
+
+/// [`discrete_loop`] with the controller's measurement `m`. ė as the controller takes it
+/// at each sample: `Reported`, the axis's velocity (−ẋ); `Differenced`, (e[k] − e[k−1])/
+/// T_cyc; `Observer`, the error observer's ė̂ ([`ErrorObserver`](crate::law::ErrorObserver)),
+/// whose estimate (ê, ė̂) of the last sample adds two states per axis after the nine. The ė
+/// history holds the ė the law was given. A disturbance observer ([`crate::dob`]) adds three
+/// more: the commands of two and three cycles back u[k−2], u[k−3] [V] and its estimate
+/// d̂[k−1] [V]; the command is then the law's minus d̂[k].
 pub fn discrete_loop_with(
     law: &dyn ControlLaw,
     axes: &[(f64, f64)],
     t_cyc: f64,
     delays: &[f64],
-    velocity: VelocitySource,
+    m: &Measurement,
 ) -> Result<DiscreteLoop, ControlError> {
+    let velocity = m.velocity;
     let n = law.axes();
     check_len("axes", n, axes.len())?;
     check_len("delays", n, delays.len())?;
@@ -257,10 +281,17 @@ pub fn discrete_loop_with(
             }
         })?);
     }
-    let per = match velocity {
-        VelocitySource::Observer(_) => PER_AXIS + 2,
-        _ => PER_AXIS,
+    let obs = if matches!(velocity, VelocitySource::Observer(_)) {
+        2
+    } else {
+        0
     };
+    let dob_at = PER_AXIS + obs;
+    if let Some(d) = &m.dob {
+        check_len("disturbance observer axes", n, d.h.len())?;
+        check_len("disturbance observer axes", n, d.c.len())?;
+    }
+    let per = dob_at + if m.dob.is_some() { 3 } else { 0 };
     // ė at the sample from the axis's states s (9 or 11): (ė, the observer's new (ê, ė̂)).
     let rate = |s: &[f64]| -> (f64, [f64; 2]) {
         match velocity {
@@ -273,7 +304,8 @@ pub fn discrete_loop_with(
         }
     };
     let dim = per * n;
-    let mut m = DMatrix::<f64>::zeros(dim, dim);
+    let gamma = m.dob.as_ref().map_or(0.0, |d| d.gain(t_cyc));
+    let mut mat = DMatrix::<f64>::zeros(dim, dim);
     let mut hist = ErrorHistory::new(n);
     let mut input = ControlInput::new(n, t_cyc);
     input.apply_time.copy_from_slice(delays);
@@ -294,9 +326,25 @@ pub fn discrete_loop_with(
         for i in 0..n {
             let s = &z[i * per..(i + 1) * per];
             let d = &disc[i];
-            let (x, v, u_prev, u) = (s[0], s[1], s[2], out.u_raw[i]);
+            let (x, v, u_prev) = (s[0], s[1], s[2]);
+            // The disturbance observer at this sample (module `dob`): x_{k−1} = −e_{k−1}.
+            let (u, dob_next) = match &m.dob {
+                None => (out.u_raw[i], [0.0; 3]),
+                Some(p) => {
+                    let (x1, x2) = (-s[3], -s[4]);
+                    let acc = x - 2.0 * x1 + x2;
+                    let vel = t_cyc * (x - x2) / 2.0;
+                    let w = crate::dob::DobParams::input_weights(t_cyc, delays[i]);
+                    let (u2, u3, d_prev) = (s[dob_at], s[dob_at + 1], s[dob_at + 2]);
+                    let y = w[0] * u3 + w[1] * u2 + w[2] * u_prev;
+                    let dk = (p.h[i] * acc + p.c[i] * vel - y) / (t_cyc * t_cyc);
+                    let d_hat = d_prev + gamma * (dk - d_prev);
+                    (out.u_raw[i] - d_hat, [u_prev, u2, d_hat])
+                }
+            };
             let (de, observed) = rate(s);
-            let next = [
+            let mut next = [0.0; PER_AXIS + 5];
+            let base = [
                 d.phi[0][0] * x + d.phi[0][1] * v + d.gamma1[0] * u_prev + d.gamma0[0] * u,
                 d.phi[1][0] * x + d.phi[1][1] * v + d.gamma1[1] * u_prev + d.gamma0[1] * u,
                 u,
@@ -306,15 +354,18 @@ pub fn discrete_loop_with(
                 de,
                 s[6],
                 s[7],
-                observed[0],
-                observed[1],
             ];
+            next[..PER_AXIS].copy_from_slice(&base);
+            next[PER_AXIS..dob_at].copy_from_slice(&observed[..obs]);
+            if m.dob.is_some() {
+                next[dob_at..dob_at + 3].copy_from_slice(&dob_next);
+            }
             for (r, val) in next.into_iter().take(per).enumerate() {
-                m[(i * per + r, col)] = val;
+                mat[(i * per + r, col)] = val;
             }
         }
     }
-    let schur = Schur::try_new(m.clone(), 1e-13, 100_000).ok_or(ControlError::NoConvergence {
+    let schur = Schur::try_new(mat.clone(), 1e-13, 100_000).ok_or(ControlError::NoConvergence {
         what: "Schur decomposition of the loop matrix",
     })?;
     let rho = schur
@@ -323,7 +374,7 @@ pub fn discrete_loop_with(
         .map(|l| l.norm())
         .fold(0.0, f64::max);
     Ok(DiscreteLoop {
-        matrix: m,
+        matrix: mat,
         report: DiscreteReport {
             spectral_radius: rho,
             states: dim,

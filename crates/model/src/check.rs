@@ -210,7 +210,10 @@ pub fn check(s: &Scenario, points: usize) -> Result<CheckReport, CheckError> {
                 &linear,
                 s.ring.cycle.secs(),
                 &delays,
-                s.velocity_source(),
+                &ringsync_control::stability::Measurement {
+                    velocity: s.velocity_source(),
+                    dob: s.dob_params(),
+                },
             )?;
             (delays, Some(r), None)
         }

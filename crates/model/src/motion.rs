@@ -122,6 +122,18 @@ impl ControlMotion {
         }
     }
 
+    /// With a disturbance observer (`None`: without), [`ringsync_control::dob`].
+    pub fn with_dob(
+        mut self,
+        dob: Option<ringsync_control::dob::DobParams>,
+    ) -> Result<Self, ringsync_control::ControlError> {
+        if let Some(p) = dob {
+            let d = ringsync_control::dob::DisturbanceObserver::new(p)?;
+            self.controller = self.controller.with_dob(d)?;
+        }
+        Ok(self)
+    }
+
     /// The law's name.
     pub fn law_name(&self) -> &'static str {
         self.controller.law.name()
@@ -358,6 +370,18 @@ impl SlaveControl {
             out: ControlOutput::new(n),
             seen: vec![u64::MAX; n],
         }
+    }
+
+    /// With a disturbance observer (`None`: without), [`ringsync_control::dob`].
+    pub fn with_dob(
+        mut self,
+        dob: Option<ringsync_control::dob::DobParams>,
+    ) -> Result<Self, ringsync_control::ControlError> {
+        if let Some(p) = dob {
+            let d = ringsync_control::dob::DisturbanceObserver::new(p)?;
+            self.controller = self.controller.with_dob(d)?;
+        }
+        Ok(self)
     }
 }
 

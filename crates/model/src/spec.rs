@@ -138,7 +138,9 @@ impl Spec {
             self.resolution.clone(),
             s.ring.cycle.0,
             stop,
-        );
+        )
+        .with_dob(s.dob_params())
+        .map_err(|e| scenario_err("control.dob_bandwidth", e))?;
         let master = Master::new(self.master.clone(), Box::new(motion));
         let slaves = self
             .slaves
@@ -152,7 +154,9 @@ impl Spec {
                             .map_err(|e| scenario_err("trajectory", e))?,
                         self.resolution.clone(),
                         s.ring.cycle.0,
-                    );
+                    )
+                    .with_dob(s.dob_params())
+                    .map_err(|e| scenario_err("control.dob_bandwidth", e))?;
                     Ok(Slave::with_law(cfg.clone(), Box::new(control)))
                 } else {
                     Ok(Slave::new(cfg.clone()))

@@ -347,6 +347,8 @@ pub struct Controller<L> {
     pub velocity: VelocitySource,
     /// The observer's (ê, ė̂) per axis, with [`VelocitySource::Observer`].
     observed: Vec<(f64, f64)>,
+    /// The disturbance observer, if any ([`Controller::with_dob`]).
+    dob: Option<crate::dob::DisturbanceObserver>,
 }
 
 impl<L: ControlLaw> Controller<L> {
@@ -358,7 +360,25 @@ impl<L: ControlLaw> Controller<L> {
             history: ErrorHistory::new(n),
             velocity,
             observed: vec![(0.0, 0.0); n],
+            dob: None,
         }
+    }
+
+    /// With a disturbance observer of as many axes: every command gets the observer's d̂
+    /// taken off ([`crate::dob`]).
+    pub fn with_dob(mut self, dob: crate::dob::DisturbanceObserver) -> Result<Self, ControlError> {
+        check_len(
+            "disturbance observer axes",
+            self.law.axes(),
+            dob.params().h.len(),
+        )?;
+        self.dob = Some(dob);
+        Ok(self)
+    }
+
+    /// The disturbance observer, if any.
+    pub fn dob(&self) -> Option<&crate::dob::DisturbanceObserver> {
+        self.dob.as_ref()
     }
 
     /// Takes this cycle's fresh samples into the history, then computes the commands. The
@@ -453,8 +473,15 @@ impl<L: ControlLaw> Controller<L> {
             if let Some(est) = self.law.estimator_mut() {
                 est.observe(&self.history, i);
             }
+            if let Some(dob) = &mut self.dob {
+                dob.sample(i, fb.position[i], fb.sample_time[i], input.t_cyc);
+            }
         }
-        self.law.compute(&self.history, input, out)
+        self.law.compute(&self.history, input, out)?;
+        if let Some(dob) = &mut self.dob {
+            dob.compensate(out, &input.apply_time);
+        }
+        Ok(())
     }
 }
 

@@ -52,12 +52,27 @@ fn spectral_radius_matches_simulated_decay() {
         bandwidth_hz: 100.0,
     });
     for velocity in [VelocitySource::Reported, VelocitySource::Differenced, obs] {
-        decay_matches(velocity);
+        decay_matches(Measurement {
+            velocity,
+            dob: None,
+        });
     }
+    // With the disturbance observer on the axes' own model.
+    let axes = linear(&reference_axes());
+    let dob = crate::dob::DobParams {
+        bandwidth_hz: 20.0,
+        h: axes.iter().map(|(_, g)| 1.0 / g).collect(),
+        c: axes.iter().map(|(a, g)| a / g).collect(),
+        u_max: vec![10.0; 4],
+    };
+    decay_matches(Measurement {
+        velocity: VelocitySource::Reported,
+        dob: Some(dob),
+    });
 }
 
 #[allow(clippy::needless_range_loop)] // one index over several per-axis arrays
-fn decay_matches(velocity: VelocitySource) {
+fn decay_matches(meas: Measurement) {
     let models = reference_axes();
     let axes = linear(&models);
     let law = SyncController::new(
@@ -68,7 +83,7 @@ fn decay_matches(velocity: VelocitySource) {
         },
     )
     .expect("law");
-    let rho = discrete_loop_with(&law, &axes, 1e-3, &DELAYS, velocity)
+    let rho = discrete_loop_with(&law, &axes, 1e-3, &DELAYS, &meas)
         .expect("check")
         .report
         .spectral_radius;
@@ -76,7 +91,11 @@ fn decay_matches(velocity: VelocitySource) {
     for i in 0..4 {
         plant.set_state(i, 0.05 * (i as f64 + 1.0), 0.0);
     }
-    let mut ctl = Controller::new(law, velocity);
+    let mut ctl = Controller::new(law, meas.velocity);
+    if let Some(p) = &meas.dob {
+        let dob = crate::dob::DisturbanceObserver::new(p.clone()).expect("dob");
+        ctl = ctl.with_dob(dob).expect("with dob");
+    }
     let mut fb = Feedback::new(4);
     let mut input = ControlInput::new(4, 1e-3);
     let mut out = ControlOutput::new(4);
@@ -108,7 +127,7 @@ fn decay_matches(velocity: VelocitySource) {
     let rate = (b / a).powf(1.0 / 1499.0);
     assert!(
         (rate - rho).abs() < 2e-4,
-        "{velocity:?}: simulated {rate} vs ρ {rho}"
+        "{meas:?}: simulated {rate} vs ρ {rho}"
     );
 }
 
@@ -120,8 +139,12 @@ fn decay_matches(velocity: VelocitySource) {
 fn the_velocity_source_is_part_of_the_loop() {
     let axes = linear(&reference_axes());
     let pd = Pd::new(Gains::uniform(4, 3.182, 30.0, 0.0), false).expect("pd");
-    let rho = |v| {
-        discrete_loop_with(&pd, &axes, 1e-3, &DELAYS, v)
+    let rho = |velocity| {
+        let m = Measurement {
+            velocity,
+            dob: None,
+        };
+        discrete_loop_with(&pd, &axes, 1e-3, &DELAYS, &m)
             .expect("check")
             .report
     };
@@ -131,7 +154,11 @@ fn the_velocity_source_is_part_of_the_loop() {
     let obs = VelocitySource::Observer(crate::law::ErrorObserver {
         bandwidth_hz: 100.0,
     });
-    let l = discrete_loop_with(&pd, &axes, 1e-3, &DELAYS, obs).expect("check");
+    let m = Measurement {
+        velocity: obs,
+        dob: None,
+    };
+    let l = discrete_loop_with(&pd, &axes, 1e-3, &DELAYS, &m).expect("check");
     assert_eq!((l.states_per_axis, l.report.states), (11, 44));
     assert_eq!(l.matrix.nrows(), 44);
 }

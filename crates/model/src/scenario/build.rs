@@ -57,6 +57,29 @@ impl Scenario {
         }
     }
 
+    /// Whether any axis has a Coulomb feed-forward K_F.
+    pub(crate) fn pd_kf_set(&self) -> bool {
+        match &self.control.kf {
+            PerAxis::One(v) => *v != 0.0,
+            PerAxis::Each(v) => v.iter().any(|v| *v != 0.0),
+        }
+    }
+
+    /// The disturbance observer's parameters (`control.dob_bandwidth` > 0): the nominal
+    /// model is the feed-forward's, K_H and K_C per axis.
+    pub fn dob_params(&self) -> Option<ringsync_control::dob::DobParams> {
+        let c = &self.control;
+        (c.dob_bandwidth != 0.0).then(|| {
+            let g = self.gains();
+            ringsync_control::dob::DobParams {
+                bandwidth_hz: c.dob_bandwidth,
+                h: g.kh,
+                c: g.kc,
+                u_max: g.u_max,
+            }
+        })
+    }
+
     /// The `[[axis]]` table of axis `i` (0-based): the tables are used in turn; `None`
     /// when there is none.
     pub fn axis_spec(&self, i: usize) -> Option<&AxisSpec> {

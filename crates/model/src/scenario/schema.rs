@@ -303,6 +303,8 @@ pub struct ControlSpec {
     pub kf_velocity: f64,
     /// Bandwidth f_b of the error observer (`velocity = "observer"`) [Hz].
     pub observer_bandwidth: f64,
+    /// Bandwidth f_Q of the disturbance observer [Hz]; 0: none (not in the paper).
+    pub dob_bandwidth: f64,
     /// α.
     pub alpha: f64,
     /// Δ_H [V·s²/rad].
@@ -347,6 +349,7 @@ impl Default for ControlSpec {
             kf: PerAxis::One(0.0),
             kf_velocity: ringsync_control::law::DEFAULT_KF_VELOCITY,
             observer_bandwidth: 100.0,
+            dob_bandwidth: 0.0,
             alpha: 0.5,
             delta_h: 0.0,
             delta_c: 0.0,

@@ -104,6 +104,17 @@ fn out_of_range_values_name_key_value_and_range() {
         "control.observer_bandwidth = 600 is out of range: allowed > 0 Hz ..= 500 Hz (half the cycle rate)"
     );
     assert_eq!(
+        err("[control]\ndob_bandwidth = 20.0\n"),
+        "control.kh (axis 0) = 0 is out of range: allowed > 0 V·s²/rad: the disturbance observer inverts the nominal model K_H"
+    );
+    let e = err("[control]\nkh = 0.016\nkf = 0.2\ndob_bandwidth = 20.0\n");
+    assert!(
+        e.starts_with("control.kf = 0.2") && e.contains("twice"),
+        "{e}"
+    );
+    let e = err("[control]\nkh = 0.016\ndob_bandwidth = 900.0\n");
+    assert!(e.starts_with("control.dob_bandwidth = 900"), "{e}");
+    assert_eq!(
         err("[control]\nkf = [0.2, -0.1]\n"),
         "control.kf (axis 1) = -0.1 is out of range: allowed >= 0 V"
     );

@@ -210,6 +210,24 @@ impl Scenario {
                 format!("> 0 Hz ..= {nyquist} Hz (half the cycle rate)"),
             ));
         }
+        if let Some(p) = self.dob_params() {
+            let fq = p.bandwidth_hz;
+            if !(fq > 0.0 && fq <= nyquist) {
+                return Err(out_of_range(
+                    "control.dob_bandwidth",
+                    fq,
+                    format!("0 (none), or > 0 Hz ..= {nyquist} Hz (half the cycle rate)"),
+                ));
+            }
+            if self.pd_kf_set() {
+                return Err(out_of_range(
+                    "control.kf",
+                    &self.control.kf,
+                    "0 with control.dob_bandwidth > 0: the disturbance observer cancels the Coulomb friction itself, K_F would count it twice",
+                ));
+            }
+            ringsync_control::dob::DisturbanceObserver::new(p).map_err(|e| control_error(&e))?;
+        }
         self.validate_plant()?;
         self.check_brake()?;
         Ok(plan)
