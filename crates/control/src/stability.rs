@@ -173,19 +173,47 @@ impl DiscreteReport {
 }
 
 /// States per axis in the discrete-time check.
-const PER_AXIS: usize = 9;
+pub const PER_AXIS: usize = 9;
 
 /// The spectral radius of the sampled closed loop of `law` on linear axes `(a, g)`
 /// (ẍ = g·u − a·ẋ, see [`ringsync_plant::AxisModel::linear_part`]), period `t_cyc` [s], and
 /// per-axis sample-to-actuation delays `delays` [s] (0 ≤ delay ≤ T_cyc). All axes sample at
 /// the same instant. Refused ([`ControlError::NotApplicable`]) when the law's estimator is
-/// not linear in the history (see the module's docs).
+/// not linear in the history (see the module's docs). [`discrete_loop`] gives the loop
+/// matrix too.
 pub fn discrete_check(
     law: &dyn ControlLaw,
     axes: &[(f64, f64)],
     t_cyc: f64,
     delays: &[f64],
 ) -> Result<DiscreteReport, ControlError> {
+    discrete_loop(law, axes, t_cyc, delays).map(|l| l.report)
+}
+
+/// The sampled closed loop of the discrete-time check: its matrix and what
+/// [`discrete_check`] reports of it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DiscreteLoop {
+    /// The closed-loop matrix M, z[k+1] = M·z[k] over one cycle T_cyc, `states` × `states`
+    /// ([`PER_AXIS`] states per axis, axis-major; see [`discrete_loop`] for their order).
+    pub matrix: DMatrix<f64>,
+    /// The spectral radius of [`DiscreteLoop::matrix`] (its Schur eigenvalues) and the
+    /// number of states.
+    pub report: DiscreteReport,
+}
+
+/// The sampled closed loop of [`discrete_check`] (same arguments) with its matrix M:
+/// z[k+1] = M·z[k] over one cycle, 9 states per axis i at `9·i ..`, in this order: x [rad],
+/// ẋ [rad/s], the command still held from the last cycle u[k−1] [V], the three previous
+/// samples of the error e[k−1], e[k−2], e[k−3] [rad], and of its rate ė[k−1], ė[k−2],
+/// ė[k−3] [rad/s] (regulation to x^d = 0: e = −x, ė = −ẋ). The report's spectral radius is
+/// that of this matrix.
+pub fn discrete_loop(
+    law: &dyn ControlLaw,
+    axes: &[(f64, f64)],
+    t_cyc: f64,
+    delays: &[f64],
+) -> Result<DiscreteLoop, ControlError> {
     let n = law.axes();
     check_len("axes", n, axes.len())?;
     check_len("delays", n, delays.len())?;
@@ -250,7 +278,7 @@ pub fn discrete_check(
             }
         }
     }
-    let schur = Schur::try_new(m, 1e-13, 100_000).ok_or(ControlError::NoConvergence {
+    let schur = Schur::try_new(m.clone(), 1e-13, 100_000).ok_or(ControlError::NoConvergence {
         what: "Schur decomposition of the loop matrix",
     })?;
     let rho = schur
@@ -258,9 +286,12 @@ pub fn discrete_check(
         .iter()
         .map(|l| l.norm())
         .fold(0.0, f64::max);
-    Ok(DiscreteReport {
-        spectral_radius: rho,
-        states: dim,
+    Ok(DiscreteLoop {
+        matrix: m,
+        report: DiscreteReport {
+            spectral_radius: rho,
+            states: dim,
+        },
     })
 }
 

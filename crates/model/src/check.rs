@@ -2,7 +2,7 @@
 //! applied to a scenario, with the sample-to-actuation delays taken from the cycle plan.
 
 use ringsync_control::stability::{
-    ContinuousReport, DiscreteReport, continuous_conditions, discrete_check,
+    ContinuousReport, DiscreteReport, continuous_conditions, discrete_loop,
 };
 use ringsync_control::{ControlError, ControlLaw, Sign, SyncController, SyncParams, Trajectory};
 use ringsync_plant::IndependentAxes;
@@ -103,6 +103,11 @@ pub struct CheckReport {
     pub delays: Vec<f64>,
     /// The discrete-time check; `None` when it does not model the scenario.
     pub discrete: Option<DiscreteReport>,
+    /// The closed-loop matrix M of the discrete-time check (z[k+1] = M·z[k] over one
+    /// cycle), row-major, `discrete.states` × `discrete.states`: 9 states per axis, in the
+    /// order of [`ringsync_control::stability::discrete_loop`] (x [rad], ẋ [rad/s], u[k−1]
+    /// [V], e[k−1..k−3] [rad], ė[k−1..k−3] [rad/s]); `None` with `discrete`.
+    pub discrete_matrix: Option<Vec<f64>>,
     /// Why the discrete-time check did not run (`None` when it ran).
     pub not_modelled: Option<NotModelled>,
     /// How the robust term entered the discrete-time check.
@@ -198,12 +203,16 @@ pub fn check(s: &Scenario, points: usize) -> Result<CheckReport, CheckError> {
         PlanKind::P2pLumped => {
             let delays = command_delays(&plan);
             let linear: Vec<(f64, f64)> = models.iter().map(|m| m.linear_part()).collect();
-            let r = discrete_check(law.as_ref(), &linear, s.ring.cycle.secs(), &delays)?;
+            let r = discrete_loop(law.as_ref(), &linear, s.ring.cycle.secs(), &delays)?;
             (delays, Some(r), None)
         }
         PlanKind::LumpedOnly if coupled => (Vec::new(), None, Some(NotModelled::CoupledPlant)),
         PlanKind::LumpedOnly => (Vec::new(), None, Some(NotModelled::LumpedOnlyPlan)),
     };
+    let discrete_matrix = discrete
+        .as_ref()
+        .map(|l| l.matrix.transpose().as_slice().to_vec());
+    let discrete = discrete.map(|l| l.report);
     let continuous = if s.control.law == SYNC && !coupled {
         let plant = IndependentAxes::new(models);
         let c = &s.control;
@@ -224,6 +233,7 @@ pub fn check(s: &Scenario, points: usize) -> Result<CheckReport, CheckError> {
         estimator: s.control.estimator.name(),
         delays,
         discrete,
+        discrete_matrix,
         not_modelled,
         robust,
         continuous,

@@ -175,3 +175,32 @@ fn an_estimator_with_state_is_refused() {
     // The same law with the paper's estimator is checked.
     assert!(discrete_check(&sync_law(1.591), &axes, 1e-3, &DELAYS).is_ok());
 }
+
+/// `discrete_loop` hands back the matrix `discrete_check` takes the spectral radius of, with
+/// the bookkeeping rows in the documented order.
+#[test]
+fn the_loop_matrix_is_the_one_checked() {
+    let axes = linear(&reference_axes());
+    let law = sync_law(1.591);
+    let l = discrete_loop(&law, &axes, 1e-3, &DELAYS).expect("loop");
+    let r = discrete_check(&law, &axes, 1e-3, &DELAYS).expect("check");
+    assert_eq!(l.report, r);
+    assert_eq!(l.matrix.shape(), (36, 36));
+    let m = &l.matrix;
+    for i in 0..4 {
+        let o = PER_AXIS * i;
+        // e[k−1] = −x, ė[k−1] = −ẋ; the older samples shift down.
+        assert_eq!(m[(o + 3, o)], -1.0);
+        assert_eq!(m[(o + 6, o + 1)], -1.0);
+        assert_eq!((m[(o + 4, o + 3)], m[(o + 5, o + 4)]), (1.0, 1.0));
+        assert_eq!((m[(o + 7, o + 6)], m[(o + 8, o + 7)]), (1.0, 1.0));
+    }
+    // nalgebra's own eigenvalues of the matrix (its default tolerances): the same radius.
+    let rho = m
+        .clone()
+        .complex_eigenvalues()
+        .iter()
+        .map(|z| z.norm())
+        .fold(0.0, f64::max);
+    assert!((rho - r.spectral_radius).abs() <= 1e-9 * r.spectral_radius);
+}
