@@ -8,7 +8,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use ringsync::layers::report::sim::summary_json;
-use ringsync::layers::report::{check_json, check_text};
+use ringsync::layers::report::{check_json, check_text, plan_json};
 use ringsync::{OutDir, RunResult, Scenario, SimOptions, Trace, Verdict};
 
 use crate::convert::json_to_py;
@@ -178,7 +178,20 @@ impl SimRun {
     }
 }
 
-/// Checks the scenario `text` as `ringsync check --json` does: (report, text).
+/// What [`check`] hands back: `ringsync check --json`'s object, its text, whether stable,
+/// the discrete-time check's closed-loop matrix (states × states, `None` when the check
+/// does not model the loop) and the cycle time T_cyc [s].
+type Checked<'py> = (
+    Bound<'py, PyAny>,
+    String,
+    bool,
+    Option<Bound<'py, PyAny>>,
+    f64,
+);
+
+/// Checks the scenario `text` as `ringsync check --json` does: (report, text, stable,
+/// loop matrix, T_cyc [s]); the matrix is the one whose eigenvalues give the report's
+/// spectral radius (9 states per axis, see `ringsync_control::stability::discrete_loop`).
 #[pyfunction]
 #[pyo3(signature = (text, origin, points=4001))]
 fn check<'py>(
@@ -186,17 +199,87 @@ fn check<'py>(
     text: String,
     origin: String,
     points: usize,
-) -> PyResult<(Bound<'py, PyAny>, String, bool)> {
-    let (json, text, stable) = guard(py, move || {
+) -> PyResult<Checked<'py>> {
+    let (json, text, stable, matrix, t_cyc) = guard(py, move || {
         let s = ringsync::parse(&text, &origin)?.scenario;
         let r = ringsync::check(&s, points.max(1))?;
+        let states = r.discrete.map_or(0, |d| d.states);
         Ok((
             check_json(&r),
             check_text(&r),
             r.verdict() == Verdict::Stable,
+            r.discrete_matrix.map(|m| (m, states)),
+            s.ring.cycle.secs(),
         ))
     })?;
-    Ok((json_to_py(py, &json)?, text, stable))
+    let matrix = match matrix {
+        Some((m, n)) => Some(PyArray1::from_vec(py, m).reshape([n, n])?.into_any()),
+        None => None,
+    };
+    Ok((json_to_py(py, &json)?, text, stable, matrix, t_cyc))
+}
+
+/// The cycle plan (eq. 1-2) of the scenario `text`'s ring, as `ringsync plan --json`
+/// prints it (integer ns; with `events`, the frame-by-frame timeline too), checked against
+/// the scenario's plan kind.
+#[pyfunction]
+#[pyo3(signature = (text, origin, events=false))]
+fn plan<'py>(
+    py: Python<'py>,
+    text: String,
+    origin: String,
+    events: bool,
+) -> PyResult<Bound<'py, PyAny>> {
+    let json = guard(py, move || {
+        let s = ringsync::parse(&text, &origin)?.scenario;
+        let p = ringsync::plan_of(&s)?;
+        Ok(plan_json(&p, s.ring.plan, events))
+    })?;
+    json_to_py(py, &json)
+}
+
+/// The paper's Table 1 reproduced on the scenario `text` (its seed replaced when given):
+/// one dict per (plan, controller) with `plan`, `controller`, `track_rmse`, `sync_rmse`
+/// [rad], `group_stop` (bool), as `ringsync reproduce` computes them.
+#[pyfunction]
+#[pyo3(signature = (text, origin, seed=None))]
+fn reproduce<'py>(
+    py: Python<'py>,
+    text: String,
+    origin: String,
+    seed: Option<u64>,
+) -> PyResult<Vec<Bound<'py, PyDict>>> {
+    let rows = guard(py, move || {
+        let mut s = ringsync::parse(&text, &origin)?.scenario;
+        if let Some(seed) = seed {
+            s.seed = seed;
+        }
+        let r = ringsync::reproduce(&s)?;
+        Ok(r.rows
+            .iter()
+            .zip(&r.runs)
+            .map(|(row, run)| {
+                (
+                    row.plan.to_string(),
+                    row.controller.to_string(),
+                    row.track_rmse,
+                    row.sync_rmse,
+                    run.group_stop.is_some(),
+                )
+            })
+            .collect::<Vec<_>>())
+    })?;
+    rows.into_iter()
+        .map(|(plan, controller, track, sync, stop)| {
+            let d = PyDict::new(py);
+            d.set_item("plan", plan)?;
+            d.set_item("controller", controller)?;
+            d.set_item("track_rmse", track)?;
+            d.set_item("sync_rmse", sync)?;
+            d.set_item("group_stop", stop)?;
+            Ok(d)
+        })
+        .collect()
 }
 
 /// Registers the simulation functions.
@@ -204,5 +287,7 @@ pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<SimRun>()?;
     m.add_function(wrap_pyfunction!(simulate, m)?)?;
     m.add_function(wrap_pyfunction!(check, m)?)?;
+    m.add_function(wrap_pyfunction!(plan, m)?)?;
+    m.add_function(wrap_pyfunction!(reproduce, m)?)?;
     Ok(())
 }
