@@ -23,6 +23,8 @@ Functions (each returns an object; docs/python.md is the walk-through):
   combination of the grid's values and seeds, run in parallel in Rust, or on Dask
   (``executor=`` a Client or a scheduler address); ``to_pandas()``, ``means()``, ``plot()``.
 - ``reproduce(seeds=1)``: the paper's Table 1 (:class:`Reproduction`).
+- ``rt(scenario)``: the same scenario run in real time over UDP on loopback (a
+  :class:`Run` with the timing in its ``summary``).
 
 Optional extras: ``ringsync[pandas]``, ``ringsync[plot]`` (matplotlib),
 ``ringsync[xarray]``, ``ringsync[control]`` (python-control), ``ringsync[dask]``; each is
@@ -48,7 +50,7 @@ from __future__ import annotations
 
 from ._ringsync import RunError, ScenarioError, __version__
 from ._plan import Plan, Reproduction, plan, reproduce
-from ._run import Check, Run, check, simulate
+from ._run import Check, Run, check, rt, simulate
 from ._scenario import Scenario, ScenarioLike, laws, load, scenarios
 from ._sweep import Sweep, sweep
 
@@ -61,6 +63,7 @@ __all__ = [
     "plan",
     "sweep",
     "reproduce",
+    "rt",
     "Scenario",
     "ScenarioLike",
     "Run",

@@ -54,6 +54,8 @@ class SimRun:
     def seed(self) -> int: ...
     @property
     def name(self) -> str: ...
+    @property
+    def realtime(self) -> bool: ...
     def columns(self) -> dict[str, npt.NDArray[np.float64]]:
         """``time`` (cycles,) [s]; ``x_d``, ``x``, ``e``, ``eps`` [rad], ``u`` [V],
         ``sample_time``, ``apply_time`` [s], ``clock_error_ns`` [ns], cycles × axes."""
@@ -70,6 +72,10 @@ class SimRun:
 
 def simulate(text: str, origin: str, seed: int | None = None) -> SimRun:
     """Simulates the scenario (its seed replaced when given), keeping the trace."""
+
+def rt(text: str, origin: str, prediction_seeds: int = 8) -> SimRun:
+    """Runs the scenario in real time over UDP on loopback (``ringsync rt``); Ctrl-C ends
+    it early (KeyboardInterrupt)."""
 
 def check(
     text: str, origin: str, points: int = 4001

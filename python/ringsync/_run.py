@@ -16,7 +16,7 @@ if TYPE_CHECKING:
     import pandas
     import xarray
 
-__all__ = ["Run", "simulate", "Check", "check"]
+__all__ = ["Run", "simulate", "rt", "Check", "check"]
 
 #: The per-cycle, per-axis columns of a run's trace, with their units.
 COLUMNS: dict[str, str] = {
@@ -138,6 +138,11 @@ class Run:
     def axes(self) -> int:
         """Number of axes."""
         return int(self._core.axes)
+
+    @property
+    def realtime(self) -> bool:
+        """Whether the run ran in real time (:func:`rt`) rather than in the simulator."""
+        return bool(self._core.realtime)
 
     @property
     def stopped(self) -> bool:
@@ -303,6 +308,33 @@ def simulate(scenario: ScenarioLike, *, seed: int | None = None, **overrides: An
     """
     s = _with(scenario, overrides)
     return Run(_rs.simulate(s.to_toml(), s.origin, seed), s)
+
+
+def rt(scenario: ScenarioLike = "paper-2015", *, prediction_seeds: int = 8, **overrides: Any) -> Run:
+    """Runs a scenario in real time over UDP on loopback, as ``ringsync rt SCENARIO``
+    does: the master and one slave per axis exchange real frames on their own threads for
+    the scenario's ``duration`` of wall-clock time (plus a short calibration), the servo
+    plants stepped in real time. No privileges are needed (real-time scheduling is used when
+    allowed, and ``summary["realtime"]`` says what was applied). The GIL is released; Ctrl-C
+    ends the run early (KeyboardInterrupt once it has stopped).
+
+    Returns a :class:`Run` (``realtime`` True): the same arrays and metrics as a
+    simulation, ``summary`` is what ``ringsync rt`` writes (the simulator's fields plus the
+    timing: ``overruns``, ``lateness_us``, ``p2p_phase_us``, ``calibration`` …, and the
+    simulator's prediction from ``prediction_seeds`` seeds, 0 for none), ``text()`` its
+    lines. Numbers vary from run to run: the host's timing is part of the result.
+    ``overrides`` set scenario keys first, as for :func:`simulate`.
+
+    Example::
+
+        >>> r = ringsync.rt("paper-2015", duration="0.2s", prediction_seeds=0)
+        >>> r.realtime, r.summary["transport"], r.e.shape[1]
+        (True, 'udp', 4)
+    """
+    if isinstance(prediction_seeds, bool) or not isinstance(prediction_seeds, int) or prediction_seeds < 0:
+        raise ValueError(f"prediction_seeds must be a whole number >= 0, not {prediction_seeds!r}")
+    s = _with(scenario, overrides)
+    return Run(_rs.rt(s.to_toml(), s.origin, prediction_seeds), s)
 
 
 class Check:

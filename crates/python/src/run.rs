@@ -1,13 +1,16 @@
 //! Simulating and checking: [`SimRun`] keeps a finished simulation for its arrays, its
 //! metrics and the CLI's files; `check` hands back the CLI's `check --json` report.
 
+use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use numpy::{PyArray1, PyArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use ringsync::layers::report::sim::summary_json;
+use ringsync::layers::report::sim::{summary_json, write_trace_csv};
 use ringsync::layers::report::{check_json, check_text, plan_json};
 use ringsync::{OutDir, RunResult, Scenario, SimOptions, Trace, Verdict};
 
@@ -23,6 +26,9 @@ pub struct SimRun {
     hash: u64,
     /// The run, with its trace.
     result: RunResult,
+    /// For a real-time run: its summary.json (the simulator's fields plus the timing) and
+    /// the lines `ringsync rt` prints.
+    rt: Option<(serde_json::Value, String)>,
 }
 
 /// Simulates the scenario `text` (from `origin`), with `seed` instead of the scenario's
@@ -45,8 +51,78 @@ fn simulate(py: Python<'_>, text: String, origin: String, seed: Option<u64>) -> 
             scenario,
             hash: loaded.hash,
             result,
+            rt: None,
         })
     })
+}
+
+impl SimRun {
+    /// summary.json's content: the real-time run's when it is one, else the simulator's.
+    fn summary_value(&self) -> serde_json::Value {
+        match &self.rt {
+            Some((v, _)) => v.clone(),
+            None => summary_json(&self.scenario, self.hash, &self.result),
+        }
+    }
+}
+
+/// Runs the scenario `text` in real time over UDP on loopback (`ringsync rt`: the master
+/// and a process-internal slave per axis exchanging real frames on their own threads, no
+/// privileges needed), with the simulator's prediction from `prediction_seeds` seeds (0:
+/// none). Ctrl-C (KeyboardInterrupt) ends the run early; it is raised when the run has
+/// stopped and cleaned up.
+#[pyfunction]
+#[pyo3(signature = (text, origin, prediction_seeds=8))]
+fn rt(py: Python<'_>, text: String, origin: String, prediction_seeds: u64) -> PyResult<SimRun> {
+    let stop = Arc::new(AtomicBool::new(false));
+    let flag = Arc::clone(&stop);
+    let worker = std::thread::Builder::new()
+        .name("ringsync-rt".into())
+        .spawn(move || {
+            catch_unwind(AssertUnwindSafe(|| -> ringsync::Result<SimRun> {
+                let loaded = ringsync::parse(&text, &origin)?;
+                let opts = ringsync::RtOptions {
+                    transport: ringsync::TransportKind::Udp,
+                    trace: true,
+                    ..ringsync::RtOptions::default()
+                };
+                let r = ringsync::run_rt(&loaded.scenario, &opts, &flag, Vec::new())?;
+                let prediction = if prediction_seeds > 0 && !r.interrupted {
+                    Some(ringsync::predict(&r.scenario, prediction_seeds)?)
+                } else {
+                    None
+                };
+                let summary =
+                    ringsync::rt::rt_summary(&r, loaded.hash, r.transport.name(), prediction);
+                let text = ringsync::rt::rt_text(&r, prediction);
+                Ok(SimRun {
+                    scenario: r.scenario,
+                    hash: loaded.hash,
+                    result: r.run,
+                    rt: Some((summary, text)),
+                })
+            }))
+        })
+        .map_err(|e| crate::RunError::new_err(format!("cannot start the real-time run: {e}")))?;
+    // Wait without the GIL, looking for Ctrl-C every 50 ms.
+    let mut interrupted = None;
+    while !worker.is_finished() {
+        py.detach(|| std::thread::sleep(std::time::Duration::from_millis(50)));
+        if interrupted.is_none()
+            && let Err(e) = py.check_signals()
+        {
+            stop.store(true, Ordering::Relaxed);
+            interrupted = Some(e);
+        }
+    }
+    let done = py.detach(|| worker.join());
+    if let Some(e) = interrupted {
+        return Err(e);
+    }
+    match done {
+        Ok(Ok(r)) => r.map_err(crate::to_py),
+        Ok(Err(panic)) | Err(panic) => Err(crate::panicked(panic.as_ref())),
+    }
 }
 
 /// `column` (group-major, `n` per group) as a 2-D array of groups × n.
@@ -80,9 +156,9 @@ impl SimRun {
         Ok(d)
     }
 
-    /// summary.json's text, exactly as `ringsync sim` writes it.
+    /// summary.json's text, exactly as `ringsync sim` (or `ringsync rt`) writes it.
     fn summary_json(&self) -> PyResult<String> {
-        let v = summary_json(&self.scenario, self.hash, &self.result);
+        let v = self.summary_value();
         let text = serde_json::to_string_pretty(&v)
             .map_err(|e| crate::RunError::new_err(format!("cannot format JSON: {e}")))?;
         Ok(format!("{text}\n"))
@@ -90,7 +166,13 @@ impl SimRun {
 
     /// summary.json's content as a dict.
     fn summary<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        json_to_py(py, &summary_json(&self.scenario, self.hash, &self.result))
+        json_to_py(py, &self.summary_value())
+    }
+
+    /// Whether this is a real-time run (`ringsync.rt`).
+    #[getter]
+    fn realtime(&self) -> bool {
+        self.rt.is_some()
     }
 
     /// The run's figures as a flat dict, taken from the run itself (not through JSON).
@@ -139,14 +221,26 @@ impl SimRun {
 
     /// The CLI's few lines on the run.
     fn text(&self) -> String {
-        ringsync::sim_text(&self.scenario, &self.result)
+        match &self.rt {
+            Some((_, text)) => text.clone(),
+            None => ringsync::sim_text(&self.scenario, &self.result),
+        }
     }
 
     /// Writes the CLI's files into `dir` (replaced as a whole, as `ringsync sim --out`
-    /// replaces it): summary.json, trace.csv, the figures, report.html.
+    /// replaces it): summary.json, trace.csv, the figures, report.html; for a real-time run
+    /// what `ringsync rt --out` writes: summary.json and trace.csv.
     fn save(&self, py: Python<'_>, dir: PathBuf) -> PyResult<()> {
         guard(py, || {
             let mut out = OutDir::create("save: directory", &dir)?;
+            if let Some((summary, _)) = &self.rt {
+                out.write(
+                    "summary.json",
+                    format!("{}\n", serde_json::to_string_pretty(summary)?),
+                )?;
+                out.write_with("trace.csv", |w| write_trace_csv(&self.result, w))?;
+                return out.commit();
+            }
             ringsync::write_sim(
                 &mut out,
                 &self.scenario,
@@ -289,5 +383,6 @@ pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(check, m)?)?;
     m.add_function(wrap_pyfunction!(plan, m)?)?;
     m.add_function(wrap_pyfunction!(reproduce, m)?)?;
+    m.add_function(wrap_pyfunction!(rt, m)?)?;
     Ok(())
 }
