@@ -24,6 +24,9 @@ def test_docs_python_md_runs(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) ->
     blocks = snippets()
     assert len(blocks) >= 4
     monkeypatch.chdir(tmp_path)  # files the walk-through writes land here
+    import matplotlib
+
+    matplotlib.use("Agg")  # no display here: figures are drawn and saved, not shown
     namespace: dict[str, object] = {"__name__": "__docs__"}
     for i, code in enumerate(blocks):
         try:
