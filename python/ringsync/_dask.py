@@ -45,34 +45,48 @@ def run_pack(pack: Sequence[tuple[Key, str]]) -> list[tuple[Key, dict[str, Any]]
     return list(zip(keys, results))
 
 
-def pack(costs: Sequence[float], task_seconds: float) -> list[list[int]]:
+def pack(costs: Sequence[float], task_seconds: float, slots: int = 1) -> list[list[int]]:
     """Splits cases with estimated ``costs`` [s] (in order) into contiguous packs of at
-    least ``task_seconds`` [s] each: a pack closes as soon as it holds that much, and a
+    least ``task_seconds`` [s] each: a pack closes as soon as it holds its share, and a
     short remainder joins the last pack (all cases in one pack when their total is
-    smaller). So every pack is as small as the size allows, and there are as many as the
-    work allows. Returns the cases' indices per pack.
+    smaller). With ``slots`` (the cluster's worker threads), the share is raised so that
+    the number of packs is a multiple of the slots when the work allows it, so that no
+    slot idles at the end while another runs a last pack. Returns the cases' indices per
+    pack.
 
     Example::
 
         >>> from ringsync._dask import pack
         >>> [len(p) for p in pack([0.01] * 1000, 0.5)]  # 10 s of work in 0.5 s tasks
         [50, 50, 50, 50, 50, 50, 50, 50, 50, 50, 50, 50, 50, 50, 50, 50, 50, 50, 50, 50]
+        >>> [len(p) for p in pack([0.01] * 1000, 0.5, slots=3)]  # 18 packs, 6 per slot
+        [56, 56, 55, 56, 55, 56, 55, 56, 55, 56, 56, 55, 56, 55, 56, 55, 56, 55]
         >>> pack([0.1, 0.1], 0.5), pack([0.3, 0.3, 0.3], 0.5)
         ([[0, 1]], [[0, 1, 2]])
     """
+    total = float(sum(costs))
+    share = task_seconds
+    slots = max(1, int(slots))
+    if task_seconds > 0:
+        n = int(total / task_seconds * (1 + 1e-9))
+        if n >= slots:
+            share = max(task_seconds, total / (n - n % slots))
     packs: list[list[int]] = []
     current: list[int] = []
-    acc = 0.0
+    acc = cum = 0.0
     # A relative slack so that 50 × 0.01 s counts as 0.5 s despite rounding.
-    need = task_seconds * (1 - 1e-9)
+    slack = 1 - 1e-9
     for i, c in enumerate(costs):
         current.append(i)
         acc += c
-        if acc >= need:
+        cum += c
+        # Close at the next multiple of the share (so packs do not drift longer), never
+        # below the size asked for.
+        if acc >= task_seconds * slack and cum >= (len(packs) + 1) * share * slack:
             packs.append(current)
             current, acc = [], 0.0
     if current:
-        if packs:
+        if packs and acc < task_seconds * (1 - 1e-9):
             packs[-1].extend(current)
         else:
             packs.append(current)
@@ -160,7 +174,8 @@ def distributed_results(
             costs = [c[3] * per_unit for c in cases[start:]]
         else:
             costs = [float(run_seconds)] * (len(cases) - start)
-        packs = [[start + i for i in p] for p in pack(costs, task_seconds)]
+        slots = sum(client.nthreads().values())
+        packs = [[start + i for i in p] for p in pack(costs, task_seconds, slots)]
         futures = [
             client.submit(run_pack, [(keys[i], cases[i][2]) for i in p], pure=True)
             for p in packs

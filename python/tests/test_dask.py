@@ -5,6 +5,7 @@ tasks of at least the requested work; a missing Dask or a bad executor is a clea
 from __future__ import annotations
 
 import os
+import re
 import subprocess
 import sys
 import time
@@ -54,7 +55,7 @@ def test_progress_line(client: object, capsys: pytest.CaptureFixture[str]) -> No
     ringsync.sweep("paper-2015", {"control.alpha": [0.3]}, seeds=3, duration="0.2s",
                    executor=client, run_seconds=0.1, task_seconds=0.1, progress=True)
     err = capsys.readouterr().err
-    assert "ringsync sweep: 3/3 tasks, 3/3 runs" in err
+    assert re.search(r"ringsync sweep: (\d+)/\1 tasks, 3/3 runs\n$", err), err
 
 
 def _free_port() -> int:
@@ -109,16 +110,22 @@ def test_separate_scheduler_and_worker_processes(local: ringsync.Sweep, tmp_path
 
 
 def test_packing_makes_tasks_of_at_least_the_requested_work() -> None:
-    for costs, task in [([0.01] * 1000, 0.5), ([0.003, 0.2, 0.04] * 37, 0.5), ([0.07] * 9, 0.5),
-                        ([0.6] * 3, 0.5), ([0.001 * (i % 7 + 1) for i in range(500)], 0.25)]:
-        packs = _dask.pack(costs, task)
-        assert sorted(i for p in packs for i in p) == list(range(len(costs)))
-        assert all(p == list(range(p[0], p[-1] + 1)) for p in packs)  # contiguous
-        work = [sum(costs[i] for i in p) for p in packs]
-        assert all(w >= task * (1 - 1e-9) for w in work), (task, min(work))
-        # Each pack but the last is as small as the size allows: without its last case it
-        # would be short of it.
-        assert all(w - costs[p[-1]] < task for w, p in zip(work[:-1], packs[:-1]))
+    cases = [([0.01] * 1000, 0.5), ([0.003, 0.2, 0.04] * 37, 0.5), ([0.07] * 9, 0.5),
+             ([0.6] * 3, 0.5), ([0.001 * (i % 7 + 1) for i in range(500)], 0.25)]
+    for costs, task in cases:
+        for slots in (1, 2, 3):
+            packs = _dask.pack(costs, task, slots)
+            assert sorted(i for p in packs for i in p) == list(range(len(costs)))
+            assert all(p == list(range(p[0], p[-1] + 1)) for p in packs)  # contiguous
+            work = [sum(costs[i] for i in p) for p in packs]
+            assert all(w >= task * (1 - 1e-9) for w in work), (task, slots, min(work))
+            # Even: no pack holds much more than an equal share of the work ...
+            share = sum(costs) / len(packs)
+            assert max(work) <= max(share, task) + 2 * max(costs) + 1e-9
+            # ... and, for runs that cost the same, whole rounds of the slots when there is
+            # work for them.
+            if len(set(costs)) == 1 and sum(costs) >= slots * task:
+                assert len(packs) % slots == 0, (task, slots, len(packs))
     assert [len(p) for p in _dask.pack([0.01] * 1000, 0.5)] == [50] * 20
     assert _dask.pack([0.1, 0.1], 0.5) == [[0, 1]]  # less than one task's work: one task
     assert _dask.pack([], 0.5) == []
