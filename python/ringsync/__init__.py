@@ -13,8 +13,7 @@ Functions (each returns an object; docs/python.md is the walk-through):
   name, a path, TOML text or a dict; ``laws()``: the control laws and their parameters.
 - ``simulate(scenario, *, seed=None, **overrides)``: a :class:`Run` with numpy arrays
   (``time`` [s]; ``x``, ``x_d``, ``e``, ``eps`` [rad]; ``u`` [V]; cycles × axes),
-  ``metrics``, ``summary``, ``to_pandas()``, ``save(dir)``,
-  ``plot()``, ``to_xarray()``.
+  ``metrics``, ``summary``, ``plot()``, ``to_pandas()``, ``to_xarray()``, ``save(dir)``.
 - ``check(scenario)``: a :class:`Check` (spectral radius, verdict, the paper's conditions,
   the loop ``matrix``, ``statespace()`` for python-control).
 - ``plan(scenario=None)``: a :class:`Plan`, every term of eq. 1-2 in ns; ``plot()`` draws
