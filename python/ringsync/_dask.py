@@ -47,50 +47,47 @@ def run_pack(pack: Sequence[tuple[Key, str]]) -> list[tuple[Key, dict[str, Any]]
 
 def pack(costs: Sequence[float], task_seconds: float, slots: int = 1) -> list[list[int]]:
     """Splits cases with estimated ``costs`` [s] (in order) into contiguous packs of at
-    least ``task_seconds`` [s] each: a pack closes as soon as it holds its share, and a
-    short remainder joins the last pack (all cases in one pack when their total is
-    smaller). With ``slots`` (the cluster's worker threads), the share is raised so that
-    the number of packs is a multiple of the slots when the work allows it, so that no
-    slot idles at the end while another runs a last pack. Returns the cases' indices per
-    pack.
+    least ``task_seconds`` [s] each, as even as whole cases allow; the number of packs is a
+    multiple of ``slots`` (the cluster's worker threads) when the work allows it, so that
+    no slot idles at the end while another runs a last pack. Less work than one pack's
+    size goes into one pack; ``task_seconds`` 0 makes one pack per case. Returns the
+    cases' indices per pack.
+
+    How: n packs of an equal share total/n of the work, with n the largest number (a
+    multiple of the slots, if at least one round) such that share ≥ task_seconds + the
+    largest cost; case i goes to the pack whose share holds the middle of its cost. A pack
+    then misses at most half a case at each end: it holds at least share − largest cost ≥
+    task_seconds.
 
     Example::
 
         >>> from ringsync._dask import pack
-        >>> [len(p) for p in pack([0.01] * 1000, 0.5)]  # 10 s of work in 0.5 s tasks
-        [50, 50, 50, 50, 50, 50, 50, 50, 50, 50, 50, 50, 50, 50, 50, 50, 50, 50, 50, 50]
-        >>> [len(p) for p in pack([0.01] * 1000, 0.5, slots=3)]  # 18 packs, 6 per slot
-        [56, 56, 55, 56, 55, 56, 55, 56, 55, 56, 56, 55, 56, 55, 56, 55, 56, 55]
+        >>> [len(p) for p in pack([0.01] * 1000, 0.5)]  # 10 s of work, tasks >= 0.5 s
+        [53, 52, 53, 53, 52, 53, 52, 53, 53, 52, 53, 53, 52, 53, 52, 53, 53, 52, 53]
+        >>> [len(p) for p in pack([0.01] * 1000, 0.5, slots=4)]  # 16 packs, 4 per slot
+        [62, 63, 62, 63, 62, 63, 62, 63, 62, 63, 62, 63, 62, 63, 62, 63]
         >>> pack([0.1, 0.1], 0.5), pack([0.3, 0.3, 0.3], 0.5)
         ([[0, 1]], [[0, 1, 2]])
     """
+    if not costs:
+        return []
+    if task_seconds <= 0:
+        return [[i] for i in range(len(costs))]
     total = float(sum(costs))
-    share = task_seconds
+    largest = max(costs)
+    n = int(total / (task_seconds + largest) * (1 + 1e-12))
     slots = max(1, int(slots))
-    if task_seconds > 0:
-        n = int(total / task_seconds * (1 + 1e-9))
-        if n >= slots:
-            share = max(task_seconds, total / (n - n % slots))
-    packs: list[list[int]] = []
-    current: list[int] = []
-    acc = cum = 0.0
-    # A relative slack so that 50 × 0.01 s counts as 0.5 s despite rounding.
-    slack = 1 - 1e-9
+    if n >= slots:
+        n -= n % slots
+    if n <= 1:
+        return [list(range(len(costs)))]
+    share = total / n
+    packs: list[list[int]] = [[] for _ in range(n)]
+    cum = 0.0
     for i, c in enumerate(costs):
-        current.append(i)
-        acc += c
+        packs[min(n - 1, int((cum + c / 2) / share))].append(i)
         cum += c
-        # Close at the next multiple of the share (so packs do not drift longer), never
-        # below the size asked for.
-        if acc >= task_seconds * slack and cum >= (len(packs) + 1) * share * slack:
-            packs.append(current)
-            current, acc = [], 0.0
-    if current:
-        if packs and acc < task_seconds * (1 - 1e-9):
-            packs[-1].extend(current)
-        else:
-            packs.append(current)
-    return packs
+    return [p for p in packs if p]
 
 
 _MISSING_DASK = (

@@ -121,12 +121,13 @@ def test_packing_makes_tasks_of_at_least_the_requested_work() -> None:
             assert all(w >= task * (1 - 1e-9) for w in work), (task, slots, min(work))
             # Even: no pack holds much more than an equal share of the work ...
             share = sum(costs) / len(packs)
-            assert max(work) <= max(share, task) + 2 * max(costs) + 1e-9
-            # ... and, for runs that cost the same, whole rounds of the slots when there is
-            # work for them.
-            if len(set(costs)) == 1 and sum(costs) >= slots * task:
+            assert max(work) <= max(share, task) + max(costs) + 1e-9
+            # ... and whole rounds of the slots when there is work for them.
+            if sum(costs) >= slots * (task + max(costs)):
                 assert len(packs) % slots == 0, (task, slots, len(packs))
-    assert [len(p) for p in _dask.pack([0.01] * 1000, 0.5)] == [50] * 20
+    sizes = [len(p) for p in _dask.pack([0.01] * 1000, 0.5, 2)]
+    assert len(sizes) == 18 and max(sizes) - min(sizes) <= 1
+    assert _dask.pack([0.3] * 5, 0.0) == [[0], [1], [2], [3], [4]]
     assert _dask.pack([0.1, 0.1], 0.5) == [[0, 1]]  # less than one task's work: one task
     assert _dask.pack([], 0.5) == []
 
