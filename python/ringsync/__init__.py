@@ -13,10 +13,21 @@ Functions (each returns an object; docs/python.md is the walk-through):
   name, a path, TOML text or a dict; ``laws()``: the control laws and their parameters.
 - ``simulate(scenario, *, seed=None, **overrides)``: a :class:`Run` with numpy arrays
   (``time`` [s]; ``x``, ``x_d``, ``e``, ``eps`` [rad]; ``u`` [V]; cycles × axes),
-  ``metrics``, ``summary``, ``to_pandas()``, ``save(dir)``.
-- ``check(scenario)``: a :class:`Check` (spectral radius, verdict, the paper's conditions).
-- ``sweep(scenario, grid, *, seeds=8)``: a :class:`Sweep` of every combination of the
-  grid's values and seeds, run in parallel in Rust; ``to_pandas()``, ``means()``.
+  ``metrics``, ``summary``, ``plot()``, ``to_pandas()``, ``to_xarray()``, ``save(dir)``.
+- ``check(scenario)``: a :class:`Check` (spectral radius, verdict, the paper's conditions,
+  the loop ``matrix``, ``statespace()`` for python-control).
+- ``plan(scenario=None)``: a :class:`Plan`, every term of eq. 1-2 in ns; ``plot()`` draws
+  the cycle.
+- ``sweep(scenario, grid, *, seeds=8, executor=None)``: a :class:`Sweep` of every
+  combination of the grid's values and seeds, run in parallel in Rust, or on Dask
+  (``executor=`` a Client or a scheduler address); ``to_pandas()``, ``means()``, ``plot()``.
+- ``reproduce(seeds=8)``: the paper's Table 1 over seeds (:class:`Reproduction`).
+- ``rt(scenario)``: the same scenario run in real time over UDP on loopback (a
+  :class:`Run` with the timing in its ``summary``).
+
+Optional extras: ``ringsync[pandas]``, ``ringsync[plot]`` (matplotlib),
+``ringsync[xarray]``, ``ringsync[control]`` (python-control), ``ringsync[dask]``; each is
+imported only when a method needs it.
 
 Errors: :class:`ScenarioError` (a ``ValueError``) for a bad scenario, key or value, with
 the CLI's one-line message; :class:`RunError` (a ``RuntimeError``) when the work fails.
@@ -37,7 +48,8 @@ Example::
 from __future__ import annotations
 
 from ._ringsync import RunError, ScenarioError, __version__
-from ._run import Check, Run, check, simulate
+from ._plan import Plan, Reproduction, plan, reproduce
+from ._run import Check, Run, check, rt, simulate
 from ._scenario import Scenario, ScenarioLike, laws, load, scenarios
 from ._sweep import Sweep, sweep
 
@@ -47,17 +59,22 @@ __all__ = [
     "laws",
     "simulate",
     "check",
+    "plan",
     "sweep",
+    "reproduce",
+    "rt",
     "Scenario",
     "ScenarioLike",
     "Run",
     "Check",
+    "Plan",
     "Sweep",
+    "Reproduction",
     "ScenarioError",
     "RunError",
     "__version__",
 ]
 
-for _cls in (Scenario, Run, Check, Sweep):
+for _cls in (Scenario, Run, Check, Plan, Sweep, Reproduction):
     _cls.__module__ = __name__
 del _cls

@@ -54,6 +54,8 @@ class SimRun:
     def seed(self) -> int: ...
     @property
     def name(self) -> str: ...
+    @property
+    def realtime(self) -> bool: ...
     def columns(self) -> dict[str, npt.NDArray[np.float64]]:
         """``time`` (cycles,) [s]; ``x_d``, ``x``, ``e``, ``eps`` [rad], ``u`` [V],
         ``sample_time``, ``apply_time`` [s], ``clock_error_ns`` [ns], cycles × axes."""
@@ -71,8 +73,25 @@ class SimRun:
 def simulate(text: str, origin: str, seed: int | None = None) -> SimRun:
     """Simulates the scenario (its seed replaced when given), keeping the trace."""
 
-def check(text: str, origin: str, points: int = 4001) -> tuple[dict[str, Any], str, bool]:
-    """(``ringsync check --json``'s object, its text, whether stable)."""
+def rt(text: str, origin: str, prediction_seeds: int = 8) -> SimRun:
+    """Runs the scenario in real time over UDP on loopback (``ringsync rt``); Ctrl-C ends
+    it early (KeyboardInterrupt)."""
+
+def check(
+    text: str, origin: str, points: int = 4001
+) -> tuple[dict[str, Any], str, bool, npt.NDArray[np.float64] | None, float]:
+    """(``ringsync check --json``'s object, its text, whether stable, the discrete-time
+    check's closed-loop matrix (states × states, 9 per axis; None when not modelled), the
+    cycle time T_cyc [s])."""
+
+def plan(text: str, origin: str, events: bool = False) -> dict[str, Any]:
+    """``ringsync plan --json``'s object for the scenario's ring (integer ns); with
+    ``events`` the frame-by-frame ``timeline`` too."""
+
+def reproduce(text: str, origin: str, seeds: int) -> list[dict[str, Any]]:
+    """The paper's Table 1 on the scenario over ``seeds`` seeds: one dict per (seed, plan,
+    controller) with ``seed``, ``plan``, ``controller``, ``track_rmse``, ``sync_rmse``
+    [rad], ``group_stop``."""
 
 def sweep(
     text: str,
@@ -83,6 +102,27 @@ def sweep(
 ) -> dict[str, Any]:
     """``rows`` (one per run) and ``means`` (one per combination), values named by their
     index in the grid; ``jobs``: threads used."""
+
+def sweep_cases(
+    text: str, origin: str, grid: list[tuple[str, list[Any]]], seeds: int = 1
+) -> list[tuple[list[int], int, str, float]]:
+    """The sweep's cases, validated, in order: (value indices, seed, the case as JSON
+    text, cost in axis-cycles)."""
+
+def run_cases(cases: list[str], jobs: int = 1) -> list[dict[str, Any]]:
+    """Runs cases given as JSON text (from :func:`sweep_cases`): one result dict per case
+    (``track_rmse``, ``sync_rmse`` [rad], counters, ``clock_error_max_ns`` [ns],
+    ``group_stop_s`` [s], ``group_stop_reason``)."""
+
+def sweep_collect(
+    text: str,
+    origin: str,
+    grid: list[tuple[str, list[Any]]],
+    seeds: int,
+    results: list[dict[str, Any]],
+    jobs: int = 1,
+) -> dict[str, Any]:
+    """The same dict as :func:`sweep` from every case's result (in case order)."""
 
 def _panic(message: str) -> None:
     """Panics inside Rust (for the tests: a panic becomes RunError)."""

@@ -1,5 +1,6 @@
 """Simulating and checking a scenario: :func:`simulate` gives a :class:`Run` (numpy arrays,
-metrics, the CLI's files), :func:`check` a :class:`Check` (stability)."""
+metrics, plots, the CLI's files), :func:`check` a :class:`Check` (stability, the loop
+matrix, a python-control ``StateSpace``)."""
 
 from __future__ import annotations
 
@@ -13,8 +14,9 @@ from ._scenario import Scenario, ScenarioLike, load
 
 if TYPE_CHECKING:
     import pandas
+    import xarray
 
-__all__ = ["Run", "simulate", "Check", "check"]
+__all__ = ["Run", "simulate", "rt", "Check", "check"]
 
 #: The per-cycle, per-axis columns of a run's trace, with their units.
 COLUMNS: dict[str, str] = {
@@ -37,6 +39,17 @@ def _pandas(what: str) -> Any:
             f"{what} needs pandas: pip install 'ringsync[pandas]' (or pip install pandas)"
         ) from e
     return pandas
+
+
+def _pyplot(what: str) -> Any:
+    """matplotlib.pyplot, imported on first use (the backend is the caller's choice)."""
+    try:
+        import matplotlib.pyplot as plt
+    except ImportError as e:  # pragma: no cover - depends on the environment
+        raise ImportError(
+            f"{what} needs matplotlib: pip install 'ringsync[plot]' (or pip install matplotlib)"
+        ) from e
+    return plt
 
 
 def _with(scenario: ScenarioLike, overrides: dict[str, Any]) -> Scenario:
@@ -127,6 +140,11 @@ class Run:
         return int(self._core.axes)
 
     @property
+    def realtime(self) -> bool:
+        """Whether the run ran in real time (:func:`rt`) rather than in the simulator."""
+        return bool(self._core.realtime)
+
+    @property
     def stopped(self) -> bool:
         """Whether the run ended in a group stop (the CLI's exit status 3)."""
         return self.metrics["group_stop_s"] is not None
@@ -162,6 +180,85 @@ class Run:
         for name in COLUMNS:
             data[name] = getattr(self, name).reshape(-1)
         return pd.DataFrame(data)
+
+    def to_xarray(self) -> xarray.Dataset:
+        """The trace as an ``xarray.Dataset`` with dims ``time`` (cycle starts [s]) ×
+        ``axis`` (1-based): variables ``x_d``, ``x``, ``e``, ``eps`` [rad], ``u`` [V],
+        ``sample_time``, ``apply_time`` [s], ``clock_error_ns`` [ns], each with its unit in
+        ``attrs["units"]``; the metrics' scalars in the dataset's ``attrs``. Needs xarray
+        (``pip install 'ringsync[xarray]'``).
+
+        Example::
+
+            >>> ds = ringsync.simulate("paper-2015", duration="0.2s").to_xarray()
+            >>> dict(ds.sizes), ds["e"].attrs["units"]
+            ({'time': 200, 'axis': 4}, 'rad')
+            >>> float(ds["e"].sel(axis=2).isel(time=-1)) == float(ds["e"][-1, 1])
+            True
+        """
+        try:
+            import xarray as xr
+        except ImportError as e:  # pragma: no cover - depends on the environment
+            raise ImportError(
+                "Run.to_xarray() needs xarray: pip install 'ringsync[xarray]' (or pip install xarray)"
+            ) from e
+        n = self.x.shape[1]
+        data = {
+            name: (("time", "axis"), getattr(self, name), {"units": unit})
+            for name, unit in COLUMNS.items()
+        }
+        attrs = {
+            k: v
+            for k, v in self.metrics.items()
+            if isinstance(v, (int, float, str)) and not isinstance(v, bool)
+        }
+        attrs["scenario"] = self.scenario.name
+        attrs["seed"] = self.seed
+        return xr.Dataset(
+            data,
+            coords={
+                "time": ("time", self.time, {"units": "s"}),
+                "axis": ("axis", np.arange(1, n + 1)),
+            },
+            attrs=attrs,
+        )
+
+    def plot(self, *, fig: Any = None) -> Any:
+        """Draws the run in three panels over time [s], one line per axis: tracking errors
+        e [rad], synchronisation errors ε [rad], commands u [V]. Needs matplotlib
+        (``pip install 'ringsync[plot]'``); draws into ``fig`` when given. Returns the
+        figure (``fig.savefig("run.png")``; in Jupyter it shows itself).
+
+        Example::
+
+            >>> import matplotlib; matplotlib.use("Agg")
+            >>> fig = ringsync.simulate("paper-2015", duration="0.5s").plot()
+            >>> [a.get_ylabel() for a in fig.axes]
+            ['e [rad]', 'ε [rad]', 'u [V]']
+        """
+        plt = _pyplot("Run.plot()")
+        if fig is None:
+            fig = plt.figure(figsize=(8.0, 7.0))
+        axs = fig.subplots(3, 1, sharex=True)
+        n = self.x.shape[1]
+        for what, label, ax in (
+            ("e", "e [rad]", axs[0]),
+            ("eps", "ε [rad]", axs[1]),
+            ("u", "u [V]", axs[2]),
+        ):
+            values = getattr(self, what)
+            for i in range(n):
+                ax.plot(self.time, values[:, i], linewidth=0.8, label=f"axis {i + 1}")
+            ax.set_ylabel(label)
+            ax.grid(True, alpha=0.3)
+        axs[0].legend(fontsize="small", ncol=min(n, 4), loc="upper right")
+        axs[-1].set_xlabel("time [s]")
+        m = self.metrics
+        axs[0].set_title(
+            f"{self.scenario.name} seed {self.seed}: Track-RMSE {m['track_rmse']:.5f} rad, "
+            f"Sync-RMSE {m['sync_rmse']:.7f} rad"
+        )
+        return fig
 
     def save(self, directory: str | os.PathLike[str]) -> str:
         """Writes the CLI's files into ``directory`` (``summary.json``, ``trace.csv``, the
@@ -213,6 +310,33 @@ def simulate(scenario: ScenarioLike, *, seed: int | None = None, **overrides: An
     return Run(_rs.simulate(s.to_toml(), s.origin, seed), s)
 
 
+def rt(scenario: ScenarioLike = "paper-2015", *, prediction_seeds: int = 8, **overrides: Any) -> Run:
+    """Runs a scenario in real time over UDP on loopback, as ``ringsync rt SCENARIO``
+    does: the master and one slave per axis exchange real frames on their own threads for
+    the scenario's ``duration`` of wall-clock time (plus a short calibration), the servo
+    plants stepped in real time. No privileges are needed (real-time scheduling is used when
+    allowed, and ``summary["realtime"]`` says what was applied). The GIL is released; Ctrl-C
+    ends the run early (KeyboardInterrupt once it has stopped).
+
+    Returns a :class:`Run` (``realtime`` True): the same arrays and metrics as a
+    simulation, ``summary`` is what ``ringsync rt`` writes (the simulator's fields plus the
+    timing: ``overruns``, ``lateness_us``, ``p2p_phase_us``, ``calibration`` …, and the
+    simulator's prediction from ``prediction_seeds`` seeds, 0 for none), ``text()`` its
+    lines. Numbers vary from run to run: the host's timing is part of the result.
+    ``overrides`` set scenario keys first, as for :func:`simulate`.
+
+    Example::
+
+        >>> r = ringsync.rt("paper-2015", duration="0.2s", prediction_seeds=0)
+        >>> r.realtime, r.summary["transport"], r.e.shape[1]
+        (True, 'udp', 4)
+    """
+    if isinstance(prediction_seeds, bool) or not isinstance(prediction_seeds, int) or prediction_seeds < 0:
+        raise ValueError(f"prediction_seeds must be a whole number >= 0, not {prediction_seeds!r}")
+    s = _with(scenario, overrides)
+    return Run(_rs.rt(s.to_toml(), s.origin, prediction_seeds), s)
+
+
 class Check:
     """The stability check of a scenario's loop, as ``ringsync check`` does it: the
     spectral radius of the linearised sampled closed loop with each axis's delay, and the
@@ -221,21 +345,42 @@ class Check:
     ``verdict`` is ``"stable"`` (spectral radius < 1, every term modelled),
     ``"unstable"`` or ``"not shown"`` (a loop the check does not model: the lumped-only
     plan, the coupled arm, the exact sign with K_N ≠ 0). ``report`` is the dict
-    ``ringsync check --json`` prints.
+    ``ringsync check --json`` prints. ``matrix`` is the closed-loop matrix behind the
+    spectral radius, and :meth:`statespace` the same loop as a python-control system.
 
     Example::
 
         >>> c = ringsync.check("paper-2015")
         >>> c.stable, c.verdict, round(c.spectral_radius, 3) < 1
         (True, 'stable', True)
+        >>> c.matrix.shape            # 9 states per axis
+        (36, 36)
     """
 
-    def __init__(self, report: dict[str, Any], text: str, stable: bool) -> None:
+    def __init__(
+        self,
+        report: dict[str, Any],
+        text: str,
+        stable: bool,
+        matrix: np.ndarray | None = None,
+        t_cyc: float = float("nan"),
+    ) -> None:
         """Made by :func:`check`; not called directly."""
         self.report: dict[str, Any] = report
         """``ringsync check --json``'s object."""
         self.stable: bool = stable
         """Whether the verdict is ``"stable"``."""
+        self.matrix: np.ndarray | None = matrix
+        """The sampled closed loop's matrix M (z[k+1] = M·z[k], one step per cycle), states
+        × states, or None when the check does not model the loop. 9 states per axis i at
+        ``9*i … 9*i+8``: x [rad], ẋ [rad/s], the command held from the last cycle u[k−1]
+        [V], the three previous error samples e[k−1], e[k−2], e[k−3] [rad] and error rates
+        ė[k−1], ė[k−2], ė[k−3] [rad/s] (the history the estimators read). The loop
+        regulates to x^d = 0 (e = −x) on the axes' linear part (no Coulomb friction, no
+        saturation), with each axis's sample-to-actuation delay; its eigenvalues' largest
+        modulus is :attr:`spectral_radius`."""
+        self.t_cyc: float = t_cyc
+        """The cycle time T_cyc [s]: the loop's sampling period."""
         self._text = text
 
     @property
@@ -262,6 +407,67 @@ class Check:
         c = self.report.get("conditions")
         return None if c is None else dict(c)
 
+    def statespace(self) -> Any:
+        """The linearised sampled loop as a python-control discrete-time system,
+        ``control.StateSpace(A, B, C, D, dt=T_cyc)``:
+
+        - ``A`` = :attr:`matrix` (9 states per axis: x, ẋ, u[k−1], e[k−1..k−3],
+          ė[k−1..k−3]; see :attr:`matrix`), so its poles' largest modulus is
+          :attr:`spectral_radius`;
+        - ``B`` = 0 with one input per axis (``d[i]``): the loop regulates to x^d = 0 and
+          has no exogenous input; study it with ``control.initial_response`` from an
+          offset state, or add your own B;
+        - ``C`` picks each axis's position x [rad] (outputs ``x[1]`` … ``x[n]``);
+        - ``D`` = 0.
+
+        States, inputs and outputs are named (``x[1]``, ``v[1]``, ``u_prev[1]``,
+        ``e1[1]`` …). Needs python-control (``pip install 'ringsync[control]'``). Raises
+        ValueError when the check does not model the loop (:attr:`matrix` is None).
+
+        Example::
+
+            >>> import numpy as np
+            >>> c = ringsync.check("paper-2015")
+            >>> sys = c.statespace()
+            >>> sys.dt, sys.nstates, sys.noutputs
+            (0.001, 36, 4)
+            >>> bool(np.isclose(max(abs(sys.poles())), c.spectral_radius, rtol=1e-9))
+            True
+        """
+        try:
+            import control
+        except ImportError as e:  # pragma: no cover - depends on the environment
+            raise ImportError(
+                "Check.statespace() needs python-control: pip install 'ringsync[control]' "
+                "(or pip install control)"
+            ) from e
+        if self.matrix is None:
+            raise ValueError(
+                f"the check does not model the loop of {self.report['scenario']!r} "
+                f"(verdict {self.verdict!r}): no state-space system"
+            )
+        a = np.array(self.matrix, dtype=float)
+        dim = a.shape[0]
+        n = dim // 9
+        b = np.zeros((dim, n))
+        c = np.zeros((n, dim))
+        for i in range(n):
+            c[i, 9 * i] = 1.0
+        d = np.zeros((n, n))
+        per_axis = ["x", "v", "u_prev", "e1", "e2", "e3", "de1", "de2", "de3"]
+        states = [f"{name}[{i + 1}]" for i in range(n) for name in per_axis]
+        return control.StateSpace(
+            a,
+            b,
+            c,
+            d,
+            self.t_cyc,
+            states=states,
+            inputs=[f"d[{i + 1}]" for i in range(n)],
+            outputs=[f"x[{i + 1}]" for i in range(n)],
+            name=f"ringsync {self.report['scenario']}",
+        )
+
     def text(self) -> str:
         """What ``ringsync check`` prints."""
         return self._text
@@ -282,5 +488,5 @@ def check(scenario: ScenarioLike, *, points: int = 4001, **overrides: Any) -> Ch
         'unstable'
     """
     s = _with(scenario, overrides)
-    report, text, stable = _rs.check(s.to_toml(), s.origin, points)
-    return Check(report, text, stable)
+    report, text, stable, matrix, t_cyc = _rs.check(s.to_toml(), s.origin, points)
+    return Check(report, text, stable, matrix, t_cyc)

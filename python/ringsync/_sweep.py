@@ -1,5 +1,6 @@
 """Parameter sweeps: the product of a grid of scenario keys, several seeds each, run in
-parallel inside Rust (the GIL released), as ``ringsync sweep`` runs them."""
+parallel inside Rust (the GIL released), as ``ringsync sweep`` runs them, or on Dask (a
+``LocalCluster`` or a cluster by address) with the same numbers."""
 
 from __future__ import annotations
 
@@ -7,7 +8,7 @@ from collections.abc import Iterable, Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
 from . import _ringsync as _rs
-from ._run import _pandas
+from ._run import _pandas, _pyplot
 from ._scenario import Scenario, ScenarioLike, load
 
 if TYPE_CHECKING:
@@ -59,6 +60,7 @@ class Sweep:
         rows: list[dict[str, Any]],
         mean_rows: list[dict[str, Any]],
         jobs: int,
+        tasks: list[int] | None = None,
     ) -> None:
         """Made by :func:`sweep`; not called directly."""
         self.scenario: Scenario = scenario
@@ -74,7 +76,10 @@ class Sweep:
         ``sync_rmse`` (means over the seeds) and ``sync_rmse_std`` (population standard
         deviation over the seeds) [rad]."""
         self.jobs: int = jobs
-        """Threads the runs were spread over."""
+        """Threads the runs were spread over (in-process; 1 per task on Dask)."""
+        self.tasks: list[int] | None = tasks
+        """On Dask: the number of runs in each task sent to the cluster (the first few
+        runs, timed here to size the tasks, are not in them); None in-process."""
 
     @property
     def keys(self) -> list[str]:
@@ -117,6 +122,63 @@ class Sweep:
         cols = [*self.grid, "runs", "track_rmse", "sync_rmse", "sync_rmse_std"]
         return pd.DataFrame(self.mean_rows, columns=cols)
 
+    def plot(self, metric: str = "sync_rmse", *, ax: Any = None) -> Any:
+        """Draws ``metric`` (a row column: ``sync_rmse``, ``track_rmse`` [rad], …) against
+        the grid's first key: the mean over the seeds with ± one (population) standard
+        deviation as error bars, one line per combination of the other keys. Needs
+        matplotlib (``pip install 'ringsync[plot]'``); draws into ``ax`` when given.
+        Returns the figure.
+
+        Example::
+
+            >>> import matplotlib; matplotlib.use("Agg")
+            >>> sw = ringsync.sweep("paper-2015", {"faults.loss": [0.0, 0.05]}, seeds=2,
+            ...                     duration="0.3s")
+            >>> fig = sw.plot("sync_rmse")
+            >>> fig.axes[0].get_xlabel()
+            'faults.loss'
+        """
+        plt = _pyplot("Sweep.plot()")
+        if not self.grid:
+            raise ValueError("Sweep.plot() needs a grid with at least one key")
+        if not self.rows or metric not in self.rows[0]:
+            raise ValueError(
+                f"Sweep.plot(): no column {metric!r}; the rows have {', '.join(self.rows[0]) if self.rows else 'none'}"
+            )
+        first, others = self.keys[0], self.keys[1:]
+        xs = self.grid[first]
+        numeric = all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in xs)
+        pos = {repr(v): (float(v) if numeric else float(i)) for i, v in enumerate(xs)}
+        lines: dict[tuple[str, ...], dict[str, list[float]]] = {}
+        for r in self.rows:
+            label = tuple(f"{k}={r[k]}" for k in others)
+            v = r[metric]
+            if v is None:
+                continue
+            lines.setdefault(label, {}).setdefault(repr(r[first]), []).append(float(v))
+        if ax is None:
+            fig, ax = plt.subplots(figsize=(6.4, 4.0))
+        else:
+            fig = ax.figure
+        import numpy as np
+
+        for label, by_x in lines.items():
+            keys = [repr(v) for v in xs if repr(v) in by_x]
+            x = [pos[k] for k in keys]
+            mean = [float(np.mean(by_x[k])) for k in keys]
+            sd = [float(np.std(by_x[k])) for k in keys]
+            ax.errorbar(x, mean, yerr=sd, marker="o", capsize=3, label=", ".join(label) or None)
+        if not numeric:
+            ax.set_xticks([pos[repr(v)] for v in xs], [str(v) for v in xs])
+        ax.set_xlabel(first)
+        unit = ROW_COLUMNS.get(metric, "")
+        ax.set_ylabel(f"{metric} [{unit}]" if unit else metric)
+        ax.set_title(f"{self.scenario.name}: mean ± sd over {self.seeds} seed(s)")
+        if others:
+            ax.legend(fontsize="small")
+        ax.grid(True, alpha=0.3)
+        return fig
+
     def __repr__(self) -> str:
         return (
             f"<Sweep of {self.scenario.name!r} over {', '.join(self.grid) or 'nothing'}: "
@@ -131,16 +193,36 @@ def sweep(
     *,
     seeds: int = 8,
     jobs: int | None = None,
+    executor: Any = None,
+    task_seconds: float = 0.5,
+    run_seconds: float | None = None,
+    progress: bool = False,
     **overrides: Any,
 ) -> Sweep:
     """Runs every combination of ``grid``'s values (``{"faults.loss": [0, 0.01, 0.02],
     "control.law": ["pd", "sync"]}``), ``seeds`` seeds each (the scenario's seed, +1, …),
-    in parallel on ``jobs`` threads inside Rust (default: the CPUs), the GIL released; as
-    ``ringsync sweep SCENARIO --set KEY=V1,V2 … --seeds SEEDS``. ``overrides`` set keys
+    as ``ringsync sweep SCENARIO --set KEY=V1,V2 … --seeds SEEDS``. ``overrides`` set keys
     of the base scenario first, as for :func:`ringsync.simulate`. A single value in the
     grid counts as a list of one.
 
-    Raises :class:`ringsync.ScenarioError` naming the case and its bad key or value.
+    Where the runs go:
+
+    - ``executor=None`` (default): in parallel on ``jobs`` threads inside Rust (default:
+      the CPUs), the GIL released.
+    - ``executor=`` a ``dask.distributed.Client``, or a scheduler address such as
+      ``"tcp://10.0.0.5:8786"`` (a client is made and closed): on Dask. The first few runs
+      are timed here (unless ``run_seconds`` [s], the time of one run, is given), then the
+      rest are packed into tasks of at least ``task_seconds`` [s] of work each (Dask spends
+      milliseconds per task; one run is a few). Each task is a pure function of plain data
+      (the cases' scenario text) that calls the Rust library on a worker; results are keyed
+      by (values, seed), so a task Dask reruns or reorders changes nothing. The numbers are
+      identical to the in-process sweep's. The workers need ``ringsync`` installed (the
+      same version). ``progress=True`` prints a line on standard error as tasks finish.
+      Needs ``pip install 'ringsync[dask]'``.
+
+    Raises :class:`ringsync.ScenarioError` naming the case and its bad key or value;
+    TypeError or ValueError for an executor that is neither; ImportError (naming the
+    extra) when Dask is missing.
 
     Example::
 
@@ -151,9 +233,27 @@ def sweep(
         ...                         **{"control.alpha": r["control.alpha"]})
         >>> one.metrics["sync_rmse"] == r["sync_rmse"]
         True
+
+    On a cluster (here a local one, two worker processes)::
+
+        >>> from dask.distributed import Client, LocalCluster
+        >>> with LocalCluster(n_workers=2, processes=True, threads_per_worker=1,
+        ...                   dashboard_address=None) as cluster, Client(cluster) as client:
+        ...     on_dask = ringsync.sweep("paper-2015", {"control.alpha": [0.25, 0.5]},
+        ...                              seeds=2, duration="0.5s", executor=client)
+        >>> on_dask.rows == sw.rows
+        True
     """
     if isinstance(seeds, bool) or not isinstance(seeds, int) or not 1 <= seeds <= 1_000_000:
         raise ValueError(f"seeds must be a whole number of at least 1, not {seeds!r}")
+    if executor is not None:
+        from ._dask import check_executor
+
+        check_executor(executor)
+        if not task_seconds >= 0:
+            raise ValueError(f"task_seconds must be >= 0 s, not {task_seconds!r}")
+        if run_seconds is not None and not run_seconds > 0:
+            raise ValueError(f"run_seconds must be > 0 s, not {run_seconds!r}")
     s = load(scenario)
     if overrides:
         s = s.set(**overrides)
@@ -164,7 +264,22 @@ def sweep(
         g[str(key)] = list(values)
         if not g[str(key)]:
             raise ValueError(f"the grid gives no values for {key}")
-    out = _rs.sweep(s.to_toml(), s.origin, list(g.items()), seeds, jobs)
+    items = list(g.items())
+    tasks: list[int] | None = None
+    if executor is None:
+        out = _rs.sweep(s.to_toml(), s.origin, items, seeds, jobs)
+    else:
+        from ._dask import distributed_results
+
+        cases = _rs.sweep_cases(s.to_toml(), s.origin, items, seeds)
+        results, tasks = distributed_results(
+            cases,
+            executor,
+            task_seconds=float(task_seconds),
+            run_seconds=run_seconds,
+            progress=progress,
+        )
+        out = _rs.sweep_collect(s.to_toml(), s.origin, items, seeds, results, 1)
     keys = list(g)
 
     def named(row: dict[str, Any]) -> dict[str, Any]:
@@ -173,4 +288,4 @@ def sweep(
 
     rows = [named(r) for r in out["rows"]]
     means = [named(m) for m in out["means"]]
-    return Sweep(s, g, seeds, rows, means, int(out["jobs"]))
+    return Sweep(s, g, seeds, rows, means, int(out["jobs"]), tasks)

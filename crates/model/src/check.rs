@@ -297,6 +297,11 @@ mod tests {
         }
         let c = r.continuous.expect("sync law");
         assert!(c.condition1_holds() && !c.condition2_holds());
+        // The loop matrix behind the radius travels with the report: 9 states per axis,
+        // row-major; row 3 of axis 1 is e[k−1] = −x.
+        let m = r.discrete_matrix.expect("matrix with the discrete check");
+        assert_eq!((d.states, m.len()), (36, 36 * 36));
+        assert_eq!(m[3 * 36], -1.0);
     }
 
     #[test]
@@ -350,7 +355,7 @@ mod tests {
         )
         .expect("valid");
         let r = check(&s, 11).expect("check");
-        assert!(r.continuous.is_none() && r.discrete.is_none());
+        assert!(r.continuous.is_none() && r.discrete.is_none() && r.discrete_matrix.is_none());
         assert_eq!(r.not_modelled, Some(NotModelled::LumpedOnlyPlan));
         assert_eq!(r.verdict(), Verdict::NotShown);
     }

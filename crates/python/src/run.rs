@@ -1,14 +1,17 @@
 //! Simulating and checking: [`SimRun`] keeps a finished simulation for its arrays, its
 //! metrics and the CLI's files; `check` hands back the CLI's `check --json` report.
 
+use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use numpy::{PyArray1, PyArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use ringsync::layers::report::sim::summary_json;
-use ringsync::layers::report::{check_json, check_text};
+use ringsync::layers::report::sim::{summary_json, write_trace_csv};
+use ringsync::layers::report::{check_json, check_text, plan_json};
 use ringsync::{OutDir, RunResult, Scenario, SimOptions, Trace, Verdict};
 
 use crate::convert::json_to_py;
@@ -23,6 +26,9 @@ pub struct SimRun {
     hash: u64,
     /// The run, with its trace.
     result: RunResult,
+    /// For a real-time run: its summary.json (the simulator's fields plus the timing) and
+    /// the lines `ringsync rt` prints.
+    rt: Option<(serde_json::Value, String)>,
 }
 
 /// Simulates the scenario `text` (from `origin`), with `seed` instead of the scenario's
@@ -45,8 +51,78 @@ fn simulate(py: Python<'_>, text: String, origin: String, seed: Option<u64>) -> 
             scenario,
             hash: loaded.hash,
             result,
+            rt: None,
         })
     })
+}
+
+impl SimRun {
+    /// summary.json's content: the real-time run's when it is one, else the simulator's.
+    fn summary_value(&self) -> serde_json::Value {
+        match &self.rt {
+            Some((v, _)) => v.clone(),
+            None => summary_json(&self.scenario, self.hash, &self.result),
+        }
+    }
+}
+
+/// Runs the scenario `text` in real time over UDP on loopback (`ringsync rt`: the master
+/// and a process-internal slave per axis exchanging real frames on their own threads, no
+/// privileges needed), with the simulator's prediction from `prediction_seeds` seeds (0:
+/// none). Ctrl-C (KeyboardInterrupt) ends the run early; it is raised when the run has
+/// stopped and cleaned up.
+#[pyfunction]
+#[pyo3(signature = (text, origin, prediction_seeds=8))]
+fn rt(py: Python<'_>, text: String, origin: String, prediction_seeds: u64) -> PyResult<SimRun> {
+    let stop = Arc::new(AtomicBool::new(false));
+    let flag = Arc::clone(&stop);
+    let worker = std::thread::Builder::new()
+        .name("ringsync-rt".into())
+        .spawn(move || {
+            catch_unwind(AssertUnwindSafe(|| -> ringsync::Result<SimRun> {
+                let loaded = ringsync::parse(&text, &origin)?;
+                let opts = ringsync::RtOptions {
+                    transport: ringsync::TransportKind::Udp,
+                    trace: true,
+                    ..ringsync::RtOptions::default()
+                };
+                let r = ringsync::run_rt(&loaded.scenario, &opts, &flag, Vec::new())?;
+                let prediction = if prediction_seeds > 0 && !r.interrupted {
+                    Some(ringsync::predict(&r.scenario, prediction_seeds)?)
+                } else {
+                    None
+                };
+                let summary =
+                    ringsync::rt::rt_summary(&r, loaded.hash, r.transport.name(), prediction);
+                let text = ringsync::rt::rt_text(&r, prediction);
+                Ok(SimRun {
+                    scenario: r.scenario,
+                    hash: loaded.hash,
+                    result: r.run,
+                    rt: Some((summary, text)),
+                })
+            }))
+        })
+        .map_err(|e| crate::RunError::new_err(format!("cannot start the real-time run: {e}")))?;
+    // Wait without the GIL, looking for Ctrl-C every 50 ms.
+    let mut interrupted = None;
+    while !worker.is_finished() {
+        py.detach(|| std::thread::sleep(std::time::Duration::from_millis(50)));
+        if interrupted.is_none()
+            && let Err(e) = py.check_signals()
+        {
+            stop.store(true, Ordering::Relaxed);
+            interrupted = Some(e);
+        }
+    }
+    let done = py.detach(|| worker.join());
+    if let Some(e) = interrupted {
+        return Err(e);
+    }
+    match done {
+        Ok(Ok(r)) => r.map_err(crate::to_py),
+        Ok(Err(panic)) | Err(panic) => Err(crate::panicked(panic.as_ref())),
+    }
 }
 
 /// `column` (group-major, `n` per group) as a 2-D array of groups × n.
@@ -80,9 +156,9 @@ impl SimRun {
         Ok(d)
     }
 
-    /// summary.json's text, exactly as `ringsync sim` writes it.
+    /// summary.json's text, exactly as `ringsync sim` (or `ringsync rt`) writes it.
     fn summary_json(&self) -> PyResult<String> {
-        let v = summary_json(&self.scenario, self.hash, &self.result);
+        let v = self.summary_value();
         let text = serde_json::to_string_pretty(&v)
             .map_err(|e| crate::RunError::new_err(format!("cannot format JSON: {e}")))?;
         Ok(format!("{text}\n"))
@@ -90,7 +166,13 @@ impl SimRun {
 
     /// summary.json's content as a dict.
     fn summary<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        json_to_py(py, &summary_json(&self.scenario, self.hash, &self.result))
+        json_to_py(py, &self.summary_value())
+    }
+
+    /// Whether this is a real-time run (`ringsync.rt`).
+    #[getter]
+    fn realtime(&self) -> bool {
+        self.rt.is_some()
     }
 
     /// The run's figures as a flat dict, taken from the run itself (not through JSON).
@@ -139,14 +221,26 @@ impl SimRun {
 
     /// The CLI's few lines on the run.
     fn text(&self) -> String {
-        ringsync::sim_text(&self.scenario, &self.result)
+        match &self.rt {
+            Some((_, text)) => text.clone(),
+            None => ringsync::sim_text(&self.scenario, &self.result),
+        }
     }
 
     /// Writes the CLI's files into `dir` (replaced as a whole, as `ringsync sim --out`
-    /// replaces it): summary.json, trace.csv, the figures, report.html.
+    /// replaces it): summary.json, trace.csv, the figures, report.html; for a real-time run
+    /// what `ringsync rt --out` writes: summary.json and trace.csv.
     fn save(&self, py: Python<'_>, dir: PathBuf) -> PyResult<()> {
         guard(py, || {
             let mut out = OutDir::create("save: directory", &dir)?;
+            if let Some((summary, _)) = &self.rt {
+                out.write(
+                    "summary.json",
+                    format!("{}\n", serde_json::to_string_pretty(summary)?),
+                )?;
+                out.write_with("trace.csv", |w| write_trace_csv(&self.result, w))?;
+                return out.commit();
+            }
             ringsync::write_sim(
                 &mut out,
                 &self.scenario,
@@ -178,7 +272,20 @@ impl SimRun {
     }
 }
 
-/// Checks the scenario `text` as `ringsync check --json` does: (report, text).
+/// What [`check`] hands back: `ringsync check --json`'s object, its text, whether stable,
+/// the discrete-time check's closed-loop matrix (states × states, `None` when the check
+/// does not model the loop) and the cycle time T_cyc [s].
+type Checked<'py> = (
+    Bound<'py, PyAny>,
+    String,
+    bool,
+    Option<Bound<'py, PyAny>>,
+    f64,
+);
+
+/// Checks the scenario `text` as `ringsync check --json` does: (report, text, stable,
+/// loop matrix, T_cyc [s]); the matrix is the one whose eigenvalues give the report's
+/// spectral radius (9 states per axis, see `ringsync_control::stability::discrete_loop`).
 #[pyfunction]
 #[pyo3(signature = (text, origin, points=4001))]
 fn check<'py>(
@@ -186,17 +293,96 @@ fn check<'py>(
     text: String,
     origin: String,
     points: usize,
-) -> PyResult<(Bound<'py, PyAny>, String, bool)> {
-    let (json, text, stable) = guard(py, move || {
+) -> PyResult<Checked<'py>> {
+    let (json, text, stable, matrix, t_cyc) = guard(py, move || {
         let s = ringsync::parse(&text, &origin)?.scenario;
         let r = ringsync::check(&s, points.max(1))?;
+        let states = r.discrete.map_or(0, |d| d.states);
         Ok((
             check_json(&r),
             check_text(&r),
             r.verdict() == Verdict::Stable,
+            r.discrete_matrix.map(|m| (m, states)),
+            s.ring.cycle.secs(),
         ))
     })?;
-    Ok((json_to_py(py, &json)?, text, stable))
+    let matrix = match matrix {
+        Some((m, n)) => Some(PyArray1::from_vec(py, m).reshape([n, n])?.into_any()),
+        None => None,
+    };
+    Ok((json_to_py(py, &json)?, text, stable, matrix, t_cyc))
+}
+
+/// The cycle plan (eq. 1-2) of the scenario `text`'s ring, as `ringsync plan --json`
+/// prints it (integer ns; with `events`, the frame-by-frame timeline too), checked against
+/// the scenario's plan kind.
+#[pyfunction]
+#[pyo3(signature = (text, origin, events=false))]
+fn plan<'py>(
+    py: Python<'py>,
+    text: String,
+    origin: String,
+    events: bool,
+) -> PyResult<Bound<'py, PyAny>> {
+    let json = guard(py, move || {
+        let s = ringsync::parse(&text, &origin)?.scenario;
+        let p = ringsync::plan_of(&s)?;
+        Ok(plan_json(&p, s.ring.plan, events))
+    })?;
+    json_to_py(py, &json)
+}
+
+/// The paper's Table 1 reproduced on the scenario `text` over `seeds` seeds (the
+/// scenario's, +1, …), as `ringsync reproduce --seeds` runs it: one dict per (seed, plan,
+/// controller), seeds outermost, with `seed`, `plan`, `controller`, `track_rmse`,
+/// `sync_rmse` [rad] and `group_stop` (bool).
+#[pyfunction]
+fn reproduce<'py>(
+    py: Python<'py>,
+    text: String,
+    origin: String,
+    seeds: u32,
+) -> PyResult<Vec<Bound<'py, PyDict>>> {
+    let rows = guard(py, move || {
+        let s = ringsync::parse(&text, &origin)?.scenario;
+        let opts = ringsync::ReproOptions {
+            seeds,
+            ..Default::default()
+        };
+        let r = ringsync::reproduce_with(&s, &opts)?;
+        let mut rows = Vec::new();
+        for (k, &seed) in r
+            .rows
+            .first()
+            .map_or(&[][..], |x| &x.seeds[..])
+            .iter()
+            .enumerate()
+        {
+            for (row, stops) in r.rows.iter().zip(&r.stops) {
+                rows.push((
+                    seed,
+                    row.plan.to_string(),
+                    row.controller.to_string(),
+                    row.track_rmse[k],
+                    row.sync_rmse[k],
+                    stops.iter().any(|(s, _)| *s == seed),
+                ));
+            }
+        }
+        Ok(rows)
+    })?;
+    rows.into_iter()
+        .map(|(seed, plan, controller, track, sync, stop)| {
+            let d = PyDict::new(py);
+            d.set_item("seed", seed)?;
+            d.set_item("plan", plan)?;
+            d.set_item("controller", controller)?;
+            d.set_item("track_rmse", track)?;
+            d.set_item("sync_rmse", sync)?;
+            d.set_item("group_stop", stop)?;
+            Ok(d)
+        })
+        .collect()
 }
 
 /// Registers the simulation functions.
@@ -204,5 +390,8 @@ pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<SimRun>()?;
     m.add_function(wrap_pyfunction!(simulate, m)?)?;
     m.add_function(wrap_pyfunction!(check, m)?)?;
+    m.add_function(wrap_pyfunction!(plan, m)?)?;
+    m.add_function(wrap_pyfunction!(reproduce, m)?)?;
+    m.add_function(wrap_pyfunction!(rt, m)?)?;
     Ok(())
 }

@@ -7,7 +7,7 @@
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use ringsync::sweep::{SweepAxis, cases};
+use ringsync::sweep::SweepAxis;
 use ringsync::{Loaded, ScenarioError as LibScenarioError};
 
 use crate::convert::{dict_to_table, literal, table_to_py, to_toml};
@@ -69,25 +69,18 @@ fn with_values(
     origin: String,
     items: Vec<(String, Bound<'_, PyAny>)>,
 ) -> PyResult<(String, String)> {
-    let mut axes = Vec::with_capacity(items.len());
+    let mut pairs = Vec::with_capacity(items.len());
     for (key, value) in &items {
-        axes.push(axis(key, vec![literal(&to_toml(key, value)?)])?);
+        // The key checked as the CLI checks it, before anything runs.
+        axis(key, Vec::new())?;
+        pairs.push((key.clone(), literal(&to_toml(key, value)?)));
     }
-    if axes.is_empty() {
+    if pairs.is_empty() {
         return Ok((text, origin));
     }
     crate::guard(py, move || {
-        let base = ringsync::parse(&text, &origin)?;
-        let case = cases(&base, &axes, 1, false)?
-            .into_iter()
-            .next()
-            .ok_or_else(|| ringsync::Error::Failed("no case was made".into()))?;
-        let labels: Vec<String> = case
-            .labels
-            .iter()
-            .map(|(k, v)| format!("{k}={v}"))
-            .collect();
-        Ok((case.scenario, format!("{origin} with {}", labels.join(" "))))
+        let set = ringsync::with_values(&ringsync::parse(&text, &origin)?, &pairs)?;
+        Ok((set.text, set.origin))
     })
 }
 

@@ -1,10 +1,15 @@
 //! Sweeps: the library's cases (the product of the grid's values, several seeds each) run
-//! on threads inside Rust with the GIL released, as `ringsync sweep` runs them.
+//! on threads inside Rust with the GIL released, as `ringsync sweep` runs them; or, for a
+//! distributed sweep (Dask), as plain data: [`sweep_cases`] lists the cases, [`run_cases`]
+//! runs some of them anywhere (a pure function of the cases' text) and [`sweep_collect`]
+//! assembles the results into the same rows and means as [`sweep`].
 
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
-use ringsync::sweep::{Case, Labels, Sweep, SweepAxis, cases, default_jobs, run_cases};
+use ringsync::sweep::{
+    Case, CaseResult, Labels, Sweep, SweepAxis, cases, default_jobs, run_cases as run_all,
+};
 
 use crate::convert::{literal, to_toml};
 use crate::guard;
@@ -19,55 +24,80 @@ fn indices(labels: &Labels, axes: &[SweepAxis]) -> Vec<usize> {
         .collect()
 }
 
-/// Sweeps the scenario `text` over `grid` [(dotted key, values)], `seeds` seeds each, on
-/// `jobs` threads (default: the CPUs): a dict with `rows` (one per run, in the order of
-/// the product, seeds innermost) and `means` (one per combination), each naming its values
-/// by their index in the grid.
-#[pyfunction]
-#[pyo3(signature = (text, origin, grid, seeds=1, jobs=None))]
-fn sweep<'py>(
-    py: Python<'py>,
-    text: String,
-    origin: String,
-    grid: Vec<(String, Vec<Bound<'py, PyAny>>)>,
-    seeds: u32,
-    jobs: Option<usize>,
-) -> PyResult<Bound<'py, PyDict>> {
+/// The grid [(dotted key, values)] as the library's sweep axes (values as TOML literals).
+fn sweep_axes(grid: &[(String, Vec<Bound<'_, PyAny>>)]) -> PyResult<Vec<SweepAxis>> {
     let mut axes = Vec::with_capacity(grid.len());
-    for (key, values) in &grid {
+    for (key, values) in grid {
         let lits = values
             .iter()
             .map(|v| to_toml(key, v).map(|t| literal(&t)))
             .collect::<PyResult<Vec<String>>>()?;
         axes.push(axis(key, lits)?);
     }
-    let jobs = jobs.unwrap_or_else(default_jobs).max(1);
-    let axes_run = axes.clone();
-    let sw: Sweep = guard(py, move || {
-        let base = ringsync::parse(&text, &origin)?;
-        let cs: Vec<Case> = cases(&base, &axes_run, seeds, false)?;
-        let results = run_cases(&cs, jobs, &|_, _| {});
-        Sweep::new(&base, &axes_run, seeds, cs, results)
-    })?;
+    Ok(axes)
+}
+
+/// A case's result as a dict: `track_rmse`, `sync_rmse` [rad], the counters,
+/// `clock_error_max_ns` [ns], `group_stop_s` [s], `group_stop_reason` and `peak_u` [V].
+fn result_dict<'py>(py: Python<'py>, r: &CaseResult) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("track_rmse", r.track_rmse)?;
+    d.set_item("sync_rmse", r.sync_rmse)?;
+    d.set_item("lumped_lost", r.lumped_lost)?;
+    d.set_item("retries", r.retries)?;
+    d.set_item("commands_lost", r.commands_lost)?;
+    d.set_item("clock_error_max_ns", r.clock_error_max_ns)?;
+    d.set_item("group_stop_s", r.group_stop_s)?;
+    d.set_item("group_stop_reason", r.group_stop_reason.clone())?;
+    d.set_item("peak_u", r.peak_u)?;
+    Ok(d)
+}
+
+/// A dict made by [`result_dict`] read back (the error names the missing or bad field).
+fn result_of(d: &Bound<'_, PyDict>) -> PyResult<CaseResult> {
+    fn field<'py, T: FromPyObjectOwned<'py>>(d: &Bound<'py, PyDict>, key: &str) -> PyResult<T> {
+        let v = d.get_item(key)?.ok_or_else(|| {
+            pyo3::exceptions::PyValueError::new_err(format!("a case result lacks {key}"))
+        })?;
+        v.extract::<T>().map_err(|e| {
+            let e: PyErr = e.into();
+            pyo3::exceptions::PyValueError::new_err(format!("a case result's {key}: {e}"))
+        })
+    }
+    Ok(CaseResult {
+        track_rmse: field(d, "track_rmse")?,
+        sync_rmse: field(d, "sync_rmse")?,
+        lumped_lost: field(d, "lumped_lost")?,
+        retries: field(d, "retries")?,
+        commands_lost: field(d, "commands_lost")?,
+        clock_error_max_ns: field(d, "clock_error_max_ns")?,
+        group_stop_s: field(d, "group_stop_s")?,
+        group_stop_reason: field(d, "group_stop_reason")?,
+        peak_u: field(d, "peak_u")?,
+    })
+}
+
+/// The finished sweep as the dict the Python side reads: `rows` (one per run, in the order
+/// of the product, seeds innermost) and `means` (one per combination), each naming its
+/// values by their index in the grid, and `jobs`.
+fn sweep_dict<'py>(
+    py: Python<'py>,
+    sw: &Sweep,
+    axes: &[SweepAxis],
+    jobs: usize,
+) -> PyResult<Bound<'py, PyDict>> {
     let rows = PyList::empty(py);
     for (c, r) in sw.cases.iter().zip(&sw.results) {
         let d = PyDict::new(py);
-        d.set_item("values", indices(&c.labels, &axes))?;
+        d.set_item("values", indices(&c.labels, axes))?;
         d.set_item("seed", c.seed)?;
-        d.set_item("track_rmse", r.track_rmse)?;
-        d.set_item("sync_rmse", r.sync_rmse)?;
-        d.set_item("lumped_lost", r.lumped_lost)?;
-        d.set_item("retries", r.retries)?;
-        d.set_item("commands_lost", r.commands_lost)?;
-        d.set_item("clock_error_max_ns", r.clock_error_max_ns)?;
-        d.set_item("group_stop_s", r.group_stop_s)?;
-        d.set_item("group_stop_reason", r.group_stop_reason.clone())?;
+        d.update(result_dict(py, r)?.as_mapping())?;
         rows.append(d)?;
     }
     let means = PyList::empty(py);
     for m in &sw.means {
         let d = PyDict::new(py);
-        d.set_item("values", indices(&m.labels, &axes))?;
+        d.set_item("values", indices(&m.labels, axes))?;
         d.set_item("runs", m.runs)?;
         d.set_item("track_rmse", m.track_rmse)?;
         d.set_item("sync_rmse", m.sync_rmse)?;
@@ -81,8 +111,141 @@ fn sweep<'py>(
     Ok(out)
 }
 
-/// Registers the sweep function.
+/// Sweeps the scenario `text` over `grid` [(dotted key, values)], `seeds` seeds each, on
+/// `jobs` threads (default: the CPUs): see [`sweep_dict`].
+#[pyfunction]
+#[pyo3(signature = (text, origin, grid, seeds=1, jobs=None))]
+fn sweep<'py>(
+    py: Python<'py>,
+    text: String,
+    origin: String,
+    grid: Vec<(String, Vec<Bound<'py, PyAny>>)>,
+    seeds: u32,
+    jobs: Option<usize>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let axes = sweep_axes(&grid)?;
+    let jobs = jobs.unwrap_or_else(default_jobs).max(1);
+    let axes_run = axes.clone();
+    let sw: Sweep = guard(py, move || {
+        let base = ringsync::parse(&text, &origin)?;
+        let cs: Vec<Case> = cases(&base, &axes_run, seeds, false)?;
+        let results = run_all(&cs, jobs, &|_, _| {});
+        Sweep::new(&base, &axes_run, seeds, cs, results)
+    })?;
+    sweep_dict(py, &sw, &axes, jobs)
+}
+
+/// One case of a sweep as plain data: (the index of each swept value in the grid, the
+/// seed, the case as JSON text, its cost in axis-cycles).
+type CaseData = (Vec<usize>, u64, String, f64);
+
+/// The cases of a sweep as plain data, validated, in the order of the product (seeds
+/// innermost): for each, (value indices in the grid, seed, the case as JSON text, its cost
+/// in axis-cycles: cycles × axes, what a run's time grows with).
+#[pyfunction]
+#[pyo3(signature = (text, origin, grid, seeds=1))]
+fn sweep_cases<'py>(
+    py: Python<'py>,
+    text: String,
+    origin: String,
+    grid: Vec<(String, Vec<Bound<'py, PyAny>>)>,
+    seeds: u32,
+) -> PyResult<Vec<CaseData>> {
+    let axes = sweep_axes(&grid)?;
+    guard(py, move || {
+        let base = ringsync::parse(&text, &origin)?;
+        let cs = cases(&base, &axes, seeds, false)?;
+        let mut out = Vec::with_capacity(cs.len());
+        for c in &cs {
+            let s = c.scenario()?;
+            let cycles =
+                (s.duration.0.as_ns() as f64 / s.ring.cycle.0.as_ns().max(1) as f64).ceil();
+            let cost = cycles * s.axes_count() as f64;
+            out.push((
+                indices(&c.labels, &axes),
+                c.seed,
+                serde_json::to_string(c)?,
+                cost,
+            ));
+        }
+        Ok(out)
+    })
+}
+
+/// Runs cases given as JSON text (from [`sweep_cases`]) on `jobs` threads: a pure function
+/// of the text (same cases, same results, in any process). One result dict per case, in
+/// order (see [`result_dict`]); the first failed case raises, named.
+#[pyfunction]
+#[pyo3(signature = (cases, jobs=1))]
+fn run_cases<'py>(
+    py: Python<'py>,
+    cases: Vec<String>,
+    jobs: usize,
+) -> PyResult<Vec<Bound<'py, PyDict>>> {
+    let results = guard(py, move || {
+        let cs = cases
+            .iter()
+            .map(|t| {
+                serde_json::from_str::<Case>(t)
+                    .map_err(|e| ringsync::Error::Input(format!("not a sweep case: {e}")))
+            })
+            .collect::<ringsync::Result<Vec<Case>>>()?;
+        let results = run_all(&cs, jobs.max(1), &|_, _| {});
+        cs.iter()
+            .zip(results)
+            .map(|(c, r)| {
+                r.map_err(|e| match e {
+                    ringsync::Error::Scenario(e) => {
+                        ringsync::Error::Input(format!("case {}: {e}", c.name()))
+                    }
+                    other => other,
+                })
+            })
+            .collect::<ringsync::Result<Vec<CaseResult>>>()
+    })?;
+    results.iter().map(|r| result_dict(py, r)).collect()
+}
+
+/// Assembles the results of every case of a sweep (one dict per case, in the order of
+/// [`sweep_cases`], as [`run_cases`] gives them) into the same dict as [`sweep`]: the rows
+/// and the means over the seeds, computed as the in-process sweep computes them.
+#[pyfunction]
+#[pyo3(signature = (text, origin, grid, seeds, results, jobs=1))]
+fn sweep_collect<'py>(
+    py: Python<'py>,
+    text: String,
+    origin: String,
+    grid: Vec<(String, Vec<Bound<'py, PyAny>>)>,
+    seeds: u32,
+    results: Vec<Bound<'py, PyDict>>,
+    jobs: usize,
+) -> PyResult<Bound<'py, PyDict>> {
+    let axes = sweep_axes(&grid)?;
+    let results = results
+        .iter()
+        .map(|d| result_of(d).map(Ok))
+        .collect::<PyResult<Vec<ringsync::Result<CaseResult>>>>()?;
+    let axes_run = axes.clone();
+    let sw: Sweep = guard(py, move || {
+        let base = ringsync::parse(&text, &origin)?;
+        let cs: Vec<Case> = cases(&base, &axes_run, seeds, false)?;
+        if cs.len() != results.len() {
+            return Err(ringsync::Error::Input(format!(
+                "the sweep has {} cases, {} results were given",
+                cs.len(),
+                results.len()
+            )));
+        }
+        Sweep::new(&base, &axes_run, seeds, cs, results)
+    })?;
+    sweep_dict(py, &sw, &axes, jobs)
+}
+
+/// Registers the sweep functions.
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(sweep, m)?)?;
+    m.add_function(wrap_pyfunction!(sweep_cases, m)?)?;
+    m.add_function(wrap_pyfunction!(run_cases, m)?)?;
+    m.add_function(wrap_pyfunction!(sweep_collect, m)?)?;
     Ok(())
 }

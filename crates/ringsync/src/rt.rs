@@ -104,8 +104,10 @@ fn nodes_json(r: &RtResult) -> Value {
         .collect()
 }
 
-/// summary.json of a real-time run: the simulator's fields plus the timing.
-fn rt_summary(
+/// summary.json of a real-time run, as [`write_rt`] writes it: the simulator's fields plus
+/// the timing (µs), the calibration and, when given, the prediction. `hash` is the scenario
+/// text's hash, `transport` its name.
+pub fn rt_summary(
     r: &RtResult,
     hash: u64,
     transport: &str,

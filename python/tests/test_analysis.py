@@ -1,0 +1,122 @@
+"""The loop matrix and python-control's StateSpace against the check's spectral radius; the
+plan against `ringsync plan --json`; Table 1 against `ringsync reproduce`; the plots
+(Agg backend) and xarray."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import matplotlib
+import numpy as np
+import pytest
+
+import ringsync
+
+from conftest import Cli
+
+matplotlib.use("Agg")
+
+
+@pytest.mark.parametrize(
+    "overrides",
+    [{}, {"control.law": "pd"}, {"ring.slaves": 2}, {"control.kp": 3000.0}, {"control.estimator": "hold"}],
+    ids=["reference", "pd", "2-axes", "unstable", "hold"],
+)
+def test_statespace_poles_give_the_spectral_radius(overrides: dict[str, object]) -> None:
+    c = ringsync.check("paper-2015", **overrides)
+    assert c.matrix is not None and c.spectral_radius is not None
+    n = ringsync.load("paper-2015").set(**overrides).axes
+    assert c.matrix.shape == (9 * n, 9 * n)
+    rho = max(abs(np.linalg.eigvals(c.matrix)))
+    assert rho == pytest.approx(c.spectral_radius, rel=1e-9)
+    sys = c.statespace()
+    assert sys.dt == c.t_cyc == 1e-3
+    assert (sys.ninputs, sys.noutputs, sys.nstates) == (n, n, 9 * n)
+    assert max(abs(sys.poles())) == pytest.approx(c.spectral_radius, rel=1e-9)
+    assert (max(abs(sys.poles())) < 1) == c.stable
+    assert np.array_equal(sys.A, c.matrix) and not sys.B.any() and not sys.D.any()
+
+
+def test_statespace_decays_like_the_spectral_radius() -> None:
+    import control
+
+    c = ringsync.check("paper-2015")
+    sys = c.statespace()
+    x0 = np.zeros(sys.nstates)
+    x0[0::9] = 0.05  # every axis 0.05 rad off
+    r = control.initial_response(sys, T=np.arange(0, 3.0, c.t_cyc), X0=x0)
+    y = np.abs(np.asarray(r.outputs))
+    assert y[:, -1].max() < 0.05 * 0.5  # it decays ...
+    assert y[:, -1].max() > 0.05 * c.spectral_radius ** 3000 * 1e-3  # ... no faster than ρ allows
+
+
+def test_a_loop_the_check_does_not_model_has_no_matrix() -> None:
+    c = ringsync.check("paper-2015", **{"ring.plan": "lumped-only"})
+    assert c.matrix is None and c.spectral_radius is None
+    with pytest.raises(ValueError, match="does not model the loop"):
+        c.statespace()
+
+
+@pytest.mark.parametrize(
+    "args,overrides",
+    [([], {}), (["--slaves", "8", "--cycle", "500us"], {"ring.slaves": 8, "ring.cycle": "500us"}),
+     (["--bit-rate", "1G", "--t-rest", "20us"], {"ring.bit_rate": "1G", "ring.t_rest": "20us"})],
+)
+def test_plan_terms_equal_the_cli(cli: Cli, args: list[str], overrides: dict[str, object]) -> None:
+    mine = ringsync.plan(None, **overrides)
+    theirs = json.loads(cli.run("plan", "--json", *args).stdout)
+    assert mine.to_dict() == theirs
+    segs = mine.segments()
+    assert sum(s[3] for s in segs) == theirs["t_cyc_ns"]
+    assert sum(s[3] for s in segs if s[0] != "idle") == theirs["min_t_cyc_ns"]
+
+
+def test_plan_error_names_the_problem() -> None:
+    with pytest.raises(ringsync.ScenarioError, match="too short"):
+        ringsync.plan(None, **{"ring.slaves": 64, "ring.cycle": "100us"})
+
+
+def test_reproduce_equals_the_cli(cli: Cli, tmp_path: Path) -> None:
+    cli.run("reproduce", "--seeds", "2", "--out", str(tmp_path / "r"))
+    theirs = json.loads((tmp_path / "r" / "summary.json").read_text())
+    r = ringsync.reproduce(seeds=2)
+    assert len(theirs) == 6
+    for row in theirs:  # the CLI's rows: every seed's values beside the means
+        mine = [x for x in r.rows if (x["plan"], x["controller"]) == (row["plan"], row["controller"])]
+        assert [x["seed"] for x in mine] == row["seed_values"] == [1, 2]
+        assert [x["track_rmse"] for x in mine] == row["track_rmse_per_seed"]
+        assert [x["sync_rmse"] for x in mine] == row["sync_rmse_per_seed"]
+    assert [row["seed"] for row in r.rows] == [1] * 6 + [2] * 6
+    assert len(r.to_pandas()) == 12
+
+
+def test_plots_return_figures() -> None:
+    from matplotlib.figure import Figure
+
+    run = ringsync.simulate("paper-2015", duration="0.3s")
+    fig = run.plot()
+    assert isinstance(fig, Figure) and len(fig.axes) == 3
+    assert len(fig.axes[0].lines) == run.axes
+    np.testing.assert_array_equal(fig.axes[1].lines[2].get_ydata(), run.eps[:, 2])
+    sw = ringsync.sweep("paper-2015", {"control.law": ["pd", "sync"], "faults.loss": [0.0, 0.05]},
+                        seeds=2, duration="0.3s")
+    fig2 = sw.plot("track_rmse")
+    assert isinstance(fig2, Figure) and len(fig2.axes[0].containers) == 2  # one line per loss
+    with pytest.raises(ValueError, match="no column 'nope'"):
+        sw.plot("nope")
+    fig3 = ringsync.plan().plot(zoom=True)
+    assert isinstance(fig3, Figure)
+    import matplotlib.pyplot as plt
+
+    plt.close("all")
+
+
+def test_to_xarray() -> None:
+    run = ringsync.simulate("paper-2015", duration="0.3s", **{"ring.slaves": 3})
+    ds = run.to_xarray()
+    assert dict(ds.sizes) == {"time": 300, "axis": 3}
+    np.testing.assert_array_equal(ds["u"].values, run.u)
+    np.testing.assert_array_equal(ds["time"].values, run.time)
+    assert ds["clock_error_ns"].attrs["units"] == "ns"
+    assert ds.attrs["track_rmse"] == run.metrics["track_rmse"]

@@ -1,0 +1,46 @@
+"""The real-time runtime over UDP on loopback: a Run with the timing in its summary; Ctrl-C
+ends it early and raises KeyboardInterrupt once the run has stopped."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+
+import ringsync
+
+
+def test_rt_gives_a_run_with_the_timing(tmp_path: Path) -> None:
+    r = ringsync.rt("paper-2015", duration="0.3s", prediction_seeds=1)
+    assert r.realtime and not ringsync.simulate("paper-2015", duration="0.1s").realtime
+    assert r.summary["transport"] == "udp"
+    assert r.summary["cycles_planned"] == 300
+    assert r.summary["sim_prediction"]["seeds"] == 1
+    assert r.e.shape[1] == 4 and 0 < r.e.shape[0] <= 300
+    n = r.metrics["samples"]
+    assert np.isclose(np.sqrt(np.sum(r.e**2) / n), r.metrics["track_rmse"], rtol=1e-12, atol=0)
+    assert "over udp" in r.text()
+    r.save(tmp_path / "rt")
+    assert json.loads((tmp_path / "rt" / "summary.json").read_text()) == r.summary
+    assert (tmp_path / "rt" / "trace.csv").is_file()
+
+
+def test_ctrl_c_ends_a_real_time_run_early() -> None:
+    code = """
+import os, signal, threading, time, ringsync
+threading.Timer(0.8, lambda: os.kill(os.getpid(), signal.SIGINT)).start()
+t = time.monotonic()
+try:
+    ringsync.rt("paper-2015", duration="20s", prediction_seeds=0)
+    print("finished")
+except KeyboardInterrupt:
+    print(f"interrupted after {time.monotonic() - t:.1f} s")
+"""
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert p.returncode == 0, p.stderr
+    out = p.stdout.strip()
+    assert out.startswith("interrupted after"), out
+    assert float(out.split()[2]) < 10.0, out
