@@ -375,7 +375,10 @@ class Check:
         × states, or None when the check does not model the loop. 9 states per axis i at
         ``9*i … 9*i+8``: x [rad], ẋ [rad/s], the command held from the last cycle u[k−1]
         [V], the three previous error samples e[k−1], e[k−2], e[k−3] [rad] and error rates
-        ė[k−1], ė[k−2], ė[k−3] [rad/s] (the history the estimators read). The loop
+        ė[k−1], ė[k−2], ė[k−3] [rad/s] (the history the estimators read); with
+        ``control.velocity = "observer"`` two more per axis (the observer's ê [rad], ė̂
+        [rad/s]), with ``control.dob_bandwidth`` > 0 three more (u[k−2], u[k−3], d̂ [V]),
+        so ``matrix.shape[0] // axes`` states per axis in all. The loop
         regulates to x^d = 0 (e = −x) on the axes' linear part (no Coulomb friction, no
         saturation), with each axis's sample-to-actuation delay; its eigenvalues' largest
         modulus is :attr:`spectral_radius`."""
@@ -448,13 +451,19 @@ class Check:
             )
         a = np.array(self.matrix, dtype=float)
         dim = a.shape[0]
-        n = dim // 9
+        n = len(self.delays)
+        per = dim // n
         b = np.zeros((dim, n))
         c = np.zeros((n, dim))
         for i in range(n):
-            c[i, 9 * i] = 1.0
+            c[i, per * i] = 1.0
         d = np.zeros((n, n))
         per_axis = ["x", "v", "u_prev", "e1", "e2", "e3", "de1", "de2", "de3"]
+        # velocity = "observer" adds its estimate, a disturbance observer its commands and d̂.
+        if per in (11, 14):
+            per_axis += ["e_hat", "de_hat"]
+        if per in (12, 14):
+            per_axis += ["u_prev2", "u_prev3", "d_hat"]
         states = [f"{name}[{i + 1}]" for i in range(n) for name in per_axis]
         return control.StateSpace(
             a,

@@ -120,3 +120,15 @@ def test_to_xarray() -> None:
     np.testing.assert_array_equal(ds["time"].values, run.time)
     assert ds["clock_error_ns"].attrs["units"] == "ns"
     assert ds.attrs["track_rmse"] == run.metrics["track_rmse"]
+
+
+def test_statespace_with_observers_names_their_states() -> None:
+    """The error observer adds two states per axis, the disturbance observer three: the
+    state-space system picks each axis's position at its own offset and names them."""
+    c = ringsync.check("paper-2015", **{"control.velocity": "observer", "control.kh": 0.016,
+                                        "control.dob_bandwidth": 20.0})
+    sys = c.statespace()
+    assert sys.nstates == 4 * 14 and c.matrix.shape == (56, 56)
+    assert sys.state_labels[:14][-5:] == ["e_hat[1]", "de_hat[1]", "u_prev2[1]", "u_prev3[1]", "d_hat[1]"]
+    assert sys.C[1, 14] == 1.0 and sys.C[1].sum() == 1.0
+    assert np.isclose(max(abs(sys.poles())), c.spectral_radius, rtol=1e-9)
