@@ -21,7 +21,7 @@
     const opts = {
       width: Math.max(500, el.clientWidth || 700), height: 170,
       scales: { x: { time: false } },
-      axes: [{ label: "t [s]" }, {}],
+      axes: [{ label: "t [s]" }, { size: 72, space: 24, values: (u, vals) => vals.map((v) => (Math.abs(v) >= 1e4 || (v !== 0 && Math.abs(v) < 1e-3) ? v.toExponential(1) : String(+v.toPrecision(4)))) }],
       cursor: { drag: { x: true, y: false } },
       legend: { live: true },
       series: [{ label: "t [s]" }].concat(series),
@@ -126,7 +126,7 @@
 
   function drawRing() {
     if (!hello) return;
-    const svg = $("ring"), n = Math.min(hello.axes, hello.shown_axes), cx = 205, cy = 120, r = 90;
+    const svg = $("ring"), n = Math.min(hello.axes, hello.shown_axes), cx = 205, cy = 128, r = 86;
     const names = ["master"].concat(Array.from({ length: n }, (_, i) => "slave " + (i + 1)));
     const pos = names.map((_, i) => { const a = -Math.PI / 2 + 2 * Math.PI * i / names.length; return [cx + r * Math.cos(a), cy + r * Math.sin(a)]; });
     let s = '<defs><marker id="arr" markerWidth="8" markerHeight="8" refX="7" refY="3" orient="auto"><path d="M0,0 L0,6 L7,3 z" fill="#888"/></marker></defs>';
@@ -140,7 +140,8 @@
       const c = nodes[i] ? STATE_COLORS[st] || "#000" : "#ccc";
       s += `<circle cx="${x}" cy="${y}" r="20" fill="${c}" stroke="#333" data-node="${i}" data-state="${st}"><title>${nm}: ${hello.node_states[st] || st}</title></circle>`;
       s += `<text x="${x}" y="${y + 4}" text-anchor="middle" font-size="10" fill="#fff">${i === 0 ? "M" : i}</text>`;
-      s += `<text x="${x}" y="${y + (y > cy ? 34 : -26)}" text-anchor="middle" font-size="10">${hello.node_states[st] || ""}</text>`;
+      const lx = x + (x - cx) * 0.5, ly = y + (y - cy) * 0.38 + (Math.abs(x - cx) < 5 ? (y < cy ? -2 : 12) : 4);
+      s += `<text x="${lx}" y="${ly}" text-anchor="middle" font-size="10">${hello.node_states[st] || ""}</text>`;
     });
     svg.innerHTML = s;
   }
