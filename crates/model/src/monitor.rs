@@ -192,8 +192,8 @@ impl Monitor {
         if sync_on {
             let s: f64 = e[..n].iter().sum();
             let d = (n - 1) as f64;
-            for i in 0..n {
-                self.eps[i] = e[i] - (s - e[i]) / d;
+            for (eps, &ei) in self.eps.iter_mut().zip(&e[..n]) {
+                *eps = ei - (s - ei) / d;
             }
         }
         let mut stop = None;
@@ -203,7 +203,7 @@ impl Monitor {
             MonitorKind::FollowingWarning,
             MonitorKind::FollowingTrip,
         ];
-        for i in 0..n {
+        for (i, &ei) in e[..n].iter().enumerate() {
             for (j, kind) in kinds.iter().enumerate() {
                 let (lim, v) = if j < 2 {
                     if !sync_on {
@@ -211,7 +211,7 @@ impl Monitor {
                     }
                     (&self.settings.sync, self.eps[i])
                 } else {
-                    (&self.settings.following, e[i])
+                    (&self.settings.following, ei)
                 };
                 let trip = j % 2 == 1;
                 let limit = if trip { lim.trip[i] } else { lim.warn[i] };

@@ -30,6 +30,22 @@ fn stop_json(stop: &Option<(f64, StopReason)>) -> Value {
     }
 }
 
+/// A group stop's reason in text: a monitor's trip in words (axis 1-based), the other
+/// reasons as they always were written.
+pub fn stop_reason_text(r: &StopReason) -> String {
+    match *r {
+        StopReason::SyncTrip { axis, error } => format!(
+            "sync error trip on axis {} (ε = {error:+.5} rad beyond the monitor's trip limit)",
+            axis + 1
+        ),
+        StopReason::FollowingTrip { axis, error } => format!(
+            "following error trip on axis {} (e = {error:+.5} rad beyond the monitor's trip limit)",
+            axis + 1
+        ),
+        other => format!("{other:?}"),
+    }
+}
+
 /// A node's refused frames, per reason (every reason listed, zeros included).
 pub fn rejections_json(r: &Rejections) -> Value {
     let mut m = serde_json::Map::new();
@@ -387,7 +403,8 @@ controller <code>{law}</code>, estimator <code>{est}</code>; {cycles} cycles of 
         stop = r
             .group_stop
             .map_or("none".to_string(), |(t, reason)| esc(&format!(
-                "at {t:.3} s: {reason:?}"
+                "at {t:.3} s: {}",
+                stop_reason_text(&reason)
             ))),
         wd = if r.watchdog.is_empty() {
             "none".to_string()

@@ -219,7 +219,10 @@ pub fn sim_text(s: &Scenario, r: &RunResult) -> String {
         r.master.retries,
         r.clock_error_max_ns.iter().copied().fold(0.0, f64::max),
         match r.group_stop {
-            Some((t, reason)) => format!("GROUP STOP at {t:.3} s: {reason:?}"),
+            Some((t, reason)) => format!(
+                "GROUP STOP at {t:.3} s: {}",
+                ringsync_report::sim::stop_reason_text(&reason)
+            ),
             None => "no group stop".to_string(),
         },
     );
