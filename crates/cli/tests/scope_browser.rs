@@ -169,3 +169,62 @@ fn chromium_sees_a_replay_arrive_and_the_plots_update() {
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Bad scope options are usage errors: one line naming the option, exit status 2.
+#[test]
+fn bad_scope_options_are_named() {
+    let run = |args: &[&str]| {
+        let o = Command::new(env!("CARGO_BIN_EXE_ringsync"))
+            .args(args)
+            .env("RUST_BACKTRACE", "0")
+            .output()
+            .expect("run ringsync");
+        (
+            o.status.code(),
+            String::from_utf8_lossy(&o.stderr).into_owned(),
+        )
+    };
+    let out = std::env::temp_dir().join(format!("ringsync-scope-usage-{}", std::process::id()));
+    let out = out.to_str().expect("utf-8");
+    let (code, err) = run(&[
+        "sim",
+        "paper-2015",
+        "--out",
+        out,
+        "--scope",
+        "localhost-8080",
+    ]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("--scope"), "{err}");
+    let (code, err) = run(&[
+        "sim",
+        "paper-2015",
+        "--out",
+        out,
+        "--scope",
+        "127.0.0.1:0",
+        "--speed",
+        "0",
+    ]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(
+        err.contains("--speed") && err.contains("out of range"),
+        "{err}"
+    );
+    let (code, err) = run(&["sim", "paper-2015", "--out", out, "--speed", "2"]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("--scope"), "{err}");
+    let (code, err) = run(&[
+        "rt",
+        "paper-2015",
+        "--transport",
+        "udp",
+        "--out",
+        out,
+        "--scope",
+        "1.2.3",
+    ]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("--scope"), "{err}");
+    assert!(!std::path::Path::new(out).exists());
+}

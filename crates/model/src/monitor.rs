@@ -244,8 +244,8 @@ mod tests {
     fn settings(filter_ms: i64, reaction: Reaction) -> MonitorSettings {
         MonitorSettings {
             sync: Limits {
-                warn: vec![0.01; 3],
-                trip: vec![0.02; 3],
+                warn: vec![0.02; 3],
+                trip: vec![0.025; 3],
                 filter: Duration::from_ms(filter_ms),
                 reaction,
             },
@@ -257,7 +257,8 @@ mod tests {
     fn trips_after_the_filter_time_and_not_on_a_shorter_spike() {
         let mut m = Monitor::new(settings(5, Reaction::GroupStop));
         let mut out = Vec::new();
-        // Axis 0 leads by 0.03 rad: ε_0 = 0.03 − 0 = 0.03 > both limits.
+        // Axis 0 leads by 0.03 rad: ε_0 = 0.03 − 0 = 0.03 > both limits; the others'
+        // ε = −0.015 stays within.
         let big = [0.03, 0.0, 0.0];
         let ms = 1_000_000;
         // A spike of 4 ms (runs at 0..=3 ms), then back: nothing.

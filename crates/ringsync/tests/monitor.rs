@@ -171,3 +171,33 @@ fn the_sync_monitor_trips_the_weak_axis_in_real_time() {
     assert_eq!(trips.len(), 1, "{:?}", r.run.monitor);
     assert_eq!(trips[0].axis, 4);
 }
+
+/// The example scenario of docs/safety.md gives the figures the docs quote: the following
+/// warning at 0.419 s, the sync warning at 0.435 s, the sync trip at 0.592 s, all on axis 4,
+/// and the group stop by the trip.
+#[test]
+fn the_weak_axis_example_does_what_the_docs_say() {
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../examples/scenarios/weak-axis.toml"
+    );
+    let s = ringsync::load(path).expect("the example loads").scenario;
+    let r = sim(&s);
+    let got: Vec<(MonitorKind, usize, String)> = r
+        .monitor
+        .iter()
+        .map(|e| (e.kind, e.axis, format!("{:.4}", e.t)))
+        .collect();
+    assert_eq!(
+        got,
+        vec![
+            (MonitorKind::FollowingWarning, 4, "0.4191".to_string()),
+            (MonitorKind::SyncWarning, 4, "0.4351".to_string()),
+            (MonitorKind::SyncTrip, 4, "0.5921".to_string()),
+        ]
+    );
+    assert!(matches!(
+        r.group_stop,
+        Some((_, StopReason::SyncTrip { axis: 3, .. }))
+    ));
+}
