@@ -43,6 +43,10 @@ pub const MAX_UPDATES_PER_S: u32 = 60;
 pub const MAX_ROWS: usize = 64;
 /// Updates the broadcast channel holds for a slow client before it skips.
 pub const BACKLOG: usize = 16;
+/// Frames a page that connects late gets first: 10 s of updates.
+pub const HISTORY_FRAMES: usize = 600;
+/// Events (monitor, fault) a page that connects late gets first, at most.
+pub const HISTORY_EVENTS: usize = 2000;
 
 /// What can stop the scope from starting.
 #[derive(Debug, thiserror::Error)]
@@ -87,6 +91,11 @@ pub(crate) struct Shared {
     pub end: std::sync::Mutex<Option<String>>,
     /// Raised by the pump once it sent the last rows and the `end`.
     pub done: AtomicBool,
+    /// What a page that connects late gets first: the last [`HISTORY_FRAMES`] frames and
+    /// every event (up to [`HISTORY_EVENTS`]), in the order they went out. The pump adds to
+    /// it and broadcasts under its lock, and a client subscribes under it, so a new page
+    /// misses nothing and gets nothing twice.
+    pub history: std::sync::Mutex<server::History>,
 }
 
 /// A running scope server (see the crate docs). Dropping it stops the server.

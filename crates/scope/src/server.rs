@@ -31,9 +31,53 @@ const UPLOT_LICENSE: &str = include_str!("../assets/uPlot-LICENSE");
 
 /// What goes out to every client.
 #[derive(Debug)]
-enum Update {
+pub(crate) enum Update {
     Frame(Vec<u8>),
     Text(String),
+}
+
+/// The updates a late page gets first (see `Shared::history`).
+#[derive(Debug, Default)]
+pub(crate) struct History {
+    updates: std::collections::VecDeque<Arc<Update>>,
+    frames: usize,
+    events: usize,
+}
+
+impl History {
+    fn push(&mut self, u: Arc<Update>) {
+        match *u {
+            Update::Frame(_) => self.frames += 1,
+            Update::Text(_) => self.events += 1,
+        }
+        self.updates.push_back(u);
+        let frames = self.frames > crate::HISTORY_FRAMES;
+        let events = self.events > crate::HISTORY_EVENTS;
+        if frames || events {
+            let drop_frame = frames;
+            if let Some(i) = self
+                .updates
+                .iter()
+                .position(|u| matches!(**u, Update::Frame(_)) == drop_frame)
+            {
+                self.updates.remove(i);
+                if drop_frame {
+                    self.frames -= 1;
+                } else {
+                    self.events -= 1;
+                }
+            }
+        }
+    }
+}
+
+/// Adds `u` to the history and sends it to every client, under the history's lock.
+fn publish(shared: &Shared, tx: &broadcast::Sender<Arc<Update>>, u: Update) {
+    let u = Arc::new(u);
+    if let Ok(mut h) = shared.history.lock() {
+        h.push(u.clone());
+        let _ = tx.send(u);
+    }
 }
 
 #[derive(Clone)]
@@ -125,33 +169,45 @@ async fn ws(State(app): State<App>, upgrade: WebSocketUpgrade) -> Response {
 /// One client: the `hello`, then every update it keeps up with; updates it fell behind on
 /// are skipped and counted in its frames' header.
 async fn client(mut socket: WebSocket, app: App) {
-    let Some(mut rx) = app.tx.upgrade().map(|t| t.subscribe()) else {
+    // The history and the subscription under one lock: nothing missed, nothing twice.
+    let subscribed = app.tx.upgrade().and_then(|t| {
+        let h = app.shared.history.lock().ok()?;
+        Some((h.updates.iter().cloned().collect::<Vec<_>>(), t.subscribe()))
+    });
+    let Some((backlog, mut rx)) = subscribed else {
+        // The run has ended: the hello and what the history holds (the end last).
+        let backlog: Vec<Arc<Update>> = match app.shared.history.lock() {
+            Ok(h) => h.updates.iter().cloned().collect(),
+            Err(_) => Vec::new(),
+        };
         let _ = socket
             .send(Message::Text(app.shared.hello.clone().into()))
             .await;
-        if let Some(end) = app.shared.end.lock().ok().and_then(|e| e.clone()) {
-            let _ = socket.send(Message::Text(end.into())).await;
+        for u in backlog {
+            if socket.send(message(&u, 0)).await.is_err() {
+                break;
+            }
         }
+        let _ = socket.send(Message::Close(None)).await;
         return;
     };
     app.shared.clients.fetch_add(1, Ordering::SeqCst);
     app.shared.connected.fetch_add(1, Ordering::SeqCst);
     let mut skipped: u32 = 0;
     let hello = app.shared.hello.clone();
-    if socket.send(Message::Text(hello.into())).await.is_ok() {
+    let mut ok = socket.send(Message::Text(hello.into())).await.is_ok();
+    for u in backlog {
+        if !ok {
+            break;
+        }
+        ok = socket.send(message(&u, 0)).await.is_ok();
+    }
+    if ok {
         loop {
             tokio::select! {
                 u = rx.recv() => match u {
                     Ok(u) => {
-                        let msg = match &*u {
-                            Update::Frame(b) => {
-                                let mut b = b.clone();
-                                frame::set_skipped(&mut b, skipped);
-                                Message::Binary(b.into())
-                            }
-                            Update::Text(t) => Message::Text(t.clone().into()),
-                        };
-                        if socket.send(msg).await.is_err() {
+                        if socket.send(message(&u, skipped)).await.is_err() {
                             break;
                         }
                     }
@@ -177,6 +233,18 @@ async fn client(mut socket: WebSocket, app: App) {
         }
     }
     app.shared.clients.fetch_sub(1, Ordering::SeqCst);
+}
+
+/// An update as a WebSocket message, with this client's skip count in a frame's header.
+fn message(u: &Update, skipped: u32) -> Message {
+    match u {
+        Update::Frame(b) => {
+            let mut b = b.clone();
+            frame::set_skipped(&mut b, skipped);
+            Message::Binary(b.into())
+        }
+        Update::Text(t) => Message::Text(t.clone().into()),
+    }
 }
 
 fn event_json(e: &Event) -> String {
@@ -222,7 +290,7 @@ async fn pump(
             }
         }
         for e in feed.events.try_iter() {
-            let _ = tx.send(Arc::new(Update::Text(event_json(&e))));
+            publish(&shared, &tx, Update::Text(event_json(&e)));
         }
         if !rows.is_empty() {
             let stride = rows.len().div_ceil(MAX_ROWS).max(1);
@@ -249,12 +317,12 @@ async fn pump(
             let b = frame::encode(&header, &cols, &last.nodes[..nodes * NODE_FIELDS]);
             seq = seq.wrapping_add(1);
             shared.updates.fetch_add(1, Ordering::SeqCst);
-            let _ = tx.send(Arc::new(Update::Frame(b)));
+            publish(&shared, &tx, Update::Frame(b));
             rows.clear();
         }
         let end = shared.end.lock().ok().and_then(|e| e.clone());
         if ended && let Some(end) = end {
-            let _ = tx.send(Arc::new(Update::Text(end)));
+            publish(&shared, &tx, Update::Text(end));
             shared.done.store(true, Ordering::SeqCst);
             // Dropping the sender closes every client's stream after what it holds.
             drop(tx);

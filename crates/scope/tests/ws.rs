@@ -119,8 +119,36 @@ fn a_replay_streams_every_cycle_in_sequence() {
         }
     });
     let mut read = Read::default();
-    rt.block_on(read_all(&mut ws, &mut read));
+    let mut late_read = Read::default();
+    rt.block_on(async {
+        // A second page joins partway through: it gets the history first, then the live
+        // updates, nothing missed and nothing twice.
+        let early = tokio::time::Instant::now() + Wall::from_millis(150);
+        while tokio::time::Instant::now() < early {
+            if let Ok(Some(Ok(m))) = tokio::time::timeout_at(early, ws.next()).await {
+                match m {
+                    Message::Binary(b) => read.frames.push(frame::decode(&b).expect("a frame")),
+                    Message::Text(t) => {
+                        let v: Value = serde_json::from_str(t.as_str()).expect("JSON");
+                        if v["type"] == "hello" {
+                            read.hello = Some(v)
+                        } else {
+                            read.texts.push(v)
+                        }
+                    }
+                    _ => {}
+                }
+            }
+        }
+        let joined_after = read.frames.len();
+        let mut late = connect(addr, None).await;
+        read_all(&mut ws, &mut read).await;
+        read_all(&mut late, &mut late_read).await;
+        assert!(joined_after > 0, "the second page joined before any update");
+    });
     let r = sim.join().expect("the replay thread");
+    assert_continuous(&late_read, r.cycles);
+    assert_eq!(late_read.frames.len(), read.frames.len());
     let hello = read.hello.as_ref().expect("a hello");
     assert_eq!(hello["source"], "sim");
     assert_eq!(hello["columns"].as_array().map(Vec::len), Some(2 + 6 * 4));
