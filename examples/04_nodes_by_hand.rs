@@ -92,7 +92,7 @@ fn main() -> Result<(), ringsync::Error> {
                     }
                 }
                 MasterEvent::GroupStop { reason, .. } => println!("group stop: {}", reason.name()),
-                MasterEvent::Order { .. } => {}
+                MasterEvent::Order { .. } | MasterEvent::Monitor { .. } => {}
             }
         }
     }

@@ -5,6 +5,8 @@ mod latency_cmd;
 mod plan_cmd;
 mod rt_cmd;
 mod scenario_cmd;
+#[cfg(feature = "scope")]
+mod scope_opt;
 mod sim_cmd;
 
 use std::process::ExitCode;

@@ -94,6 +94,9 @@ pub struct RtArgs {
     /// Skip the simulator's prediction for the same scenario.
     #[arg(long)]
     no_sim_prediction: bool,
+    #[cfg(feature = "scope")]
+    #[command(flatten)]
+    scope: crate::scope_opt::RtScopeArgs,
 }
 
 /// The real-time options shared by `ringsync rt` and `ringsync latency`.
@@ -179,7 +182,18 @@ pub(crate) fn rt(args: &RtArgs) -> Result<Outcome, CliError> {
         ..RtOptions::default()
     };
     let stop = ringsync::layers::runtime::stop_flag();
-    let r = ringsync::run_rt(s, &opts, stop, Vec::new())?;
+    #[cfg(feature = "scope")]
+    let (scope, observers) = crate::scope_opt::start(
+        args.scope.scope,
+        &ringsync::layers::runtime::run::as_run(s, &opts),
+        ringsync_scope::Source::Realtime,
+        "rt",
+    )?;
+    #[cfg(not(feature = "scope"))]
+    let observers = Vec::new();
+    let r = ringsync::run_rt(s, &opts, stop, observers)?;
+    #[cfg(feature = "scope")]
+    scope.finish(&r.scenario, loaded.hash, &r.run);
     // The simulator's prediction for the scenario as run (after the overrides).
     let prediction = if args.no_sim_prediction {
         None

@@ -33,6 +33,9 @@ pub struct SimArgs {
     /// scenario.toml is always written.
     #[arg(long, value_name = "LIST", default_value = "all", value_parser = outputs)]
     outputs: ringsync::Outputs,
+    #[cfg(feature = "scope")]
+    #[command(flatten)]
+    scope: crate::scope_opt::SimScopeArgs,
 }
 
 fn key_value(kv: &str) -> Result<(String, String), String> {
@@ -82,10 +85,27 @@ pub(crate) fn sim(args: &SimArgs) -> Result<Outcome, CliError> {
             );
         }
     };
-    let r = ringsync::simulate_with(&s, &opts, Vec::new(), &mut progress)?;
+    #[cfg(feature = "scope")]
+    let (scope, observers) = {
+        let (scope, observers) = crate::scope_opt::start(
+            args.scope.scope,
+            &s,
+            ringsync_scope::Source::Replay {
+                speed: args.scope.speed,
+            },
+            "sim",
+        )?;
+        scope.wait_for_client(args.scope.scope_wait, "sim");
+        (scope, observers)
+    };
+    #[cfg(not(feature = "scope"))]
+    let observers = Vec::new();
+    let r = ringsync::simulate_with(&s, &opts, observers, &mut progress)?;
     if shown {
         eprintln!();
     }
+    #[cfg(feature = "scope")]
+    scope.finish(&s, loaded.hash, &r);
     let elapsed = wall.elapsed();
     ringsync::write_sim(
         &mut dir,

@@ -27,6 +27,7 @@ use ringsync_wire::Status;
 
 use crate::axes::Axes;
 use crate::locate::locate_break_of;
+use crate::monitor::MonitorEvent;
 use crate::observer::Observer;
 use crate::oscillator::Oscillator;
 use crate::record::{AxisProbe, FaultEvent, FaultStep, Recorder};
@@ -192,6 +193,16 @@ impl Devices {
                     axis + 1,
                     FaultStep::Ordered(order, why),
                 ),
+                MasterEvent::Monitor { at, news } => {
+                    let ev = MonitorEvent {
+                        t: at.as_ns() as f64 * 1e-9,
+                        axis: news.axis + 1,
+                        kind: news.kind,
+                        raised: news.raised,
+                        value: news.value,
+                    };
+                    self.each(|o| o.monitor(&ev));
+                }
             }
         }
         news
@@ -299,13 +310,24 @@ impl Devices {
             rec,
             observers,
             probe,
+            master,
+            slaves,
             ..
         } = self;
         rec.cycle(k, ts, probe);
         for o in observers.iter_mut() {
             o.cycle(k, ts, probe);
+            o.nodes(k, master, slaves);
         }
         late
+    }
+
+    /// A real-time driver's account of cycle `k`'s start (lateness [ns], whether the host
+    /// stalled), to the observers (not the recorder: the driver keeps its own timing).
+    pub fn timing(&mut self, k: i64, lateness_ns: i64, stalled: bool) {
+        for o in &mut self.observers {
+            o.timing(k, lateness_ns, stalled);
+        }
     }
 
     /// The run's result: the recorder's, with every node's counters and the driver's own

@@ -16,6 +16,7 @@ pub mod axes;
 pub mod check;
 pub mod devices;
 pub mod locate;
+pub mod monitor;
 pub mod motion;
 pub mod observer;
 pub mod oscillator;

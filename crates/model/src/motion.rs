@@ -14,6 +14,8 @@ use ringsync_proto::node::motion::{Motion, MotionInput, MotionOutput, Setpoint};
 use ringsync_proto::node::{OffReason, SlaveLaw, StopOrder, StopReason};
 use ringsync_wire::{FeedbackSlot, Status};
 
+use crate::monitor::{Monitor, MonitorSettings};
+
 /// The group stop's settings.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StopSettings {
@@ -85,6 +87,9 @@ pub struct ControlMotion {
     fb: Feedback,
     input: ControlInput,
     output: ControlOutput,
+    monitor: Monitor,
+    /// The following errors the monitors take [rad].
+    errors: Vec<f64>,
 }
 
 impl std::fmt::Debug for ControlMotion {
@@ -119,6 +124,8 @@ impl ControlMotion {
             fb: Feedback::new(n),
             input: ControlInput::new(n, t_cyc),
             output: ControlOutput::new(n),
+            monitor: Monitor::new(MonitorSettings::off(n)),
+            errors: vec![0.0; n],
         }
     }
 
@@ -132,6 +139,17 @@ impl ControlMotion {
             self.controller = self.controller.with_dob(d)?;
         }
         Ok(self)
+    }
+
+    /// With the sync-error and following-error monitors of `settings` (one entry per axis).
+    pub fn with_monitor(mut self, settings: MonitorSettings) -> Self {
+        self.monitor = Monitor::new(settings);
+        self
+    }
+
+    /// The monitors (their settings, each axis's in-sync status).
+    pub fn monitor(&self) -> &Monitor {
+        &self.monitor
     }
 
     /// The law's name.
@@ -245,6 +263,7 @@ impl Motion for ControlMotion {
         let n = self.trajectories.len();
         out.stop = None;
         out.orders.clear();
+        out.monitor.clear();
         let t_start = input.cycle_start.as_ns() as f64 * 1e-9;
         let t_now = input.now.as_ns() as f64 * 1e-9;
         let mut stop_reason = input.pending;
@@ -282,6 +301,22 @@ impl Motion for ControlMotion {
             // to saturation).
             if input.blind[i] && stop_reason.is_none() && self.stop.is_none() {
                 stop_reason = Some(StopReason::NoFeedback { axis: i });
+            }
+        }
+        // The monitors, on what the master measured, while the group runs (every axis
+        // has reported; none is blind).
+        if self.stop.is_none()
+            && input.samples.iter().all(Option::is_some)
+            && !input.blind.iter().any(|b| *b)
+        {
+            for i in 0..n {
+                self.errors[i] = self.fb.desired[i].x - self.fb.position[i];
+            }
+            let trip = self
+                .monitor
+                .check(input.now.as_ns(), &self.errors, &mut out.monitor);
+            if stop_reason.is_none() {
+                stop_reason = trip;
             }
         }
         if let (Some(reason), None) = (stop_reason, &self.stop) {

@@ -4,8 +4,9 @@
 //! result is one observer; a streaming writer, a live scope or arrays for Python are others
 //! ([`Devices::observe`](crate::devices::Devices::observe)).
 
-use ringsync_proto::node::CycleRecord;
+use ringsync_proto::node::{CycleRecord, Master, Slave};
 
+use crate::monitor::MonitorEvent;
 use crate::record::{AxisProbe, FaultEvent};
 
 /// What a run tells those who watch it. Every method has an empty default: implement what
@@ -28,5 +29,21 @@ pub trait Observer: Send {
     /// One step of a fault reaction.
     fn fault(&mut self, event: &FaultEvent) {
         let _ = event;
+    }
+    /// A sync-error or following-error monitor raised or cleared a warning, or tripped.
+    fn monitor(&mut self, event: &MonitorEvent) {
+        let _ = event;
+    }
+    /// After the cycle start `k` (right after [`Observer::cycle`]): the nodes themselves,
+    /// for their counters and states (the recorder does not need this; a live scope does).
+    /// Only observers added with [`Devices::observe`](crate::devices::Devices::observe) are
+    /// called.
+    fn nodes(&mut self, k: i64, master: &Master, slaves: &[Slave]) {
+        let _ = (k, master, slaves);
+    }
+    /// A real-time driver's account of cycle `k`'s start: how late the loop started it
+    /// [ns] and whether the host stalled then. The simulator never calls it.
+    fn timing(&mut self, k: i64, lateness_ns: i64, stalled: bool) {
+        let _ = (k, lateness_ns, stalled);
     }
 }

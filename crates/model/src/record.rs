@@ -72,6 +72,12 @@ impl FaultStep {
                 StopReason::CommandMismatch { sent, applied, .. } => {
                     format!("the slave applied {applied} V where the master sent {sent} V")
                 }
+                StopReason::SyncTrip { error, .. } => {
+                    format!("sync error {error:.4} rad beyond the monitor's trip limit")
+                }
+                StopReason::FollowingTrip { error, .. } => {
+                    format!("following error {error:.4} rad beyond the monitor's trip limit")
+                }
                 other => other.name().to_string(),
             },
             FaultStep::Ordered(_, w) => match w {
@@ -128,6 +134,7 @@ pub struct Recorder {
     group_stop: Option<(f64, StopReason)>,
     faults: Vec<FaultEvent>,
     ring_break: Option<RingBreak>,
+    monitor: Vec<crate::monitor::MonitorEvent>,
 }
 
 impl Recorder {
@@ -170,6 +177,7 @@ impl Recorder {
             group_stop: None,
             faults: Vec::new(),
             ring_break: None,
+            monitor: Vec::new(),
         }
     }
 
@@ -217,6 +225,7 @@ impl Recorder {
             group_stop: self.group_stop,
             faults: self.faults,
             ring_break: self.ring_break,
+            monitor: self.monitor,
             command_max: (self.sent_max, self.applied_max),
             trace: self.trace,
             passages,
@@ -288,5 +297,9 @@ impl Observer for Recorder {
             _ => {}
         }
         self.faults.push(*ev);
+    }
+
+    fn monitor(&mut self, ev: &crate::monitor::MonitorEvent) {
+        self.monitor.push(*ev);
     }
 }

@@ -207,6 +207,9 @@ pub struct RunResult {
     pub faults: Vec<FaultEvent>,
     /// Where the ring broke, located from the nodes' own counters when the group stopped.
     pub ring_break: Option<RingBreak>,
+    /// Every warning and trip the sync-error and following-error monitors raised or
+    /// cleared, in time order.
+    pub monitor: Vec<crate::monitor::MonitorEvent>,
     /// The largest |command| the master sent to each axis, and the largest each drive
     /// applied [V]: a drive applies only what the master sent.
     pub command_max: (Vec<f64>, Vec<f64>),

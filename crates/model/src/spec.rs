@@ -43,6 +43,33 @@ impl Scenario {
     }
 }
 
+impl Scenario {
+    /// The `[monitor]` table as the motion takes it (validated: reactions parse).
+    pub fn monitor_settings(&self) -> crate::monitor::MonitorSettings {
+        use crate::monitor::{Limits, MonitorSettings};
+        let n = self.axes_count();
+        let m = &self.monitor;
+        let limits = |w: &crate::scenario::schema::PerAxis,
+                      t: &crate::scenario::schema::PerAxis,
+                      f: crate::scenario::schema::Dur,
+                      r: &str| Limits {
+            warn: w.expand(n),
+            trip: t.expand(n),
+            filter: f.0,
+            reaction: r.parse().unwrap_or_default(),
+        };
+        MonitorSettings {
+            sync: limits(&m.sync_warn, &m.sync_trip, m.sync_filter, &m.sync_reaction),
+            following: limits(
+                &m.following_warn,
+                &m.following_trip,
+                m.following_filter,
+                &m.following_reaction,
+            ),
+        }
+    }
+}
+
 impl Spec {
     /// The configurations a validated scenario describes, with the path delays of its plan.
     fn of(s: &Scenario, plan: CyclePlan) -> Result<Self, ScenarioError> {
@@ -139,6 +166,7 @@ impl Spec {
             s.ring.cycle.0,
             stop,
         )
+        .with_monitor(s.monitor_settings())
         .with_dob(s.dob_params())
         .map_err(|e| scenario_err("control.dob_bandwidth", e))?;
         let master = Master::new(self.master.clone(), Box::new(motion));

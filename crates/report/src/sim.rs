@@ -20,9 +20,29 @@ fn stop_json(stop: &Option<(f64, StopReason)>) -> Value {
                 StopReason::NoResponse { axis } => ("no-response", axis, None),
                 StopReason::NoFeedback { axis } => ("no-feedback", axis, None),
                 StopReason::CommandMismatch { axis, .. } => ("command-mismatch", axis, None),
+                StopReason::SyncTrip { axis, error } => ("sync-error-trip", axis, Some(error)),
+                StopReason::FollowingTrip { axis, error } => {
+                    ("following-error-trip", axis, Some(error))
+                }
             };
             json!({ "time_s": t, "reason": reason, "axis": axis + 1, "error_rad": error })
         }
+    }
+}
+
+/// A group stop's reason in text: a monitor's trip in words (axis 1-based), the other
+/// reasons as they always were written.
+pub fn stop_reason_text(r: &StopReason) -> String {
+    match *r {
+        StopReason::SyncTrip { axis, error } => format!(
+            "sync error trip on axis {} (ε = {error:+.5} rad beyond the monitor's trip limit)",
+            axis + 1
+        ),
+        StopReason::FollowingTrip { axis, error } => format!(
+            "following error trip on axis {} (e = {error:+.5} rad beyond the monitor's trip limit)",
+            axis + 1
+        ),
+        other => format!("{other:?}"),
     }
 }
 
@@ -86,7 +106,7 @@ pub fn summary_json(s: &Scenario, hash: u64, r: &RunResult) -> Value {
         .map(|(i, c)| json!({"slave": i + 1, "syncs": c.syncs, "commands": c.commands, "rejected": c.rejected.total(), "retries_answered": c.duplicates, "clock_relocks": c.relocks, "clock_acquisitions_restarted": c.acquisitions_restarted}))
         .collect();
     let mc = &r.master;
-    json!({
+    let mut v = json!({
         "scenario": s.name,
         "scenario_hash": format!("{hash:016x}"),
         "seed": s.seed,
@@ -123,7 +143,112 @@ pub fn summary_json(s: &Scenario, hash: u64, r: &RunResult) -> Value {
             "failed_slave": r.ring_break.and_then(|b| b.slave()),
         },
         "assumptions": assumptions(s),
-    })
+    });
+    if let (Some(m), Value::Object(o)) = (monitor_json(s, r), &mut v) {
+        o.insert("monitor".into(), m);
+    }
+    v
+}
+
+/// The `monitor` key of summary.json: the limits and every warning and trip (axes
+/// 1-based), the first trip and its reaction; `None` (no key) when no limit is set.
+pub fn monitor_json(s: &Scenario, r: &RunResult) -> Option<Value> {
+    let set = s.monitor_settings();
+    if !set.enabled() {
+        return None;
+    }
+    let limits = |l: &ringsync_model::monitor::Limits| {
+        json!({
+            "warn_rad": l.warn, "trip_rad": l.trip,
+            "filter_s": l.filter.as_ns() as f64 * 1e-9, "reaction": l.reaction.name(),
+        })
+    };
+    let events: Vec<Value> = r
+        .monitor
+        .iter()
+        .map(|e| {
+            json!({
+                "time_s": e.t, "axis": e.axis, "monitor": e.kind.monitor(), "level": e.kind.level(),
+                "change": if e.raised { "raised" } else { "cleared" }, "value_rad": e.value,
+            })
+        })
+        .collect();
+    let count = |monitor: &str, level: &str| {
+        r.monitor
+            .iter()
+            .filter(|e| e.raised && e.kind.monitor() == monitor && e.kind.level() == level)
+            .count()
+    };
+    let first_trip = r
+        .monitor
+        .iter()
+        .find(|e| e.raised && e.kind.level() == "trip");
+    Some(json!({
+        "sync": limits(&set.sync),
+        "following": limits(&set.following),
+        "sync_warnings": count("sync", "warning"),
+        "sync_trips": count("sync", "trip"),
+        "following_warnings": count("following", "warning"),
+        "following_trips": count("following", "trip"),
+        "first_trip": first_trip.map(|e| json!({
+            "time_s": e.t, "axis": e.axis, "monitor": e.kind.monitor(), "value_rad": e.value,
+            "reaction": if e.kind.monitor() == "sync" { set.sync.reaction.name() } else { set.following.reaction.name() },
+        })),
+        "events": events,
+    }))
+}
+
+/// The monitors in words, one line each: the limits, then every warning and trip (axes
+/// 1-based); `None` when no limit is set.
+pub fn monitor_lines(s: &Scenario, r: &RunResult) -> Option<Vec<String>> {
+    let set = s.monitor_settings();
+    if !set.enabled() {
+        return None;
+    }
+    let mut lines = Vec::new();
+    for (name, l) in [
+        ("sync error ε", &set.sync),
+        ("following error", &set.following),
+    ] {
+        if !l.enabled() {
+            lines.push(format!("{name} monitor: off"));
+            continue;
+        }
+        let list = |v: &[f64]| {
+            v.iter()
+                .map(|x| {
+                    if *x > 0.0 {
+                        format!("{x}")
+                    } else {
+                        "off".into()
+                    }
+                })
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        lines.push(format!(
+            "{name} monitor: warning at [{}] rad, trip at [{}] rad, filter {:.1} ms, reaction on trip {}",
+            list(&l.warn),
+            list(&l.trip),
+            l.filter.as_ns() as f64 * 1e-6,
+            l.reaction.name()
+        ));
+    }
+    if r.monitor.is_empty() {
+        lines.push("no warning, no trip: every axis stayed in sync".into());
+    }
+    for e in &r.monitor {
+        lines.push(format!(
+            "{:.4} s: axis {} {} {} {} ({:+.5} rad)",
+            e.t,
+            e.axis,
+            e.kind.monitor(),
+            e.kind.level(),
+            if e.raised { "raised" } else { "cleared" },
+            e.value
+        ));
+    }
+    Some(lines)
 }
 
 /// `trace.csv`: one row per cycle and axis.
@@ -278,7 +403,8 @@ controller <code>{law}</code>, estimator <code>{est}</code>; {cycles} cycles of 
         stop = r
             .group_stop
             .map_or("none".to_string(), |(t, reason)| esc(&format!(
-                "at {t:.3} s: {reason:?}"
+                "at {t:.3} s: {}",
+                stop_reason_text(&reason)
             ))),
         wd = if r.watchdog.is_empty() {
             "none".to_string()
@@ -305,7 +431,15 @@ controller <code>{law}</code>, estimator <code>{est}</code>; {cycles} cycles of 
             a.saturations
         );
     }
-    o.push_str("</table>\n<h2>Figures</h2>\n");
+    o.push_str("</table>\n");
+    if let Some(lines) = monitor_lines(s, r) {
+        o.push_str("<h2>Sync and following-error monitors</h2>\n<ul>\n");
+        for l in lines {
+            let _ = writeln!(o, "<li>{}</li>", esc(&l));
+        }
+        o.push_str("</ul>\n");
+    }
+    o.push_str("<h2>Figures</h2>\n");
     for (name, svg) in figures {
         let body = svg.split_once("?>\n").map_or(svg.as_str(), |(_, b)| b);
         let _ = writeln!(

@@ -205,7 +205,7 @@ pub fn write_sim(
 /// A few lines on a run: cycles, controller, the two metrics (eq. 26-27), frames, clock
 /// error, the group stop if any.
 pub fn sim_text(s: &Scenario, r: &RunResult) -> String {
-    format!(
+    let mut text = format!(
         "{}: {} cycles of {} axes, {} controller, estimator {}\n  Track-RMSE {:.6} rad, Sync-RMSE {:.7} rad\n  frames: {} sent by the master, {} lost, {} retried; clock error ≤ {:.0} ns\n  {}\n",
         s.name,
         r.cycles,
@@ -219,8 +219,31 @@ pub fn sim_text(s: &Scenario, r: &RunResult) -> String {
         r.master.retries,
         r.clock_error_max_ns.iter().copied().fold(0.0, f64::max),
         match r.group_stop {
-            Some((t, reason)) => format!("GROUP STOP at {t:.3} s: {reason:?}"),
+            Some((t, reason)) => format!(
+                "GROUP STOP at {t:.3} s: {}",
+                ringsync_report::sim::stop_reason_text(&reason)
+            ),
             None => "no group stop".to_string(),
         },
-    )
+    );
+    text += &monitor_text(s, r);
+    text
+}
+
+/// The monitors' warnings and trips, a line each (empty when no monitor is set; at most
+/// 10 events, then a count).
+pub fn monitor_text(s: &Scenario, r: &RunResult) -> String {
+    let Some(lines) = ringsync_report::sim::monitor_lines(s, r) else {
+        return String::new();
+    };
+    let total = lines.len();
+    let mut out: String = lines
+        .iter()
+        .take(12)
+        .map(|l| format!("  monitor: {l}\n"))
+        .collect();
+    if total > 12 {
+        out += &format!("  monitor: … {} more in summary.json\n", total - 12);
+    }
+    out
 }

@@ -472,6 +472,8 @@ impl Ring {
                         stall,
                     );
                     self.clock.note_stall(late);
+                    self.dev
+                        .timing(cycle_k, now - m, stall >= crate::timing::STALL);
                     cycle_k += 1;
                 }
                 let Ring { dev, out, .. } = self;

@@ -263,6 +263,47 @@ impl Default for Faults {
     }
 }
 
+/// `[monitor]`: drive-style supervision per axis (docs/safety.md, "The sync monitor"):
+/// warning and trip limits on the sync error ε and on the following error e, each limit
+/// counting once it has been exceeded without a break for the filter time. Every limit is
+/// 0 (off) by default.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct MonitorSpec {
+    /// |ε| warning limit per axis [rad] (0: off).
+    pub sync_warn: PerAxis,
+    /// |ε| trip limit per axis [rad] (0: off).
+    pub sync_trip: PerAxis,
+    /// How long |ε| must stay beyond a limit before it counts.
+    pub sync_filter: Dur,
+    /// What a sync trip does: "warn" or "group-stop".
+    pub sync_reaction: String,
+    /// |e| warning limit per axis [rad] (0: off).
+    pub following_warn: PerAxis,
+    /// |e| trip limit per axis [rad] (0: off; `faults.following_error_limit` stays the
+    /// instantaneous hard limit).
+    pub following_trip: PerAxis,
+    /// How long |e| must stay beyond a limit before it counts.
+    pub following_filter: Dur,
+    /// What a following-error trip does: "warn" or "group-stop".
+    pub following_reaction: String,
+}
+
+impl Default for MonitorSpec {
+    fn default() -> Self {
+        MonitorSpec {
+            sync_warn: PerAxis::One(0.0),
+            sync_trip: PerAxis::One(0.0),
+            sync_filter: Dur(Duration::from_ms(10)),
+            sync_reaction: "group-stop".into(),
+            following_warn: PerAxis::One(0.0),
+            following_trip: PerAxis::One(0.0),
+            following_filter: Dur(Duration::from_ms(10)),
+            following_reaction: "group-stop".into(),
+        }
+    }
+}
+
 /// Where ė comes from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "kebab-case")]
@@ -495,6 +536,8 @@ pub struct Scenario {
     pub axis: Vec<AxisSpec>,
     /// What the axes are mechanically: independent, or the joints of a coupled arm.
     pub plant: super::plant::PlantSpec,
+    /// Sync-error and following-error monitors (all off by default).
+    pub monitor: MonitorSpec,
 }
 
 impl Default for Scenario {
@@ -517,6 +560,7 @@ impl Default for Scenario {
                 .map(|i| AxisSpec { rated_torque: r[i], j_over_ka: j[i], viscous: b[i], ..AxisSpec::default() })
                 .collect(),
             plant: super::plant::PlantSpec::default(),
+            monitor: MonitorSpec::default(),
         }
     }
 }

@@ -38,6 +38,84 @@ impl EncoderBits {
 }
 
 impl Scenario {
+    /// `[monitor]`: limits ≥ 0 (0 is off), a warning below its trip, filters 0 ..= 10 s, a
+    /// known reaction, and a sync monitor only on a ring of at least 2 axes.
+    fn validate_monitor(&self) -> Result<(), ScenarioError> {
+        let m = &self.monitor;
+        let n = self.axes_count();
+        for (name, warn, trip, filter, reaction) in [
+            (
+                "sync",
+                &m.sync_warn,
+                &m.sync_trip,
+                m.sync_filter,
+                &m.sync_reaction,
+            ),
+            (
+                "following",
+                &m.following_warn,
+                &m.following_trip,
+                m.following_filter,
+                &m.following_reaction,
+            ),
+        ] {
+            for (key, v) in [("warn", warn), ("trip", trip)] {
+                if let PerAxis::Each(list) = v
+                    && list.is_empty()
+                {
+                    return Err(out_of_range(
+                        format!("monitor.{name}_{key}"),
+                        v,
+                        "a number or a non-empty list of numbers [rad]",
+                    ));
+                }
+                for i in 0..n {
+                    let x = v.get(i);
+                    if !(x.is_finite() && x >= 0.0) {
+                        return Err(out_of_range(
+                            format!("monitor.{name}_{key}"),
+                            v,
+                            "≥ 0 rad on every axis (0: off)",
+                        ));
+                    }
+                }
+            }
+            for i in 0..n {
+                let (w, t) = (warn.get(i), trip.get(i));
+                if w > 0.0 && t > 0.0 && w > t {
+                    return Err(out_of_range(
+                        format!("monitor.{name}_warn"),
+                        warn,
+                        format!("≤ monitor.{name}_trip ({trip}) on every axis where both are set"),
+                    ));
+                }
+            }
+            if filter.0.as_ns() < 0 || filter.0.as_ns() > 10_000_000_000 {
+                return Err(out_of_range(
+                    format!("monitor.{name}_filter"),
+                    filter,
+                    "0 ..= 10 s",
+                ));
+            }
+            if reaction.parse::<crate::monitor::Reaction>().is_err() {
+                return Err(out_of_range(
+                    format!("monitor.{name}_reaction"),
+                    format!("\"{}\"", super::error::clip(reaction, 40)),
+                    "\"warn\" or \"group-stop\"",
+                ));
+            }
+        }
+        let sync_on = (0..n).any(|i| m.sync_warn.get(i) > 0.0 || m.sync_trip.get(i) > 0.0);
+        if sync_on && n < 2 {
+            return Err(out_of_range(
+                "monitor.sync_warn",
+                &m.sync_warn,
+                "0 on a ring of one axis (ε needs at least 2 axes)",
+            ));
+        }
+        Ok(())
+    }
+
     /// Checks every value; the error names the first bad key.
     pub fn validate(&self) -> Result<(), ScenarioError> {
         self.validated_plan().map(|_| ())
@@ -131,6 +209,7 @@ impl Scenario {
                 "> 0 rad",
             ));
         }
+        self.validate_monitor()?;
         let n = self.axes_count();
         let cap = ringsync_wire::lumped::slot_capacity(
             <ringsync_wire::LumpedOnlySlot as ringsync_wire::SlotCodec>::LEN,

@@ -39,7 +39,7 @@ use ringsync_wire::{
 };
 
 use super::Transmit;
-use super::motion::{CycleRecord, Motion, MotionInput, MotionOutput, Setpoint};
+use super::motion::{CycleRecord, MonitorNews, Motion, MotionInput, MotionOutput, Setpoint};
 use super::reject::{Reject, Rejections};
 use crate::plan::{CyclePlan, FrameRef, Node, PlanKind};
 use crate::time::{Duration, Instant};
@@ -213,6 +213,23 @@ pub enum StopReason {
         /// What the slave says it applied [V].
         applied: f32,
     },
+    /// Axis `axis`'s sync error ε stayed beyond the sync monitor's trip limit for its
+    /// filter time, and the monitor's reaction is the group stop.
+    SyncTrip {
+        /// Axis index.
+        axis: usize,
+        /// ε when it tripped [rad].
+        error: f64,
+    },
+    /// Axis `axis`'s following error stayed beyond the following-error monitor's trip
+    /// limit for its filter time, and the monitor's reaction is the group stop (the
+    /// instantaneous hard limit is [`StopReason::FollowingError`]).
+    FollowingTrip {
+        /// Axis index.
+        axis: usize,
+        /// The error when it tripped [rad].
+        error: f64,
+    },
 }
 
 impl StopReason {
@@ -223,7 +240,9 @@ impl StopReason {
             | StopReason::AxisFault { axis }
             | StopReason::NoResponse { axis }
             | StopReason::NoFeedback { axis }
-            | StopReason::CommandMismatch { axis, .. } => axis,
+            | StopReason::CommandMismatch { axis, .. }
+            | StopReason::SyncTrip { axis, .. }
+            | StopReason::FollowingTrip { axis, .. } => axis,
         }
     }
     /// A short name for outputs.
@@ -234,6 +253,8 @@ impl StopReason {
             StopReason::NoResponse { .. } => "no response",
             StopReason::NoFeedback { .. } => "no feedback",
             StopReason::CommandMismatch { .. } => "command mismatch",
+            StopReason::SyncTrip { .. } => "sync error trip",
+            StopReason::FollowingTrip { .. } => "following error trip",
         }
     }
 }
@@ -317,6 +338,14 @@ pub enum MasterEvent {
         order: StopOrder,
         /// Why.
         why: OffReason,
+    },
+    /// A monitor of the motion (sync error, following error) raised or cleared a warning
+    /// or tripped, at `at`.
+    Monitor {
+        /// When [master ns].
+        at: Instant,
+        /// What.
+        news: MonitorNews,
     },
 }
 
@@ -803,6 +832,10 @@ impl Master {
 
     /// The stop the motion began and the orders it gave in its last run, as events.
     fn take_motion_events(&mut self, now: Instant) {
+        for news in self.mout.monitor.drain(..) {
+            self.events
+                .push_back(MasterEvent::Monitor { at: now, news });
+        }
         if let Some(reason) = self.mout.stop.take() {
             self.events
                 .push_back(MasterEvent::GroupStop { at: now, reason });

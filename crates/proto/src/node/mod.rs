@@ -17,7 +17,9 @@ pub use master::{
     Master, MasterConfig, MasterCounters, MasterEvent, MeasuredSchedule, OffReason, StopOrder,
     StopReason,
 };
-pub use motion::{CycleRecord, Motion, MotionInput, MotionOutput, Setpoint};
+pub use motion::{
+    CycleRecord, MonitorKind, MonitorNews, Motion, MotionInput, MotionOutput, Setpoint,
+};
 pub use reject::{Reject, Rejections};
 pub use slave::{
     FrameOutcome, SafeState, Slave, SlaveConfig, SlaveCounters, SlaveEvent, SlaveLaw,

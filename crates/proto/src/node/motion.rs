@@ -82,6 +82,50 @@ pub struct MotionInput<'a> {
     pub commanded: bool,
 }
 
+/// Which monitor of the motion, and which of its two limits.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum MonitorKind {
+    /// The sync error ε's warning limit.
+    SyncWarning,
+    /// The sync error ε's trip limit.
+    SyncTrip,
+    /// The following error's warning limit.
+    FollowingWarning,
+    /// The following error's trip limit.
+    FollowingTrip,
+}
+
+impl MonitorKind {
+    /// The monitor's name in outputs: `sync` or `following`.
+    pub fn monitor(self) -> &'static str {
+        match self {
+            MonitorKind::SyncWarning | MonitorKind::SyncTrip => "sync",
+            MonitorKind::FollowingWarning | MonitorKind::FollowingTrip => "following",
+        }
+    }
+    /// The limit's name in outputs: `warning` or `trip`.
+    pub fn level(self) -> &'static str {
+        match self {
+            MonitorKind::SyncWarning | MonitorKind::FollowingWarning => "warning",
+            MonitorKind::SyncTrip | MonitorKind::FollowingTrip => "trip",
+        }
+    }
+}
+
+/// A monitor's news about one axis in one law run: a limit exceeded for its filter time
+/// (raised), or a warning whose value came back within its limit (cleared; a trip latches).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MonitorNews {
+    /// The axis (0-based).
+    pub axis: usize,
+    /// Which monitor and limit.
+    pub kind: MonitorKind,
+    /// Raised (true) or cleared (false).
+    pub raised: bool,
+    /// The monitored value then (ε or the following error) [rad].
+    pub value: f64,
+}
+
 /// What the motion returns for one cycle.
 #[derive(Debug, Clone, PartialEq)]
 pub struct MotionOutput {
@@ -93,6 +137,8 @@ pub struct MotionOutput {
     pub stop: Option<StopReason>,
     /// Orders given in this run during a stop: (axis, order, why).
     pub orders: Vec<(usize, StopOrder, OffReason)>,
+    /// What the motion's monitors raised or cleared in this run.
+    pub monitor: Vec<MonitorNews>,
     /// The cycle's figures.
     pub record: CycleRecord,
 }
@@ -105,6 +151,7 @@ impl MotionOutput {
             saturated: vec![false; n],
             stop: None,
             orders: Vec::new(),
+            monitor: Vec::new(),
             record: CycleRecord::new(n),
         }
     }

@@ -1,0 +1,230 @@
+//! The live scope in a real browser: a headless Chromium opens the page while `ringsync sim
+//! --scope` replays a run, and the page's own counters (attributes of `<body>`) show that
+//! frames arrived in sequence and the plots were redrawn; the screenshot is kept in the
+//! target directory (`target/tmp/scope-sim.png`).
+//!
+//! Chromium must be installed (Debian: `apt-get install --no-install-recommends chromium`;
+//! `.ci/run` installs it): the test fails, with that message, when it is not. No tool
+//! downloads a browser.
+#![cfg(feature = "scope")]
+
+use std::io::{BufRead as _, BufReader};
+use std::path::PathBuf;
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+/// Waits up to `limit` for `child`; kills it after that.
+fn wait(child: &mut Child, limit: Duration, what: &str) -> std::process::ExitStatus {
+    let end = Instant::now() + limit;
+    loop {
+        if let Some(s) = child.try_wait().expect("wait") {
+            return s;
+        }
+        if Instant::now() > end {
+            let _ = child.kill();
+            panic!("{what} did not finish within {limit:?}");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+/// `<body data-NAME="…">` of the dumped DOM, as a number.
+fn counter(dom: &str, name: &str) -> i64 {
+    let key = format!("data-{name}=\"");
+    let at = dom
+        .find(&key)
+        .unwrap_or_else(|| panic!("no {key} in the page: {}", &dom[..dom.len().min(400)]));
+    let rest = &dom[at + key.len()..];
+    rest[..rest.find('"').expect("closing quote")]
+        .parse()
+        .unwrap_or_else(|e| panic!("data-{name}: {e}"))
+}
+
+#[test]
+fn chromium_sees_a_replay_arrive_and_the_plots_update() {
+    match Command::new("chromium").arg("--version").output() {
+        Ok(o) if o.status.success() => {}
+        other => panic!(
+            "chromium is not installed ({other:?}): the scope's browser test needs it. Install \
+             Debian's package: `apt-get install -y --no-install-recommends chromium` (.ci/run does); \
+             never a browser a tool downloads"
+        ),
+    }
+    let dir = std::env::temp_dir().join(format!("ringsync-scope-{}", std::process::id()));
+    let out = dir.join("out");
+    // The weak axis 4 (K_P 0.8 V/rad) trips the sync monitor at about 0.58 s.
+    let mut sim = Command::new(env!("CARGO_BIN_EXE_ringsync"))
+        .args([
+            "sim",
+            "paper-2015",
+            "--set",
+            "duration=\"2s\"",
+            "--set",
+            "control.kp=[3.182,3.182,3.182,0.8]",
+            "--set",
+            "monitor.sync_warn=0.02",
+            "--set",
+            "monitor.sync_trip=0.03",
+            "--scope",
+            "127.0.0.1:0",
+            "--speed",
+            "8",
+            "--scope-wait",
+            "30s",
+            "--out",
+        ])
+        .arg(&out)
+        .env("RUST_BACKTRACE", "0")
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("run ringsync sim --scope");
+    let stderr = sim.stderr.take().expect("stderr");
+    let mut lines = BufReader::new(stderr).lines();
+    let url = loop {
+        let line = lines
+            .next()
+            .expect("ringsync sim ended before it served the scope")
+            .expect("stderr");
+        if let Some(u) = line.split("scope at ").nth(1) {
+            break u.trim().to_string();
+        }
+    };
+    // The rest of its stderr, so it never blocks on a full pipe.
+    let rest = std::thread::spawn(move || lines.map_while(Result::ok).collect::<Vec<_>>());
+    let shot: PathBuf = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("scope-sim.png");
+    let _ = std::fs::remove_file(&shot);
+    let profile = dir.join("chromium-profile");
+    let chromium = Command::new("chromium")
+        .args([
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--disable-quic",
+            "--no-first-run",
+            "--disable-background-networking",
+            "--disable-component-update",
+            "--disable-sync",
+            "--virtual-time-budget=20000",
+            "--window-size=1400,1300",
+        ])
+        .arg(format!("--user-data-dir={}", profile.display()))
+        .arg(format!("--screenshot={}", shot.display()))
+        .arg("--dump-dom")
+        .arg(&url)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("start chromium");
+    let dom = {
+        let mut c = chromium;
+        let mut stdout = c.stdout.take().expect("stdout");
+        let reader = std::thread::spawn(move || {
+            let mut s = String::new();
+            let _ = std::io::Read::read_to_string(&mut stdout, &mut s);
+            s
+        });
+        let status = wait(&mut c, Duration::from_secs(60), "chromium");
+        assert!(status.success(), "chromium: {status}");
+        reader.join().expect("chromium's output")
+    };
+    let status = wait(&mut sim, Duration::from_secs(60), "ringsync sim --scope");
+    let said = rest.join().expect("stderr");
+    assert_eq!(
+        status.code(),
+        Some(3),
+        "the weak axis stops the group: {said:?}"
+    );
+    // Frames arrived, in sequence, nothing dropped or skipped; the plots were redrawn.
+    let frames = counter(&dom, "frames");
+    assert!(frames >= 3, "{frames} frames");
+    assert!(
+        counter(&dom, "rows") >= 100,
+        "rows {}",
+        counter(&dom, "rows")
+    );
+    assert!(
+        counter(&dom, "draws") >= 2,
+        "draws {}",
+        counter(&dom, "draws")
+    );
+    assert_eq!(counter(&dom, "gaps"), 0);
+    assert_eq!(counter(&dom, "drops"), 0);
+    assert_eq!(counter(&dom, "skipped"), 0);
+    assert_eq!(
+        counter(&dom, "seq"),
+        frames - 1,
+        "seq starts at 0, +1 per update"
+    );
+    // The ring drawing has the master and 4 slaves; the monitor table a row per axis.
+    assert_eq!(dom.matches("data-node=").count(), 5, "ring drawing");
+    assert_eq!(dom.matches("data-axis=").count(), 4, "monitor table");
+    // uPlot drew its canvases.
+    assert!(dom.matches("class=\"uplot").count() >= 5, "uPlot charts");
+    let png = std::fs::read(&shot).expect("the screenshot");
+    assert!(
+        png.starts_with(b"\x89PNG") && png.len() > 10_000,
+        "{} bytes",
+        png.len()
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Bad scope options are usage errors: one line naming the option, exit status 2.
+#[test]
+fn bad_scope_options_are_named() {
+    let run = |args: &[&str]| {
+        let o = Command::new(env!("CARGO_BIN_EXE_ringsync"))
+            .args(args)
+            .env("RUST_BACKTRACE", "0")
+            .output()
+            .expect("run ringsync");
+        (
+            o.status.code(),
+            String::from_utf8_lossy(&o.stderr).into_owned(),
+        )
+    };
+    let out = std::env::temp_dir().join(format!("ringsync-scope-usage-{}", std::process::id()));
+    let out = out.to_str().expect("utf-8");
+    let (code, err) = run(&[
+        "sim",
+        "paper-2015",
+        "--out",
+        out,
+        "--scope",
+        "localhost-8080",
+    ]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("--scope"), "{err}");
+    let (code, err) = run(&[
+        "sim",
+        "paper-2015",
+        "--out",
+        out,
+        "--scope",
+        "127.0.0.1:0",
+        "--speed",
+        "0",
+    ]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(
+        err.contains("--speed") && err.contains("out of range"),
+        "{err}"
+    );
+    let (code, err) = run(&["sim", "paper-2015", "--out", out, "--speed", "2"]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("--scope"), "{err}");
+    let (code, err) = run(&[
+        "rt",
+        "paper-2015",
+        "--transport",
+        "udp",
+        "--out",
+        out,
+        "--scope",
+        "1.2.3",
+    ]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("--scope"), "{err}");
+    assert!(!std::path::Path::new(out).exists());
+}

@@ -1,0 +1,284 @@
+//! The scope's WebSocket stream as a client sees it: the `hello`, binary frames in
+//! sequence that cover every cycle of the run, the `end`; and a client that stops reading
+//! skips updates (counted in its frames) while the ring goes on: the real-time loop's
+//! buffer drops nothing, every cycle runs, the fast client misses nothing.
+
+use std::net::SocketAddr;
+use std::sync::atomic::AtomicBool;
+use std::time::Duration as Wall;
+
+use futures_util::StreamExt;
+use ringsync::{Duration, RtOptions, Scenario, SimOptions, TransportKind};
+use ringsync_scope::frame::{self, Decoded};
+use ringsync_scope::{Scope, Source};
+use serde_json::Value;
+use tokio_tungstenite::tungstenite::Message;
+
+type Ws = tokio_tungstenite::WebSocketStream<tokio::net::TcpStream>;
+
+/// What a client read: the `hello`, the frames, the other JSON messages.
+#[derive(Debug, Default)]
+struct Read {
+    hello: Option<Value>,
+    frames: Vec<Decoded>,
+    texts: Vec<Value>,
+}
+
+fn runtime() -> tokio::runtime::Runtime {
+    tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .expect("a tokio runtime")
+}
+
+/// Connects to `addr`'s `/ws`; with `rcvbuf`, over a socket with that small a receive
+/// buffer (so that a client that stops reading fills it quickly).
+async fn connect(addr: SocketAddr, rcvbuf: Option<u32>) -> Ws {
+    let sock = tokio::net::TcpSocket::new_v4().expect("a socket");
+    if let Some(b) = rcvbuf {
+        sock.set_recv_buffer_size(b).expect("SO_RCVBUF");
+    }
+    let stream = sock.connect(addr).await.expect("connect to the scope");
+    let (ws, _) = tokio_tungstenite::client_async(format!("ws://{addr}/ws"), stream)
+        .await
+        .expect("the WebSocket handshake");
+    ws
+}
+
+/// Reads until the server closes the stream (or 30 s pass).
+async fn read_all(ws: &mut Ws, into: &mut Read) {
+    let deadline = tokio::time::Instant::now() + Wall::from_secs(30);
+    while let Ok(Some(Ok(m))) = tokio::time::timeout_at(deadline, ws.next()).await {
+        match m {
+            Message::Binary(b) => into.frames.push(frame::decode(&b).expect("a scope frame")),
+            Message::Text(t) => {
+                let v: Value = serde_json::from_str(t.as_str()).expect("JSON");
+                if v["type"] == "hello" {
+                    into.hello = Some(v);
+                } else {
+                    into.texts.push(v);
+                }
+            }
+            Message::Close(_) => break,
+            _ => {}
+        }
+    }
+}
+
+/// Frames in sequence (no update skipped, none dropped) whose cycles follow on from one
+/// another from cycle 0 and cover `cycles` cycles; returns the cycles covered.
+fn assert_continuous(read: &Read, cycles: i64) {
+    assert!(!read.frames.is_empty(), "no frame arrived");
+    let mut next = 0u32;
+    for (i, f) in read.frames.iter().enumerate() {
+        let h = f.header;
+        assert_eq!(
+            h.seq,
+            read.frames[0].header.seq + i as u32,
+            "seq of frame {i}"
+        );
+        assert_eq!(h.skipped, 0, "frame {i}: {h:?}");
+        assert_eq!(h.drops, 0, "frame {i}: {h:?}");
+        assert_eq!(h.first, next, "frame {i} does not follow on: {h:?}");
+        assert!(h.rows >= 1 && usize::from(h.rows) <= ringsync_scope::MAX_ROWS);
+        next = h.first + h.cycles;
+    }
+    assert_eq!(i64::from(next), cycles, "cycles covered");
+}
+
+/// A replay of 0.6 s of paper-2015 at 2× speed: the `hello` names 2 + 6·4 columns, every
+/// frame follows the one before, the rows hold the simulator's figures, the `end` its
+/// metrics.
+#[test]
+fn a_replay_streams_every_cycle_in_sequence() {
+    let mut s = Scenario::default();
+    s.duration.0 = Duration::from_ms(600);
+    let (scope, observer) = Scope::start(
+        "127.0.0.1:0".parse().expect("addr"),
+        &s,
+        Source::Replay { speed: 2.0 },
+    )
+    .expect("the scope starts");
+    let addr = scope.addr();
+    let rt = runtime();
+    let mut ws = rt.block_on(connect(addr, None));
+    assert!(scope.wait_for_client(Wall::from_secs(5)));
+    let sim = std::thread::spawn({
+        let s = s.clone();
+        move || {
+            let r = ringsync::simulate_with(
+                &s,
+                &SimOptions::default(),
+                vec![Box::new(observer)],
+                &mut |_, _| {},
+            )
+            .expect("simulates");
+            let end = serde_json::json!({"track_rmse": r.summary.track_rmse, "cycles": r.cycles});
+            scope.finish(end, Wall::from_secs(5));
+            r
+        }
+    });
+    let mut read = Read::default();
+    let mut late_read = Read::default();
+    rt.block_on(async {
+        // A second page joins partway through: it gets the history first, then the live
+        // updates, nothing missed and nothing twice.
+        let early = tokio::time::Instant::now() + Wall::from_millis(150);
+        while tokio::time::Instant::now() < early {
+            if let Ok(Some(Ok(m))) = tokio::time::timeout_at(early, ws.next()).await {
+                match m {
+                    Message::Binary(b) => read.frames.push(frame::decode(&b).expect("a frame")),
+                    Message::Text(t) => {
+                        let v: Value = serde_json::from_str(t.as_str()).expect("JSON");
+                        if v["type"] == "hello" {
+                            read.hello = Some(v)
+                        } else {
+                            read.texts.push(v)
+                        }
+                    }
+                    _ => {}
+                }
+            }
+        }
+        let joined_after = read.frames.len();
+        let mut late = connect(addr, None).await;
+        read_all(&mut ws, &mut read).await;
+        read_all(&mut late, &mut late_read).await;
+        assert!(joined_after > 0, "the second page joined before any update");
+    });
+    let r = sim.join().expect("the replay thread");
+    assert_continuous(&late_read, r.cycles);
+    assert_eq!(late_read.frames.len(), read.frames.len());
+    let hello = read.hello.as_ref().expect("a hello");
+    assert_eq!(hello["source"], "sim");
+    assert_eq!(hello["columns"].as_array().map(Vec::len), Some(2 + 6 * 4));
+    assert_continuous(&read, r.cycles);
+    // At most 60 updates a second: 0.6 s at 2× speed takes 0.3 s.
+    assert!(read.frames.len() <= 60, "{} updates", read.frames.len());
+    // Row 0 of the first frame is cycle 0 at t = 0; the sync errors sum to zero.
+    let f = &read.frames[0];
+    let m = usize::from(f.header.rows);
+    assert_eq!(f.cols[0], 0.0);
+    let last = read.frames.last().expect("frames");
+    let lm = usize::from(last.header.rows);
+    let eps_sum: f32 = (0..4)
+        .map(|i| last.cols[(2 + 6 * i + 1) * lm + lm - 1])
+        .sum();
+    assert!(eps_sum.abs() < 1e-5, "Σε = {eps_sum}");
+    assert!(m >= 1);
+    // The nodes: the master sent frames; every slave took them.
+    assert_eq!(last.header.nodes, 5);
+    assert!(last.nodes[0] > 0 && last.nodes[5] > 0, "{:?}", last.nodes);
+    let end = read
+        .texts
+        .iter()
+        .find(|v| v["type"] == "end")
+        .expect("an end");
+    assert_eq!(end["track_rmse"].as_f64(), Some(r.summary.track_rmse));
+    assert_eq!(end["drops"], 0);
+}
+
+/// A real-time run over UDP (2 s) with two clients: one reads everything, the other stops
+/// reading after the `hello` until the run has ended. The stalled one skips updates (its
+/// frames say how many); the ring does not notice: the loop's buffer dropped nothing, all
+/// planned cycles started, and the fast client got every cycle in sequence.
+#[test]
+fn a_stalled_client_skips_updates_and_the_ring_goes_on() {
+    let mut s = Scenario::default();
+    s.duration.0 = Duration::from_ms(2000);
+    let opts = RtOptions {
+        transport: TransportKind::Udp,
+        watchdog_cycles: Some(20),
+        calibration_rounds: 100,
+        ..RtOptions::default()
+    };
+    let (scope, observer) = Scope::start(
+        "127.0.0.1:0".parse().expect("addr"),
+        &ringsync::layers::runtime::run::as_run(&s, &opts),
+        Source::Realtime,
+    )
+    .expect("the scope starts");
+    let addr = scope.addr();
+    let rt = runtime();
+    let (mut fast, mut slow) =
+        rt.block_on(async { (connect(addr, None).await, connect(addr, Some(2048)).await) });
+    // The slow client reads its hello, then nothing.
+    let mut slow_read = Read::default();
+    rt.block_on(async {
+        if let Some(Ok(Message::Text(t))) = slow.next().await {
+            slow_read.hello = serde_json::from_str(t.as_str()).ok();
+        }
+    });
+    let ring = std::thread::spawn(move || {
+        let stop = AtomicBool::new(false);
+        let r = ringsync::run_rt(&s, &opts, &stop, vec![Box::new(observer)])
+            .expect("the UDP ring runs");
+        let drops = scope.drops();
+        (r, drops, scope)
+    });
+    let mut fast_read = Read::default();
+    // The fast client reads until the ring has ended (the server is still up).
+    rt.block_on(async {
+        while !ring.is_finished() {
+            if let Ok(Some(Ok(m))) = tokio::time::timeout(Wall::from_millis(50), fast.next()).await
+            {
+                match m {
+                    Message::Binary(b) => {
+                        fast_read.frames.push(frame::decode(&b).expect("a frame"))
+                    }
+                    Message::Text(t) => {
+                        let v: Value = serde_json::from_str(t.as_str()).expect("JSON");
+                        if v["type"] == "hello" {
+                            fast_read.hello = Some(v)
+                        } else {
+                            fast_read.texts.push(v)
+                        }
+                    }
+                    _ => {}
+                }
+            }
+        }
+    });
+    let (r, drops, scope) = ring.join().expect("the ring thread");
+    // The end, then both clients read what is left.
+    let finisher =
+        std::thread::spawn(move || scope.finish(serde_json::json!({}), Wall::from_secs(10)));
+    rt.block_on(async {
+        read_all(&mut fast, &mut fast_read).await;
+        read_all(&mut slow, &mut slow_read).await;
+    });
+    finisher.join().expect("finish");
+    assert_eq!(drops, 0, "the real-time loop's buffer dropped rows");
+    assert!(r.run.group_stop.is_none(), "{:?}", r.run.group_stop);
+    assert_eq!(r.timing.cycles, r.timing.cycles_planned, "{:?}", r.timing);
+    assert_continuous(&fast_read, r.timing.cycles);
+    let skipped = slow_read
+        .frames
+        .iter()
+        .map(|f| f.header.skipped)
+        .max()
+        .unwrap_or(0);
+    assert!(
+        skipped > 0,
+        "the stalled client skipped nothing: {} frames, {} updates sent",
+        slow_read.frames.len(),
+        fast_read.frames.len()
+    );
+    // What the slow client got after its stall is whole frames in sequence, the end last.
+    assert!(slow_read.texts.iter().any(|v| v["type"] == "end"));
+    // The rows carry the loop's lateness (real time): finite for most cycles.
+    let late: Vec<f32> = fast_read
+        .frames
+        .iter()
+        .flat_map(|f| {
+            let m = usize::from(f.header.rows);
+            f.cols[m..2 * m].to_vec()
+        })
+        .collect();
+    let known = late.iter().filter(|v| v.is_finite()).count();
+    assert!(
+        known * 2 > late.len(),
+        "{known} of {} rows with a lateness",
+        late.len()
+    );
+}
