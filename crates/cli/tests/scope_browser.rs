@@ -186,45 +186,27 @@ fn bad_scope_options_are_named() {
     };
     let out = std::env::temp_dir().join(format!("ringsync-scope-usage-{}", std::process::id()));
     let out = out.to_str().expect("utf-8");
-    let (code, err) = run(&[
-        "sim",
-        "paper-2015",
-        "--out",
-        out,
-        "--scope",
-        "localhost-8080",
-    ]);
-    assert_eq!(code, Some(2), "{err}");
-    assert!(err.contains("--scope"), "{err}");
-    let (code, err) = run(&[
-        "sim",
-        "paper-2015",
-        "--out",
-        out,
-        "--scope",
-        "127.0.0.1:0",
-        "--speed",
-        "0",
-    ]);
-    assert_eq!(code, Some(2), "{err}");
-    assert!(
-        err.contains("--speed") && err.contains("out of range"),
-        "{err}"
-    );
-    let (code, err) = run(&["sim", "paper-2015", "--out", out, "--speed", "2"]);
-    assert_eq!(code, Some(2), "{err}");
-    assert!(err.contains("--scope"), "{err}");
-    let (code, err) = run(&[
-        "rt",
-        "paper-2015",
-        "--transport",
-        "udp",
-        "--out",
-        out,
-        "--scope",
-        "1.2.3",
-    ]);
-    assert_eq!(code, Some(2), "{err}");
-    assert!(err.contains("--scope"), "{err}");
+    // (arguments after the command, what the message must name)
+    let cases: [(&[&str], &[&str]); 4] = [
+        (&["sim", "--scope", "localhost-8080"], &["--scope"]),
+        (
+            &["sim", "--scope", "127.0.0.1:0", "--speed", "0"],
+            &["--speed", "out of range"],
+        ),
+        (&["sim", "--speed", "2"], &["--scope"]),
+        (
+            &["rt", "--transport", "udp", "--scope", "1.2.3"],
+            &["--scope"],
+        ),
+    ];
+    for (args, says) in cases {
+        let mut all = vec![args[0], "paper-2015", "--out", out];
+        all.extend_from_slice(&args[1..]);
+        let (code, err) = run(&all);
+        assert_eq!(code, Some(2), "{all:?}: {err}");
+        for s in says {
+            assert!(err.contains(s), "{all:?}: {err}");
+        }
+    }
     assert!(!std::path::Path::new(out).exists());
 }

@@ -134,10 +134,7 @@ impl ControlMotion {
         mut self,
         dob: Option<ringsync_control::dob::DobParams>,
     ) -> Result<Self, ringsync_control::ControlError> {
-        if let Some(p) = dob {
-            let d = ringsync_control::dob::DisturbanceObserver::new(p)?;
-            self.controller = self.controller.with_dob(d)?;
-        }
+        self.controller = attach_dob(self.controller, dob)?;
         Ok(self)
     }
 
@@ -412,10 +409,7 @@ impl SlaveControl {
         mut self,
         dob: Option<ringsync_control::dob::DobParams>,
     ) -> Result<Self, ringsync_control::ControlError> {
-        if let Some(p) = dob {
-            let d = ringsync_control::dob::DisturbanceObserver::new(p)?;
-            self.controller = self.controller.with_dob(d)?;
-        }
+        self.controller = attach_dob(self.controller, dob)?;
         Ok(self)
     }
 }
@@ -461,6 +455,17 @@ impl SlaveLaw for SlaveControl {
         } else {
             0.0
         }
+    }
+}
+
+/// `controller` with a disturbance observer of `dob` (unchanged for `None`).
+fn attach_dob<L: ringsync_control::ControlLaw>(
+    controller: Controller<L>,
+    dob: Option<ringsync_control::dob::DobParams>,
+) -> Result<Controller<L>, ringsync_control::ControlError> {
+    match dob {
+        Some(p) => controller.with_dob(ringsync_control::dob::DisturbanceObserver::new(p)?),
+        None => Ok(controller),
     }
 }
 
