@@ -21,7 +21,12 @@ def test_rt_gives_a_run_with_the_timing(tmp_path: Path) -> None:
     assert r.summary["sim_prediction"]["seeds"] == 1
     assert r.e.shape[1] == 4 and 0 < r.e.shape[0] <= 300
     n = r.metrics["samples"]
-    assert np.isclose(np.sqrt(np.sum(r.e**2) / n), r.metrics["track_rmse"], rtol=1e-12, atol=0)
+    # A trace row is taken when the master computes, from the latest cycle probe; when the
+    # host delays the loop (the ring counts overruns and late probes), a computation can
+    # come after the next probe, so one row in n may be another cycle's: 2/n then.
+    disturbed = r.summary["overruns"] > 0 or r.summary["probes_late"] > 0
+    rtol = 2.0 / n if disturbed else 1e-12
+    assert np.isclose(np.sqrt(np.sum(r.e**2) / n), r.metrics["track_rmse"], rtol=rtol, atol=0)
     assert "over udp" in r.text()
     r.save(tmp_path / "rt")
     assert json.loads((tmp_path / "rt" / "summary.json").read_text()) == r.summary
@@ -29,8 +34,11 @@ def test_rt_gives_a_run_with_the_timing(tmp_path: Path) -> None:
 
 
 def test_ctrl_c_ends_a_real_time_run_early() -> None:
+    # Python's own Ctrl-C handler, whatever this process inherited: a suite started in the
+    # background (SIGINT ignored there) must still test what a terminal's Ctrl-C does.
     code = """
 import os, signal, threading, time, ringsync
+signal.signal(signal.SIGINT, signal.default_int_handler)
 threading.Timer(0.8, lambda: os.kill(os.getpid(), signal.SIGINT)).start()
 t = time.monotonic()
 try:
