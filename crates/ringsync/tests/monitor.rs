@@ -152,8 +152,25 @@ fn the_sync_monitor_trips_the_weak_axis_in_real_time() {
         calibration_rounds: 100,
         ..RtOptions::default()
     };
-    let stop = AtomicBool::new(false);
-    let r = ringsync::run_rt(&s, &opts, &stop, Vec::new()).expect("the UDP ring runs");
+    // A run that a host stall stopped before the trip (the ring's own stall accounting shows
+    // it) measures the host: repeated, at most three times in all.
+    let mut attempts = 0;
+    let r = loop {
+        attempts += 1;
+        let stop = AtomicBool::new(false);
+        let r = ringsync::run_rt(&s, &opts, &stop, Vec::new()).expect("the UDP ring runs");
+        let t = &r.timing;
+        let host = t.stalls.max >= 1_000_000 || t.overruns_stalled >= t.longest_outage;
+        let cut = matches!(r.run.group_stop, Some((_, ref why)) if !matches!(why, StopReason::SyncTrip { .. }));
+        if !(cut && host) || attempts == 3 {
+            break r;
+        }
+        eprintln!(
+            "run cut by the host: {:?}, stall up to {} µs",
+            r.run.group_stop,
+            t.stalls.max / 1_000
+        );
+    };
     match r.run.group_stop {
         Some((t, StopReason::SyncTrip { axis: 3, error })) => {
             assert!(error.abs() > TRIP, "{error}");
