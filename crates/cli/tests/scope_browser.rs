@@ -1,6 +1,6 @@
 //! The live scope in a real browser: a headless Chromium opens the page while `ringsync sim
 //! --scope` replays a run, and the page's own counters (attributes of `<body>`) show that
-//! frames arrived in sequence and the plots were redrawn; the screenshot is kept in the
+//! frames arrived in sequence and the plots show all of them; the screenshot is kept in the
 //! target directory (`target/tmp/scope-sim.png`).
 //!
 //! Chromium must be installed (Debian: `apt-get install --no-install-recommends chromium`;
@@ -143,10 +143,19 @@ fn chromium_sees_a_replay_arrive_and_the_plots_update() {
         "rows {}",
         counter(&dom, "rows")
     );
+    // The plots were drawn, and the last drawing holds every row that arrived. Updates
+    // that arrive within 16 ms of a drawing share the next one, so how many drawings there
+    // were depends on the machine's load (a busy CI host delivered a whole replay between
+    // two), never more than the updates.
+    let draws = counter(&dom, "draws");
     assert!(
-        counter(&dom, "draws") >= 2,
-        "draws {}",
-        counter(&dom, "draws")
+        draws >= 1 && draws <= frames,
+        "draws {draws}, frames {frames}"
+    );
+    assert_eq!(
+        counter(&dom, "drawn"),
+        counter(&dom, "rows"),
+        "the last drawing shows every row"
     );
     assert_eq!(counter(&dom, "gaps"), 0);
     assert_eq!(counter(&dom, "drops"), 0);

@@ -59,46 +59,57 @@ fn run_ref(opts: RtOptions) -> RtResult {
 /// its cycles or more, by the ring's own stall accounting: with both cores busy (the suite
 /// run under `stress-ng --cpu 2`), one run had 370 overruns with cycle-start lateness p99 of
 /// 2.3 ms, and its Sync-RMSE was 2.3× the simulator's. Such a run measures the host, not the
-/// runtime, and is repeated like a cut one.
+/// runtime, and is repeated like a cut one. Tests of what a fault does, not of the figures
+/// the runs measure, leave the 2 % rule out: they assert what the ring did about the fault
+/// (counted, survived, named), and a busy host's stalls change that only when they stop the
+/// group (a loaded CI host stalled 3 % to 30 % of the cycles of four link-flap runs in a
+/// row, and every one rode out the flap).
 fn run_undisturbed(opts: RtOptions) -> RtResult {
-    let w = u64::from(
-        opts.watchdog_cycles
-            .unwrap_or(Scenario::default().faults.watchdog_cycles),
-    );
-    run_uncut(opts, |r| {
-        // The host may also hold the loop past the run's end: cycles it never started.
-        let t = &r.timing;
-        let unstarted = (t.cycles_planned - t.cycles) as u64;
-        if t.overruns_stalled as i64 * 50 >= t.cycles_planned {
-            return Some(format!(
-                "the host stalled {} of {} cycles into overruns (longest stall {} µs)",
-                t.overruns_stalled,
-                t.cycles_planned,
-                t.stalls.max / 1_000
-            ));
-        }
-        if t.longest_outage < w && unstarted < w {
-            return None;
-        }
-        // Only the host's doing if the host held the loop for a cycle or more, or stalled
-        // as many of the lost cycles as the outage is long: an outage without such stalls
-        // is the ring's own failure, and fails the test at once.
-        let t_cyc = r.scenario.ring.cycle.0.as_ns();
-        assert!(
-            t.stalls.max >= t_cyc || t.overruns_stalled >= t.longest_outage,
-            "an outage of {} cycles without a host stall of a cycle (longest {} µs, {} stalled overruns): the ring failed, not the host; stop {:?}, rejected {}",
-            t.longest_outage,
-            t.stalls.max / 1_000,
+    run_uncut(opts, |r| host_stalled(r).or_else(|| host_outage(r)))
+}
+
+/// Why a run measures the host rather than the runtime: the host stalled the loop into an
+/// overrun in 2 % of its cycles or more (see [`run_undisturbed`]).
+fn host_stalled(r: &RtResult) -> Option<String> {
+    let t = &r.timing;
+    (t.overruns_stalled as i64 * 50 >= t.cycles_planned).then(|| {
+        format!(
+            "the host stalled {} of {} cycles into overruns (longest stall {} µs)",
             t.overruns_stalled,
-            r.run.group_stop,
-            ringsync::layers::runtime::run::rejected_summary(&r.run)
-        );
-        Some(format!(
-            "outage of {} cycles, {unstarted} unstarted (W = {w}), host stall up to {} µs",
-            t.longest_outage,
+            t.cycles_planned,
             t.stalls.max / 1_000
-        ))
+        )
     })
+}
+
+/// Why a run was cut by the host: an outage of W cycles or more, or W cycles never started,
+/// with host stalls that account for it. An outage of W without such stalls is the ring's
+/// own failure, and fails the test at once.
+fn host_outage(r: &RtResult) -> Option<String> {
+    let t = &r.timing;
+    let w = u64::from(r.scenario.faults.watchdog_cycles);
+    // The host may also hold the loop past the run's end: cycles it never started.
+    let unstarted = (t.cycles_planned - t.cycles) as u64;
+    if t.longest_outage < w && unstarted < w {
+        return None;
+    }
+    // Only the host's doing if the host held the loop for a cycle or more, or stalled as
+    // many of the lost cycles as the outage is long.
+    let t_cyc = r.scenario.ring.cycle.0.as_ns();
+    assert!(
+        t.stalls.max >= t_cyc || t.overruns_stalled >= t.longest_outage,
+        "an outage of {} cycles without a host stall of a cycle (longest {} µs, {} stalled overruns): the ring failed, not the host; stop {:?}, rejected {}",
+        t.longest_outage,
+        t.stalls.max / 1_000,
+        t.overruns_stalled,
+        r.run.group_stop,
+        ringsync::layers::runtime::run::rejected_summary(&r.run)
+    );
+    Some(format!(
+        "outage of {} cycles, {unstarted} unstarted (W = {w}), host stall up to {} µs",
+        t.longest_outage,
+        t.stalls.max / 1_000
+    ))
 }
 
 /// Runs until a run is not cut by the host (`cut` says why one was), at most
@@ -381,14 +392,14 @@ fn forged_frames_are_refused_and_change_nothing() {
     }
 }
 
-/// A link down for 8 ms (about 10 ms with the `ip` call) with W = 25: it costs the cycles
+/// A link down for 8 ms with W = 25: it costs the cycles
 /// it lasts, not the run; every port reads frames again after it. On veth the receiving
 /// end goes down, so its socket reports a receive error: before the fix one receive error
 /// disabled a port for good and the run ended in a group stop.
 #[test]
 fn a_link_flap_shorter_than_w_costs_cycles_not_the_run() {
     for transport in [TransportKind::Veth, TransportKind::Udp] {
-        let r = run_undisturbed(RtOptions {
+        let opts = RtOptions {
             transport,
             duration: Some(Duration::from_ms(2000)),
             watchdog_cycles: Some(25),
@@ -398,6 +409,22 @@ fn a_link_flap_shorter_than_w_costs_cycles_not_the_run() {
                 down_for: Duration::from_ms(8),
             }),
             ..RtOptions::default()
+        };
+        // A flap the host stretched to W cycles (less the port's re-read delay) is not
+        // shorter than W, and the run tests something else: with `ip` switching the link,
+        // a busy host stretched every one of 24 flaps to 29-54 ms.
+        let r = run_uncut(opts, |r| {
+            let t_cyc = r.scenario.ring.cycle.0.as_ns();
+            let w = i64::from(r.scenario.faults.watchdog_cycles);
+            let longest = w * t_cyc - ringsync::layers::runtime::ring::RX_RETRY - t_cyc;
+            match r.timing.flap_down_ns {
+                Some(d) if d >= longest => Some(format!(
+                    "the host stretched the flap to at most {} µs (W is {} µs)",
+                    d / 1_000,
+                    w * t_cyc / 1_000
+                )),
+                _ => host_outage(r),
+            }
         });
         let name = transport.name();
         let t = &r.timing;

@@ -334,19 +334,26 @@ fn forged(f: Forgery, rng: &mut Rng, cycle: i64, t_cyc: i64, n: usize) -> Vec<(u
 }
 
 /// Takes the link out of node `flap.from` down at `flap.at` from the run's start and up
-/// again `flap.down_for` later (veth: both ends, with `ip`); returns how long it was
-/// really down [ns] (the `ip` calls take milliseconds).
+/// again `flap.down_for` later (veth: the receiving end, switched in process with two
+/// system calls each way, so the flap lasts what it was asked to within microseconds);
+/// returns how long it was down [ns], from before the call that took it down to after the
+/// call that brought it up (`None` when the run ended first), or why it could not switch
+/// the link. The thread enters the link's namespace and stays there.
 pub fn spawn_flap(
     veth: Arc<VethRing>,
     flap: Flap,
     t0: Arc<AtomicI64>,
     stop: Arc<AtomicBool>,
-) -> JoinHandle<Option<i64>> {
+) -> JoinHandle<Result<Option<i64>, String>> {
     std::thread::spawn(move || {
         sys::set_normal();
+        let (netns, ifname) = veth.link_end(flap.from);
+        let fail = |what: &str, e: std::io::Error| format!("{what} {ifname} in {netns}: {e}");
+        sys::enter_netns(&netns).map_err(|e| fail("entering the namespace of", e))?;
+        let ctl = sys::control_socket().map_err(|e| fail("a control socket for", e))?;
         loop {
             if stop.load(Ordering::SeqCst) {
-                return None;
+                return Ok(None);
             }
             let t = t0.load(Ordering::SeqCst);
             if t > 0 && sys::now_ns() >= t + flap.at.as_ns() {
@@ -354,12 +361,11 @@ pub fn spawn_flap(
             }
             sys::sleep_until(sys::now_ns() + 200_000);
         }
-        let from = flap.from;
-        veth.set_link(from, false).ok()?;
-        let down = sys::now_ns();
-        sys::sleep_until(down + flap.down_for.as_ns());
-        veth.set_link(from, true).ok()?;
-        Some(sys::now_ns() - down)
+        let start = sys::now_ns();
+        sys::set_interface_up(&ctl, &ifname, false).map_err(|e| fail("taking down", e))?;
+        sys::sleep_until(start + flap.down_for.as_ns());
+        sys::set_interface_up(&ctl, &ifname, true).map_err(|e| fail("bringing up", e))?;
+        Ok(Some(sys::now_ns() - start))
     })
 }
 

@@ -102,23 +102,15 @@ impl VethRing {
         format!("rs{}i{i}", self.pid)
     }
 
-    /// Sets the link out of node `from` (to the next node) down or up, as when its cable
-    /// is pulled and plugged in again: the receiving end goes down (its node's socket sees
-    /// the link go, as a NIC reports a lost carrier), and a veth pair whose one end is down
-    /// carries nothing either way. One `ip` call, a few ms, where two would double the
-    /// outage. Runs `ip`; call it off the real-time thread.
-    pub fn set_link(&self, from: usize, up: bool) -> Result<(), NetnsError> {
+    /// Where the link out of node `from` (to the next node) is switched, as when its cable
+    /// is pulled and plugged in again: the receiving end, (namespace, interface). Its node's
+    /// socket sees the link go, as a NIC reports a lost carrier, and a veth pair whose one
+    /// end is down carries nothing either way; one end, where two would double the time
+    /// the switch takes. Switch it with [`crate::sys::set_interface_up`] from a thread in
+    /// that namespace.
+    pub fn link_end(&self, from: usize) -> (String, String) {
         let to = (from + 1) % self.nodes;
-        let state = if up { "up" } else { "down" };
-        ip(&[
-            "-n",
-            &self.netns(to),
-            "link",
-            "set",
-            "dev",
-            &self.in_if(to),
-            state,
-        ])
+        (self.netns(to), self.in_if(to))
     }
 
     /// Takes node i's links down (both ends of both its veth pairs), as when its cable is

@@ -367,7 +367,15 @@ pub fn run_observed(
     if let Some(h) = injector {
         let _ = h.join();
     }
-    let flap_down_ns = flapper.and_then(|h| h.join().ok().flatten());
+    let flap_down_ns = match flapper.map(|h| h.join()) {
+        Some(Ok(Ok(d))) => d,
+        Some(Ok(Err(why))) => {
+            // Said whether or not verbose: the run lacks the fault it was asked for.
+            eprintln!("ringsync rt: warning: the link flap did not happen: {why}");
+            None
+        }
+        _ => None,
+    };
     if let Some(h) = killer {
         let _ = h.join();
     }

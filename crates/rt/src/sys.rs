@@ -309,3 +309,50 @@ pub fn recv(fd: RawFd, buf: &mut [u8]) -> io::Result<Option<usize>> {
     }
     Ok(Some(r as usize))
 }
+
+/// A socket for interface control requests (ioctl) in the calling thread's network
+/// namespace; it stays in that namespace whichever thread uses it later.
+pub fn control_socket() -> io::Result<OwnedFd> {
+    // SAFETY: plain system call; the result is checked before use.
+    let fd = unsafe { libc::socket(libc::AF_INET, libc::SOCK_DGRAM | libc::SOCK_CLOEXEC, 0) };
+    if fd < 0 {
+        return Err(io::Error::last_os_error());
+    }
+    // SAFETY: `fd` is a fresh descriptor that nothing else owns.
+    Ok(unsafe { OwnedFd::from_raw_fd(fd) })
+}
+
+/// Sets interface `ifname` (in `ctl`'s namespace) administratively up or down, as `ip link
+/// set dev IFNAME up|down` does, in two system calls (microseconds, where `ip` takes
+/// milliseconds, tens of them on a busy host).
+pub fn set_interface_up(ctl: &OwnedFd, ifname: &str, up: bool) -> io::Result<()> {
+    let bytes = ifname.as_bytes();
+    // SAFETY: ifreq is plain data; zeroed, then the name is copied in below.
+    let mut req: libc::ifreq = unsafe { std::mem::zeroed() };
+    if bytes.len() >= req.ifr_name.len() || bytes.contains(&0) {
+        return Err(io::Error::new(
+            io::ErrorKind::InvalidInput,
+            format!("interface name {ifname:?} is not a valid name"),
+        ));
+    }
+    for (d, s) in req.ifr_name.iter_mut().zip(bytes) {
+        *d = *s as libc::c_char;
+    }
+    // SAFETY: `req` is a valid ifreq with a NUL-terminated name; the kernel fills the flags.
+    if unsafe { libc::ioctl(ctl.as_raw_fd(), libc::SIOCGIFFLAGS, &mut req) } != 0 {
+        return Err(io::Error::last_os_error());
+    }
+    // SAFETY: SIOCGIFFLAGS filled the flags member of the union.
+    let flags = unsafe { req.ifr_ifru.ifru_flags };
+    let up_flag = libc::IFF_UP as libc::c_short;
+    req.ifr_ifru.ifru_flags = if up {
+        flags | up_flag
+    } else {
+        flags & !up_flag
+    };
+    // SAFETY: as above; the kernel reads the name and the flags.
+    if unsafe { libc::ioctl(ctl.as_raw_fd(), libc::SIOCSIFFLAGS, &req) } != 0 {
+        return Err(io::Error::last_os_error());
+    }
+    Ok(())
+}

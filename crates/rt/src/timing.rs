@@ -37,7 +37,8 @@ pub struct Timing {
     /// Frames the runtime dropped on the link of a `--flap` over UDP while it was down
     /// (UDP has no link to take down: the loop drops what the link would carry).
     pub flap_dropped: u64,
-    /// How long the flapped link was really down [ns] (the `ip` calls take milliseconds).
+    /// How long the flapped link was down [ns] (veth): from before the call that took it
+    /// down to after the call that brought it up (microseconds more than asked).
     pub flap_down_ns: Option<i64>,
     /// Cycle starts whose true axis states were read after the axis had moved on.
     pub probes_late: u64,

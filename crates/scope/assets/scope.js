@@ -118,7 +118,7 @@
       if (follow) p.u.setData(d); else p.u.setData(d, false);
     }
     drawRing(); drawTables(); drawHist();
-    bump("draws");
+    bump("draws"); counter("drawn", t.length);
   }
 
   function statusOf(axis) { const s = data[col(axis, 5)]; return s && s.length ? s[s.length - 1] : 1; }
