@@ -48,13 +48,44 @@ impl Oscillator {
         Instant::from_ns(l - l.rem_euclid(self.res))
     }
 
-    /// The first true time [ns] at which the local clock reads at least `l`.
+    /// The first true time [ns] at which the local clock reads at least `l`, searching up
+    /// from the estimate ⌈(l − offset)/rate⌉.
     pub fn true_at(&self, l: Instant) -> i64 {
-        let mut t = -floor_i64((self.offset - l.as_ns() as f64) / self.rate);
+        let t0 = self.estimate(l.as_ns());
+        // A reading off the timestamp grid is first reached where the raw clock reaches the
+        // next grid point: start from that point's estimate (the search from t0 would step
+        // up to res − 1 ns one at a time), back down while the reading still suffices (the
+        // reading never falls as t grows, so this finds the same instant), then up.
+        let mut t = match self.grid_above(l.as_ns()) {
+            Some(g) if g != l.as_ns() => self.estimate(g).max(t0),
+            _ => t0,
+        };
+        while t > t0 && self.local(t - 1) >= l {
+            t -= 1;
+        }
         while self.local(t) < l {
             t += 1;
         }
         t
+    }
+
+    /// ⌈(l − offset)/rate⌉ as computed in floating point [ns].
+    fn estimate(&self, l: i64) -> i64 {
+        -floor_i64((self.offset - l as f64) / self.rate)
+    }
+
+    /// The smallest reading on the timestamp grid at or above `l` (`None` past the range).
+    fn grid_above(&self, l: i64) -> Option<i64> {
+        let r = if self.res & (self.res - 1) == 0 {
+            l & (self.res - 1)
+        } else {
+            l.rem_euclid(self.res)
+        };
+        if r == 0 {
+            Some(l)
+        } else {
+            l.checked_add(self.res - r)
+        }
     }
 }
 
@@ -78,6 +109,32 @@ mod tests {
         }
         for y in [-1.0, -0.5, -0.0, 0.0, 0.5, 1.0, -1e-300, 4e15 + 0.5] {
             assert_eq!(super::floor_i64(y), y.floor() as i64, "{y}");
+        }
+    }
+
+    /// `true_at` against the plain search up from the estimate, for readings on and off
+    /// the grid, several resolutions, offsets and drifts.
+    #[test]
+    fn true_at_finds_what_the_plain_search_finds() {
+        use super::Oscillator;
+        use ringsync_proto::Instant;
+        let plain = |o: &Oscillator, l: Instant| {
+            let mut t = -super::floor_i64((o.offset - l.as_ns() as f64) / o.rate);
+            while o.local(t) < l {
+                t += 1;
+            }
+            t
+        };
+        let mut r = crate::rng::Rng::stream(3, 11);
+        for k in 0..200_000 {
+            let res = [1i64, 8, 64, 10, 1000][k % 5];
+            let o = Oscillator {
+                offset: r.symmetric(1e6),
+                rate: 1.0 + r.symmetric(2e-4),
+                res,
+            };
+            let l = Instant::from_ns(r.symmetric(1e10) as i64);
+            assert_eq!(o.true_at(l), plain(&o, l), "{o:?} l = {l:?}");
         }
     }
 

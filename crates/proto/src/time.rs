@@ -226,6 +226,23 @@ impl core::str::FromStr for Duration {
     }
 }
 
+/// `x.round() as i64` (half away from zero, saturating, NaN to 0) with integer arithmetic:
+/// bit for bit the same, without the software `round` that a target without SSE4.1 calls
+/// (3.8 % of a simulation's instructions went to it). For |x| < 2⁵², `x − trunc(x)` is exact,
+/// so comparing it with ±0.5 decides the rounding exactly; larger values are integers.
+#[inline]
+pub fn round_i64(x: f64) -> i64 {
+    let t = x as i64;
+    let f = x - t as f64;
+    if f >= 0.5 {
+        t.saturating_add(1)
+    } else if f <= -0.5 {
+        t.saturating_sub(1)
+    } else {
+        t
+    }
+}
+
 /// Parses a plain decimal number (optional sign, digits, optional fraction; no exponent)
 /// and multiplies it by `scale` exactly. `None`: not a number; `Some(None)`: the product is
 /// not an integer.
@@ -258,6 +275,65 @@ pub(crate) fn parse_decimal_scaled(num: &str, scale: i128) -> Option<Option<i128
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// [`round_i64`] against `f64::round` on values near every tie (k + 0.5 and its
+    /// neighbours, both signs, small to beyond 2⁵³), the special values, and any bit pattern.
+    #[test]
+    fn integer_rounding_matches_round() {
+        let check =
+            |x: f64| assert_eq!(round_i64(x), x.round() as i64, "{x:e} ({:#x})", x.to_bits());
+        for k in [
+            0i64,
+            1,
+            2,
+            3,
+            7,
+            1 << 20,
+            1 << 40,
+            (1 << 51) - 1,
+            1 << 51,
+            1 << 52,
+            1 << 53,
+        ] {
+            for sign in [1.0, -1.0] {
+                let tie = sign * (k as f64 + 0.5);
+                for x in [tie, tie.next_up(), tie.next_down(), sign * k as f64] {
+                    check(x);
+                }
+            }
+        }
+        for x in [
+            0.0,
+            -0.0,
+            0.49999999999999994,
+            -0.49999999999999994,
+            f64::NAN,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::MAX,
+            f64::MIN,
+            i64::MAX as f64,
+            i64::MIN as f64,
+            (i64::MAX as f64).next_down(),
+            1e300,
+            f64::MIN_POSITIVE,
+        ] {
+            check(x);
+        }
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn integer_rounding_matches_round_on_any_bits(bits: u64) {
+            let x = f64::from_bits(bits);
+            proptest::prop_assert_eq!(round_i64(x), x.round() as i64);
+        }
+
+        #[test]
+        fn integer_rounding_matches_round_in_the_simulated_range(x in -1e13f64..1e13) {
+            proptest::prop_assert_eq!(round_i64(x), x.round() as i64);
+        }
+    }
 
     #[test]
     fn parses_units() {

@@ -17,7 +17,7 @@
 //! With exact timestamps and a constant drift the residual error is a few timestamp ticks
 //! between syncs (tested). Without sync the clock free-runs: S(L) = L.
 
-use crate::time::{Duration, Instant};
+use crate::time::{Duration, Instant, round_i64};
 
 /// Gain of the rate filter (per sync); 1/8 settles within a few tens of cycles.
 const RATE_GAIN: f64 = 0.125;
@@ -152,7 +152,7 @@ impl SyncClock {
             if self.filter.offset_gain < 1.0 {
                 anchor = m
                     .saturating_sub(err)
-                    .saturating_add((self.filter.offset_gain * err as f64).round() as i64);
+                    .saturating_add(round_i64(self.filter.offset_gain * err as f64));
             }
         }
         self.skipped_run = 0;
@@ -216,9 +216,9 @@ impl SyncClock {
     /// The synchronised time S(L) for local time `local`.
     pub fn to_sync(&self, local: Instant) -> Instant {
         match self.last {
-            Some((l0, m0)) if self.enabled => Instant::from_ns(m0.saturating_add(
-                (local.as_ns().saturating_sub(l0) as f64 / self.rate).round() as i64,
-            )),
+            Some((l0, m0)) if self.enabled => Instant::from_ns(m0.saturating_add(round_i64(
+                local.as_ns().saturating_sub(l0) as f64 / self.rate,
+            ))),
             _ => local,
         }
     }
@@ -226,9 +226,9 @@ impl SyncClock {
     /// The local time at which the synchronised clock reads `sync`.
     pub fn to_local(&self, sync: Instant) -> Instant {
         match self.last {
-            Some((l0, m0)) if self.enabled => Instant::from_ns(l0.saturating_add(
-                (sync.as_ns().saturating_sub(m0) as f64 * self.rate).round() as i64,
-            )),
+            Some((l0, m0)) if self.enabled => Instant::from_ns(l0.saturating_add(round_i64(
+                sync.as_ns().saturating_sub(m0) as f64 * self.rate,
+            ))),
             _ => sync,
         }
     }

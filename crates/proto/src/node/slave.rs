@@ -498,7 +498,7 @@ impl Slave {
                 let sync_now = self.clock.to_sync(now);
                 self.sample = FeedbackSlot {
                     position: clamp_i32(counts),
-                    velocity: clamp_i32(velocity.round() as i64),
+                    velocity: clamp_i32(crate::time::round_i64(velocity)),
                     sample_time_ns: sync_now.as_ns().max(0) as u64,
                     status: self.status,
                     written: true,
