@@ -94,3 +94,22 @@ def test_arrays_match_the_clis_trace_csv(cli, tmp_path: Path) -> None:
     assert np.allclose(df["eps"], csv["eps_rad"], atol=5e-10, rtol=0)
     assert np.allclose(df["u"], csv["u_v"], atol=5e-7, rtol=0)
     assert np.allclose(df["apply_time"], csv["apply_time_s"], atol=5e-10, rtol=0, equal_nan=True)
+
+
+def test_the_clis_parquet_trace_holds_the_runs_exact_values(cli, tmp_path: Path) -> None:
+    import pandas as pd  # the test extra; read_parquet needs pyarrow, also in it
+
+    out = tmp_path / "cli"
+    cli.run("sim", "paper-2015", "--out", str(out), "--seed", "5", "--outputs", "all,parquet")
+    df = pd.read_parquet(out / "trace.parquet")
+    csv = pd.read_csv(out / "trace.csv")
+    assert list(df.columns) == list(csv.columns)
+    assert str(df["axis"].dtype) == "int32" and len(df) == len(csv) == 16000
+    # Every value is the run's own double, where the CSV rounds to 6 or 9 decimals.
+    r = ringsync.simulate("paper-2015", seed=5)
+    mine = r.to_pandas()
+    assert np.array_equal(df["t_s"].to_numpy(), mine["time"].to_numpy())
+    names = ["x_d", "x", "e", "eps", "u", "sample_time", "apply_time", "clock_error_ns"]
+    for col, name in zip(df.columns[2:], names):
+        assert np.array_equal(df[col].to_numpy(), mine[name].to_numpy(), equal_nan=True), col
+        assert np.allclose(df[col], csv[col], rtol=0, atol=5e-7, equal_nan=True), col

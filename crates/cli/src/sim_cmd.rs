@@ -28,9 +28,10 @@ pub struct SimArgs {
     /// Also write every frame the nodes send, with its simulated send time, as pcapng.
     #[arg(long, value_name = "FILE")]
     pcap: Option<PathBuf>,
-    /// What to write, comma-separated: summary (summary.json), trace (trace.csv), figures
-    /// (*.svg), report (report.html), or all. `--outputs summary` keeps no trace. The run's
-    /// scenario.toml is always written.
+    /// What to write, comma-separated: summary (summary.json), trace (trace.csv), parquet
+    /// (trace.parquet: the trace's exact values, for pandas or polars), figures (*.svg),
+    /// report (report.html), or all (every one but parquet: `all,parquet` adds it).
+    /// `--outputs summary` keeps no trace. The run's scenario.toml is always written.
     #[arg(long, value_name = "LIST", default_value = "all", value_parser = outputs)]
     outputs: ringsync::Outputs,
     #[cfg(feature = "scope")]

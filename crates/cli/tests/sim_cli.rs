@@ -575,8 +575,33 @@ fn outputs_selects_the_files_written() {
             );
         }
     }
+    // trace.parquet only when named: beside all the others, unchanged; the same bytes
+    // from the same run (no time of writing in it); a Parquet file by its magic.
+    let pq: Vec<Vec<u8>> = ["outputs-parquet-1", "outputs-parquet-2"]
+        .iter()
+        .map(|name| {
+            let d = dir(name);
+            let o = run(&d, "all,parquet");
+            assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+            let mut want = listed(&full);
+            want.push("trace.parquet".into());
+            want.sort();
+            assert_eq!(listed(&d), want);
+            for f in listed(&full) {
+                assert_eq!(
+                    std::fs::read(d.join(&f)).expect("read"),
+                    std::fs::read(full.join(&f)).expect("read"),
+                    "all,parquet: {f}"
+                );
+            }
+            std::fs::read(d.join("trace.parquet")).expect("trace.parquet")
+        })
+        .collect();
+    assert!(pq[0].starts_with(b"PAR1") && pq[0].ends_with(b"PAR1"));
+    assert_eq!(pq[0], pq[1], "trace.parquet is reproducible");
     let o = run(&dir("outputs-bad"), "summary,plots");
     assert_eq!(o.status.code(), Some(2));
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(err.contains("unknown output 'plots'"), "{err}");
+    assert!(err.contains("parquet"), "the names it lists: {err}");
 }

@@ -2,6 +2,7 @@
 //! a timing diagram (the paper's Fig. 1); the stability check of a scenario.
 
 pub mod check;
+pub mod columnar;
 pub mod fixed;
 pub mod identify;
 pub mod pcap;

@@ -89,6 +89,9 @@ pub struct Outputs {
     pub figures: bool,
     /// report.html, with the figures inline.
     pub report: bool,
+    /// trace.parquet: the trace's exact values as Parquet ([`ringsync_report::columnar`]);
+    /// not among [`Outputs::ALL`], asked for by name.
+    pub parquet: bool,
 }
 
 impl Outputs {
@@ -98,13 +101,14 @@ impl Outputs {
         trace: true,
         figures: true,
         report: true,
+        parquet: false,
     };
     /// The names in `--outputs`, in the order files are written.
-    pub const NAMES: [&'static str; 4] = ["summary", "trace", "figures", "report"];
+    pub const NAMES: [&'static str; 5] = ["summary", "trace", "parquet", "figures", "report"];
 
     /// Whether the run must keep its trace (for trace.csv, the figures or the report).
     pub fn needs_trace(self) -> bool {
-        self.trace || self.figures || self.report
+        self.trace || self.parquet || self.figures || self.report
     }
 
     /// The files these outputs write, for messages: `summary.json, trace.csv, …`.
@@ -112,6 +116,7 @@ impl Outputs {
         let f = [
             (self.summary, "summary.json"),
             (self.trace, "trace.csv"),
+            (self.parquet, "trace.parquet"),
             (self.figures, "the figures (*.svg)"),
             (self.report, "report.html"),
         ];
@@ -134,6 +139,7 @@ impl std::str::FromStr for Outputs {
             trace: false,
             figures: false,
             report: false,
+            parquet: false,
         };
         for name in list.split(',').map(str::trim) {
             match name {
@@ -141,10 +147,16 @@ impl std::str::FromStr for Outputs {
                 "trace" => o.trace = true,
                 "figures" => o.figures = true,
                 "report" => o.report = true,
-                "all" => o = Outputs::ALL,
+                "parquet" => o.parquet = true,
+                "all" => {
+                    o = Outputs {
+                        parquet: o.parquet,
+                        ..Outputs::ALL
+                    }
+                }
                 other => {
                     return Err(crate::Error::Input(format!(
-                        "unknown output '{}' in '{}': expected a comma-separated list of {} or all",
+                        "unknown output '{}' in '{}': expected a comma-separated list of {}, or all (every one but parquet)",
                         ringsync_model::scenario::clip(other, 40),
                         ringsync_model::scenario::clip(list, 120),
                         Outputs::NAMES.join(", ")
@@ -180,6 +192,11 @@ pub fn write_sim(
     }
     if outputs.trace {
         dir.write_with("trace.csv", |w| write_trace_csv(r, w))?;
+    }
+    if outputs.parquet {
+        dir.write_with("trace.parquet", |w| {
+            ringsync_report::columnar::write_trace_parquet(r, w)
+        })?;
     }
     if !(outputs.figures || outputs.report) {
         return Ok(());
