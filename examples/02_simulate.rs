@@ -65,7 +65,10 @@ fn main() -> Result<(), ringsync::Error> {
     println!("wrote {}", out.join("summary.json").display());
     // The trace in columns: e of axis 1 at every computed cycle.
     let n = r.trace.axes;
-    let e1: Vec<f64> = r.trace.e.iter().step_by(n).copied().collect();
+    let e1: Vec<f64> = (0..r.trace.len())
+        .step_by(n)
+        .map(|row| r.trace.e(row))
+        .collect();
     println!(
         "axis 1: {} samples of e, last {:.6} rad",
         e1.len(),

@@ -47,11 +47,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 name: "criterion mean, 20 cycles".into(),
                 colour: PALETTE[0],
                 points: points.iter().map(|p| (p.0, p.1)).collect(),
+                extent: None,
             },
             Series {
                 name: format!("{per_axis:.2} µs × n"),
                 colour: PALETTE[1],
                 points: vec![(0.0, 0.0), (256.0, 256.0 * per_axis)],
+                extent: None,
             },
         ],
     );

@@ -274,7 +274,6 @@ impl Observer for Recorder {
             let p = self.probe[i];
             tr.x_d.push(p.x_d);
             tr.x.push(p.x);
-            tr.e.push(p.x_d - p.x);
             tr.eps.push(self.eps[i]);
             tr.u.push(r.u[i]);
             tr.sample_time.push(r.sample_time[i]);

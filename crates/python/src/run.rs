@@ -141,10 +141,12 @@ impl SimRun {
         let n = t.axes.max(1);
         let d = PyDict::new(py);
         d.set_item("time", PyArray1::from_slice(py, &t.t))?;
+        let mut e = Vec::new();
+        t.e_into(0..t.len(), &mut e);
         for (name, col) in [
             ("x_d", &t.x_d),
             ("x", &t.x),
-            ("e", &t.e),
+            ("e", &e),
             ("eps", &t.eps),
             ("u", &t.u),
             ("sample_time", &t.sample_time),

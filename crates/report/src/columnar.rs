@@ -113,7 +113,10 @@ fn write(
                     }
                     2 => &trace.x_d[rows.clone()],
                     3 => &trace.x[rows.clone()],
-                    4 => &trace.e[rows.clone()],
+                    4 => {
+                        trace.e_into(rows.clone(), &mut doubles);
+                        &doubles
+                    }
                     5 => &trace.eps[rows.clone()],
                     6 => &trace.u[rows.clone()],
                     7 => &trace.sample_time[rows.clone()],
@@ -149,7 +152,6 @@ mod tests {
                 let v = (g * axes + a) as f64;
                 t.x_d.push(v + 0.1);
                 t.x.push(v + 0.2);
-                t.e.push(-0.1);
                 t.eps.push(v * 1e-9);
                 t.u.push(-v);
                 t.sample_time.push(v + 0.5);

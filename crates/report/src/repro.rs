@@ -371,20 +371,19 @@ pub fn repro_figures(
     pd: &RunResult,
     sync: &RunResult,
 ) -> Vec<(&'static str, String)> {
-    use crate::plot::{PALETTE, Series, line_chart};
+    use crate::plot::{PALETTE, Thinning, line_chart};
     let mut figs = Vec::new();
     if let Some(t) = timing {
         figs.push(("fig1-cycle.svg", t));
     }
-    let cmd = Series {
-        name: "x^d, every axis".into(),
-        colour: PALETTE[0],
-        points: sync
-            .trace
-            .rows()
-            .filter(|r| r.axis == 1)
-            .map(|r| (r.t, r.x_d))
-            .collect(),
+    let cmd = {
+        let rows = (0..sync.trace.len()).step_by(sync.trace.axes.max(1));
+        let mut t = Thinning::new(rows.len());
+        for i in rows {
+            let r = sync.trace.row(i);
+            t.push((r.t, r.x_d));
+        }
+        t.finish("x^d, every axis".into(), PALETTE[0])
     };
     figs.push((
         "fig3-command.svg",

@@ -302,19 +302,20 @@ pub(crate) fn per_axis(
     r: &RunResult,
     f: fn(&ringsync_model::result::TraceRow) -> f64,
 ) -> Vec<crate::plot::Series<'static>> {
-    use crate::plot::{PALETTE, Series};
+    use crate::plot::{PALETTE, Thinning};
     // The trace holds one group of n rows per cycle: axis a's rows are every n-th, from a − 1.
-    let n = r.trace.axes;
+    // Each series is thinned as it is built (a long run's column is never copied whole).
+    let n = r.trace.axes.max(1);
+    let len = r.trace.len();
     (1..=r.summary.axes.len())
-        .map(|a| Series {
-            name: format!("axis {a}"),
-            colour: PALETTE[(a - 1) % PALETTE.len()],
-            points: (a - 1..r.trace.len())
-                .step_by(n.max(1))
-                .map(|i| r.trace.row(i))
-                .filter(|row| row.axis == a)
-                .map(|row| (row.t, f(&row)))
-                .collect(),
+        .map(|a| {
+            let rows = (a - 1..len).step_by(n);
+            let mut t = Thinning::new(rows.len());
+            for i in rows {
+                let row = r.trace.row(i);
+                t.push((row.t, f(&row)));
+            }
+            t.finish(format!("axis {a}"), PALETTE[(a - 1) % PALETTE.len()])
         })
         .collect()
 }

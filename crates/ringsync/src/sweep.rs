@@ -584,6 +584,7 @@ fn sweep_svg(sw: &Sweep) -> String {
             },
             colour: PALETTE[i % PALETTE.len()],
             points,
+            extent: None,
         })
         .collect();
     line_chart(
