@@ -183,8 +183,9 @@ pub(crate) fn rt(args: &RtArgs) -> Result<Outcome, CliError> {
     };
     let stop = ringsync::layers::runtime::stop_flag();
     #[cfg(feature = "scope")]
-    let (scope, observers) = crate::scope_opt::start(
+    let (scope, observers) = crate::scope_opt::start_ab(
         args.scope.scope,
+        args.scope.scope_ab,
         &ringsync::layers::runtime::run::as_run(s, &opts),
         ringsync_scope::Source::Realtime,
         "rt",

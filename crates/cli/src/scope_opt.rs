@@ -19,6 +19,11 @@ pub struct RtScopeArgs {
     /// stream at ws://ADDR/ws (e.g. 127.0.0.1:8080; port 0 picks a free one).
     #[arg(long, value_name = "ADDR")]
     pub scope: Option<SocketAddr>,
+    /// Measure what the scope costs the loop: feed the pages in alternate periods of this
+    /// length only, and print the cycle-start lateness of the fed and the idle periods
+    /// (with --scope; docs/runtime.md, "With the scope attached").
+    #[arg(long, value_name = "PERIOD", requires = "scope", value_parser = duration)]
+    pub scope_ab: Option<ringsync::Duration>,
 }
 
 /// The scope's options of `ringsync sim`.
@@ -50,6 +55,8 @@ fn speed(s: &str) -> Result<f64, String> {
 /// A scope started for a run, or none.
 pub struct Running {
     scope: Option<Scope>,
+    /// The alternating measurement's report (`--scope-ab`), when asked for.
+    ab: Option<std::sync::mpsc::Receiver<ringsync_scope::ab::AbReport>>,
 }
 
 /// Starts the scope at `addr` (if given) for `s`, from `source`; returns it and the
@@ -60,14 +67,46 @@ pub fn start(
     source: Source,
     what: &str,
 ) -> Result<(Running, Vec<Box<dyn Observer>>), CliError> {
+    start_ab(addr, None, s, source, what)
+}
+
+/// [`start`], feeding the pages in alternate periods of `ab` only when given (the first
+/// feeds; see `ringsync_scope::ab`).
+pub fn start_ab(
+    addr: Option<SocketAddr>,
+    ab: Option<ringsync::Duration>,
+    s: &Scenario,
+    source: Source,
+    what: &str,
+) -> Result<(Running, Vec<Box<dyn Observer>>), CliError> {
     let Some(addr) = addr else {
-        return Ok((Running { scope: None }, Vec::new()));
+        return Ok((
+            Running {
+                scope: None,
+                ab: None,
+            },
+            Vec::new(),
+        ));
     };
     let (scope, observer) =
         Scope::start(addr, s, source).map_err(|e| CliError::Failure(e.to_string()))?;
     eprintln!("ringsync {what}: scope at http://{}/", scope.addr());
+    let (observer, ab) = match ab {
+        Some(period) => {
+            let cycles = (period.as_ns() / s.ring.cycle.0.as_ns().max(1)).max(1);
+            eprintln!(
+                "ringsync {what}: the scope feeds its pages in alternate periods of {cycles} cycles"
+            );
+            let (o, rx) = observer.alternate(cycles);
+            (o, Some(rx))
+        }
+        None => (observer, None),
+    };
     Ok((
-        Running { scope: Some(scope) },
+        Running {
+            scope: Some(scope),
+            ab,
+        },
         vec![Box::new(observer) as Box<dyn Observer>],
     ))
 }
@@ -87,6 +126,10 @@ impl Running {
     /// The run ended: its result to the pages, then the server stops (after up to 2 s for
     /// the pages to read the rest).
     pub fn finish(self, s: &Scenario, hash: u64, r: &RunResult) {
+        // The observer went with the run: its alternating measurement is in.
+        if let Some(report) = self.ab.as_ref().and_then(|rx| rx.try_recv().ok()) {
+            eprintln!("{}", report.text());
+        }
         if let Some(scope) = self.scope {
             scope.finish(end_json(s, hash, r), std::time::Duration::from_secs(2));
         }

@@ -179,6 +179,61 @@ fn chromium_sees_a_replay_arrive_and_the_plots_update() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// `--scope-ab`: the scope feeds in alternate periods and the run reports the lateness of
+/// both kinds; every cycle whose lateness the ring reports is in one of them.
+#[test]
+fn scope_ab_sorts_every_cycle_into_fed_or_idle() {
+    let out = std::env::temp_dir().join(format!("ringsync-scope-ab-{}", std::process::id()));
+    let o = Command::new(env!("CARGO_BIN_EXE_ringsync"))
+        .args([
+            "rt",
+            "paper-2015",
+            "--transport",
+            "udp",
+            "--duration",
+            "2s",
+            "--watchdog-cycles",
+            "20",
+            "--no-sim-prediction",
+            "--scope",
+            "127.0.0.1:0",
+            "--scope-ab",
+            "250ms",
+            "--out",
+        ])
+        .arg(&out)
+        .env("RUST_BACKTRACE", "0")
+        .output()
+        .expect("run ringsync rt --scope-ab");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        matches!(o.status.code(), Some(0) | Some(3)),
+        "{:?}: {err}",
+        o.status
+    );
+    assert!(err.contains("alternate periods of 250 cycles"), "{err}");
+    let line = err
+        .lines()
+        .find(|l| l.starts_with("scope A/B"))
+        .unwrap_or_else(|| panic!("no A/B line: {err}"));
+    // "… fed P50/P99/P999 µs (N cycles), idle … µs (M cycles); …"
+    let cycles: Vec<u64> = line
+        .split(" cycles)")
+        .filter_map(|part| part.rsplit('(').next())
+        .filter_map(|n| n.trim().parse().ok())
+        .collect();
+    assert_eq!(cycles.len(), 2, "{line}");
+    assert!(cycles[0] > 0 && cycles[1] > 0, "{line}");
+    let summary: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("summary.json")).expect("summary.json"))
+            .expect("JSON");
+    let reported = summary["lateness_us"]["count"]
+        .as_u64()
+        .expect("lateness count");
+    assert_eq!(cycles[0] + cycles[1], reported, "{line}");
+    let _ = std::fs::remove_dir_all(&out);
+}
+
 /// Bad scope options are usage errors: one line naming the option, exit status 2.
 #[test]
 fn bad_scope_options_are_named() {
@@ -196,13 +251,17 @@ fn bad_scope_options_are_named() {
     let out = std::env::temp_dir().join(format!("ringsync-scope-usage-{}", std::process::id()));
     let out = out.to_str().expect("utf-8");
     // (arguments after the command, what the message must name)
-    let cases: [(&[&str], &[&str]); 4] = [
+    let cases: [(&[&str], &[&str]); 5] = [
         (&["sim", "--scope", "localhost-8080"], &["--scope"]),
         (
             &["sim", "--scope", "127.0.0.1:0", "--speed", "0"],
             &["--speed", "out of range"],
         ),
         (&["sim", "--speed", "2"], &["--scope"]),
+        (
+            &["rt", "--transport", "udp", "--scope-ab", "1s"],
+            &["--scope"],
+        ),
         (
             &["rt", "--transport", "udp", "--scope", "1.2.3"],
             &["--scope"],

@@ -22,6 +22,7 @@
 
 #![forbid(unsafe_code)]
 
+pub mod ab;
 pub mod frame;
 pub mod probe;
 mod server;

@@ -15,6 +15,7 @@ use ringsync::layers::proto::node::{Master, MonitorKind, Slave};
 use ringsync::layers::wire::Status;
 use ringsync::{AxisProbe, FaultEvent, FaultStep, Observer};
 
+use crate::ab::AbReport;
 use crate::frame::NODE_FIELDS;
 
 /// Most axes the scope shows (the first ones of a larger ring).
@@ -138,6 +139,9 @@ pub struct ScopeObserver {
     /// The latest lateness the driver told: (cycle, µs).
     timing: Option<(i64, f32)>,
     pace: Option<Pace>,
+    /// Feeding in alternate periods only, and what each kind of period measured; sent
+    /// when the observer is dropped (the run's end).
+    ab: Option<(AbReport, SyncSender<AbReport>)>,
 }
 
 impl ScopeObserver {
@@ -161,6 +165,7 @@ impl ScopeObserver {
             pace: pace
                 .filter(|s| s.is_finite() && *s > 0.0)
                 .map(|speed| Pace { speed, start: None }),
+            ab: None,
         };
         (
             o,
@@ -170,6 +175,21 @@ impl ScopeObserver {
                 drops,
             },
         )
+    }
+
+    /// Feeds the pages in alternate periods of `period_cycles` cycles only (the first
+    /// feeds) and measures the cycle-start lateness of each kind of period ([`crate::ab`]);
+    /// the report arrives on the returned receiver when the observer is dropped.
+    pub fn alternate(mut self, period_cycles: i64) -> (Self, Receiver<AbReport>) {
+        let (tx, rx) = sync_channel(1);
+        self.ab = Some((
+            AbReport {
+                period_cycles: period_cycles.max(1),
+                ..AbReport::default()
+            },
+            tx,
+        ));
+        (self, rx)
     }
 
     /// Columns of a row for this ring.
@@ -202,12 +222,18 @@ impl ScopeObserver {
 impl Drop for ScopeObserver {
     fn drop(&mut self) {
         self.hand_over();
+        if let Some((report, tx)) = self.ab.take() {
+            let _ = tx.try_send(report);
+        }
     }
 }
 
 impl Observer for ScopeObserver {
     fn cycle(&mut self, k: i64, t: f64, axes: &[AxisProbe]) {
         self.hand_over();
+        if self.ab.as_ref().is_some_and(|(r, _)| !r.feeds(k)) {
+            return;
+        }
         if let Some(p) = &mut self.pace {
             let now = Instant::now();
             let start = *p.start.get_or_insert(now);
@@ -243,6 +269,13 @@ impl Observer for ScopeObserver {
     }
 
     fn timing(&mut self, k: i64, lateness_ns: i64, _stalled: bool) {
+        if let Some((r, _)) = &mut self.ab {
+            if r.feeds(k) {
+                r.fed.add(lateness_ns);
+            } else {
+                r.idle.add(lateness_ns);
+            }
+        }
         let us = lateness_ns as f32 * 1e-3;
         self.timing = Some((k, us));
         if self.pending && self.row.k == k {
