@@ -86,10 +86,10 @@ fn write(
     // Whole cycles per row group.
     let groups_per_rg = (rg_rows / n).max(1);
     let cycles = trace.t.len();
-    let mut g0 = 0;
     let mut doubles: Vec<f64> = Vec::new();
     let mut axes: Vec<i32> = Vec::new();
-    while g0 < cycles || (cycles == 0 && g0 == 0) {
+    // One row group at least: an empty trace is a valid file with its columns.
+    for g0 in (0..cycles.max(1)).step_by(groups_per_rg) {
         let g1 = (g0 + groups_per_rg).min(cycles);
         let rows = (g0 * n)..(g1 * n).min(trace.len());
         let mut rg = file.next_row_group()?;
@@ -129,10 +129,6 @@ fn write(
             c += 1;
         }
         rg.close()?;
-        if cycles == 0 {
-            break;
-        }
-        g0 = g1;
     }
     file.close()?;
     Ok(())

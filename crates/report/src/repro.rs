@@ -371,20 +371,13 @@ pub fn repro_figures(
     pd: &RunResult,
     sync: &RunResult,
 ) -> Vec<(&'static str, String)> {
-    use crate::plot::{PALETTE, Thinning, line_chart};
+    use crate::plot::{PALETTE, line_chart};
     let mut figs = Vec::new();
     if let Some(t) = timing {
         figs.push(("fig1-cycle.svg", t));
     }
-    let cmd = {
-        let rows = (0..sync.trace.len()).step_by(sync.trace.axes.max(1));
-        let mut t = Thinning::new(rows.len());
-        for i in rows {
-            let r = sync.trace.row(i);
-            t.push((r.t, r.x_d));
-        }
-        t.finish("x^d, every axis".into(), PALETTE[0])
-    };
+    let cmd = crate::sim::axis_series(&sync.trace, 1, |r| r.x_d)
+        .finish("x^d, every axis".into(), PALETTE[0]);
     figs.push((
         "fig3-command.svg",
         line_chart(

@@ -302,22 +302,30 @@ pub(crate) fn per_axis(
     r: &RunResult,
     f: fn(&ringsync_model::result::TraceRow) -> f64,
 ) -> Vec<crate::plot::Series<'static>> {
-    use crate::plot::{PALETTE, Thinning};
-    // The trace holds one group of n rows per cycle: axis a's rows are every n-th, from a − 1.
-    // Each series is thinned as it is built (a long run's column is never copied whole).
-    let n = r.trace.axes.max(1);
-    let len = r.trace.len();
+    use crate::plot::PALETTE;
     (1..=r.summary.axes.len())
         .map(|a| {
-            let rows = (a - 1..len).step_by(n);
-            let mut t = Thinning::new(rows.len());
-            for i in rows {
-                let row = r.trace.row(i);
-                t.push((row.t, f(&row)));
-            }
-            t.finish(format!("axis {a}"), PALETTE[(a - 1) % PALETTE.len()])
+            axis_series(&r.trace, a, f)
+                .finish(format!("axis {a}"), PALETTE[(a - 1) % PALETTE.len()])
         })
         .collect()
+}
+
+/// Axis `a`'s (1-based) points (t, f(row)), thinned as they are built: a long run's column
+/// is never copied whole. The trace holds one group of n rows per cycle, so axis a's rows
+/// are every n-th, from a − 1.
+pub(crate) fn axis_series(
+    trace: &ringsync_model::result::Trace,
+    a: usize,
+    f: impl Fn(&ringsync_model::result::TraceRow) -> f64,
+) -> crate::plot::Thinning {
+    let rows = (a - 1..trace.len()).step_by(trace.axes.max(1));
+    let mut t = crate::plot::Thinning::new(rows.len());
+    for i in rows {
+        let row = trace.row(i);
+        t.push((row.t, f(&row)));
+    }
+    t
 }
 
 /// The figures of one run (made with a trace): position errors, sync errors, commands and
