@@ -5,9 +5,11 @@
 //!
 //! Times in the calls are true (master) time in ns; a slave's local time is its
 //! oscillator's reading of it. Frames a node sends go out through the driver's `send`
-//! closure, `send(from, at, bytes)`: from node `from` (0 = the master, i = slave i), first bit
+//! closure, `send(from, at, frame)`: from node `from` (0 = the master, i = slave i), first bit
 //! at true time `at`. The master's frames leave when it handles its timeout (or a frame);
-//! a slave's responses at their own time, after its response delay.
+//! a slave's responses at their own time, after its response delay. The frames are bytes
+//! ([`WireFrame::Bytes`]) unless the driver asked for decoded ones
+//! ([`Devices::carry_decoded`]: the simulator, which then computes no CRC).
 //!
 //! ```
 //! use ringsync_model::Scenario;
@@ -17,13 +19,15 @@
 //! // The master's first deadline: the cycle start, where it sends the lumped frame.
 //! assert_eq!(d.master_deadline(), 0);
 //! let mut sent = Vec::new();
-//! d.master_timeout(0, &mut |from, at, bytes| sent.push((from, at, bytes.len())));
+//! d.master_timeout(0, &mut |from, at, frame| sent.push((from, at, frame.into_bytes().len())));
 //! assert_eq!(sent, vec![(0, 0, 108)]);
 //! ```
 
 use ringsync_proto::Instant;
-use ringsync_proto::node::{FrameOutcome, Master, MasterEvent, SafeState, Slave, SlaveEvent};
-use ringsync_wire::Status;
+use ringsync_proto::node::{
+    FrameOutcome, Master, MasterEvent, SafeState, Slave, SlaveEvent, WireFrame,
+};
+use ringsync_wire::{Pdu, Status};
 
 use crate::axes::Axes;
 use crate::locate::locate_break_of;
@@ -58,6 +62,8 @@ pub struct Devices {
     observers: Vec<Box<dyn Observer>>,
     safe: Vec<SafeState>,
     probe: Vec<AxisProbe>,
+    /// The nodes' frames go out decoded ([`Devices::carry_decoded`]).
+    decoded: bool,
 }
 
 impl std::fmt::Debug for Devices {
@@ -93,7 +99,15 @@ impl Devices {
             rec: Recorder::new(n, cycles, s.ring.cycle.secs(), trace),
             observers: Vec::new(),
             probe: vec![zero; n],
+            decoded: false,
         })
+    }
+
+    /// Whether the nodes' frames go to `send` decoded ([`WireFrame::Pdu`]: no bytes, no
+    /// CRC) rather than as bytes. Default: bytes. A driver that carries decoded frames
+    /// hands received ones to [`Devices::master_pdu`] and [`Devices::slave_pdu`].
+    pub fn carry_decoded(&mut self, on: bool) {
+        self.decoded = on;
     }
 
     /// Adds an observer: it is told what the recorder is told, as the run goes.
@@ -137,7 +151,7 @@ impl Devices {
     pub fn master_timeout(
         &mut self,
         now: i64,
-        send: &mut dyn FnMut(usize, i64, Vec<u8>),
+        send: &mut dyn FnMut(usize, i64, WireFrame),
     ) -> MasterNews {
         self.master.handle_timeout(Instant::from_ns(now));
         self.drain_master(send)
@@ -148,16 +162,33 @@ impl Devices {
         &mut self,
         now: i64,
         bytes: &[u8],
-        send: &mut dyn FnMut(usize, i64, Vec<u8>),
+        send: &mut dyn FnMut(usize, i64, WireFrame),
     ) -> MasterNews {
         self.master.handle_frame(Instant::from_ns(now), bytes);
         self.drain_master(send)
     }
 
-    fn drain_master(&mut self, send: &mut dyn FnMut(usize, i64, Vec<u8>)) -> MasterNews {
+    /// A decoded frame received completely by the master at true time `now`.
+    pub fn master_pdu(
+        &mut self,
+        now: i64,
+        pdu: &Pdu,
+        send: &mut dyn FnMut(usize, i64, WireFrame),
+    ) -> MasterNews {
+        self.master.handle_pdu(Instant::from_ns(now), pdu);
+        self.drain_master(send)
+    }
+
+    fn drain_master(&mut self, send: &mut dyn FnMut(usize, i64, WireFrame)) -> MasterNews {
         let mut news = MasterNews::default();
-        while let Some(tx) = self.master.poll_transmit() {
-            send(0, tx.at.as_ns(), tx.bytes);
+        if self.decoded {
+            while let Some(tx) = self.master.poll_pdu() {
+                send(0, tx.at.as_ns(), WireFrame::Pdu(tx.pdu));
+            }
+        } else {
+            while let Some(tx) = self.master.poll_transmit() {
+                send(0, tx.at.as_ns(), WireFrame::Bytes(tx.bytes));
+            }
         }
         while let Some(ev) = self.master.poll_event() {
             match ev {
@@ -217,7 +248,12 @@ impl Devices {
     /// [`Devices::latch_at`] a driver scheduled), with the axis moved on to that instant;
     /// returns whether the axis had already moved past it (a driver that gets to a latch
     /// late).
-    pub fn latch(&mut self, i: usize, at: i64, send: &mut dyn FnMut(usize, i64, Vec<u8>)) -> bool {
+    pub fn latch(
+        &mut self,
+        i: usize,
+        at: i64,
+        send: &mut dyn FnMut(usize, i64, WireFrame),
+    ) -> bool {
         // (The first cycle's latches fall before the run's start, when the axis is at rest
         // where it starts.)
         let late = self.axes.time(i) > at.max(0);
@@ -237,10 +273,26 @@ impl Devices {
         rx_start: i64,
         rx_end: i64,
         bytes: &mut [u8],
-        send: &mut dyn FnMut(usize, i64, Vec<u8>),
+        send: &mut dyn FnMut(usize, i64, WireFrame),
     ) -> FrameOutcome {
         let (ls, le) = (self.osc[i].local(rx_start), self.osc[i].local(rx_end));
         let outcome = self.slaves[i].handle_frame(ls, le, bytes);
+        self.drain_slave(i, rx_end, send);
+        outcome
+    }
+
+    /// [`Devices::slave_frame`] for a decoded frame: a lumped frame gets the slave's slot
+    /// written in place.
+    pub fn slave_pdu(
+        &mut self,
+        i: usize,
+        rx_start: i64,
+        rx_end: i64,
+        pdu: &mut Pdu,
+        send: &mut dyn FnMut(usize, i64, WireFrame),
+    ) -> FrameOutcome {
+        let (ls, le) = (self.osc[i].local(rx_start), self.osc[i].local(rx_end));
+        let outcome = self.slaves[i].handle_pdu(ls, le, pdu);
         self.drain_slave(i, rx_end, send);
         outcome
     }
@@ -253,10 +305,19 @@ impl Devices {
         }
     }
 
+    /// Hands a frame of either form back to node `node` (0 = master) for its next sends.
+    pub fn recycle_frame(&mut self, node: usize, frame: WireFrame) {
+        match (node, frame) {
+            (_, WireFrame::Bytes(b)) => self.recycle(node, b),
+            (0, WireFrame::Pdu(p)) => self.master.recycle_pdu(p),
+            (_, WireFrame::Pdu(_)) => {}
+        }
+    }
+
     /// Acts on what slave `i` reported at true time `t`: a command or the drive's own brake
     /// changes the held command, torque off holds 0 V; every fault step is recorded. Its
     /// responses go to `send` at their own true time.
-    fn drain_slave(&mut self, i: usize, t: i64, send: &mut dyn FnMut(usize, i64, Vec<u8>)) {
+    fn drain_slave(&mut self, i: usize, t: i64, send: &mut dyn FnMut(usize, i64, WireFrame)) {
         while let Some(ev) = self.slaves[i].poll_event() {
             self.axes.advance(i, t);
             let ts = t as f64 * 1e-9;
@@ -280,9 +341,16 @@ impl Devices {
                 }
             }
         }
-        while let Some(tx) = self.slaves[i].poll_transmit() {
-            let at = self.osc[i].true_at(tx.at);
-            send(i + 1, at, tx.bytes);
+        if self.decoded {
+            while let Some(tx) = self.slaves[i].poll_pdu() {
+                let at = self.osc[i].true_at(tx.at);
+                send(i + 1, at, WireFrame::Pdu(tx.pdu));
+            }
+        } else {
+            while let Some(tx) = self.slaves[i].poll_transmit() {
+                let at = self.osc[i].true_at(tx.at);
+                send(i + 1, at, WireFrame::Bytes(tx.bytes));
+            }
         }
     }
 

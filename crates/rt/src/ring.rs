@@ -18,7 +18,7 @@ use ringsync_model::devices::Devices;
 use ringsync_model::observer::Observer;
 use ringsync_model::result::{Captured, LinkCounters, RunResult};
 use ringsync_proto::Duration;
-use ringsync_proto::node::{ClockFilter, FrameOutcome};
+use ringsync_proto::node::{ClockFilter, FrameOutcome, WireFrame};
 use ringsync_wire::Frame;
 
 use crate::clock::Clock;
@@ -87,7 +87,10 @@ struct Outbox {
 }
 
 impl Outbox {
-    fn send(&mut self, from: usize, at: i64, bytes: Vec<u8>) {
+    /// A node's frame (the runtime's devices send bytes: [`WireFrame::into_bytes`] only
+    /// moves them).
+    fn send(&mut self, from: usize, at: i64, frame: WireFrame) {
+        let bytes = frame.into_bytes();
         if from == 0 {
             self.now.push(bytes);
         } else {

@@ -15,11 +15,35 @@
 //! path and the capture puts the loss or the flipped bit on the first hop. A frame lost after
 //! it was corrupted is relayed unchanged up to the loss (the simulator flips a bit only in a
 //! frame that arrives). Recording changes no draw and no delivery.
+//!
+//! Frames travel as bytes or decoded ([`WireFrame`]); the draws and deliveries are the
+//! same. A decoded frame that a hop corrupts becomes bytes (the flipped bit is in them),
+//! and a captured one is emitted for the record.
 
 use ringsync_model::Spec;
 use ringsync_model::result::{Captured, LinkCounters};
 use ringsync_model::rng::Rng;
+use ringsync_proto::node::WireFrame;
 use ringsync_wire::{Frame, Route};
+
+/// The bytes of `frame`: its own, or (decoded) `record`, its emitted bytes (empty without).
+fn bytes_of<'a>(frame: &'a WireFrame, record: &'a Option<Vec<u8>>) -> &'a [u8] {
+    match (frame, record) {
+        (WireFrame::Bytes(b), _) => b,
+        (WireFrame::Pdu(_), Some(r)) => r,
+        (WireFrame::Pdu(_), None) => &[],
+    }
+}
+
+/// A frame's cycle counter and where it goes (`None` for bytes that are no frame).
+pub(crate) fn cycle_route(frame: &WireFrame) -> Option<(u32, Option<Route>)> {
+    match frame {
+        WireFrame::Bytes(b) => Frame::new_checked(&b[..])
+            .ok()
+            .map(|f| (f.cycle(), f.route().ok())),
+        WireFrame::Pdu(p) => Some((p.common().cycle, Some(p.route()))),
+    }
+}
 
 /// What became of a frame sent.
 pub(crate) enum Delivery {
@@ -29,10 +53,10 @@ pub(crate) enum Delivery {
         node: usize,
         rx_start: i64,
         at: i64,
-        bytes: Vec<u8>,
+        frame: WireFrame,
     },
     /// A hop lost it: the buffer goes back to the sender.
-    Lost(Vec<u8>),
+    Lost(WireFrame),
     /// It went nowhere (not a frame, or a dead slave on its way).
     Gone,
 }
@@ -109,23 +133,28 @@ impl Link {
         self.silent.is_some_and(|(s, from)| node == s && t >= from)
     }
 
-    /// Sends `bytes` from node `from` (0 = master), first bit out at true `t_tx` [ns], along
+    /// Sends `frame` from node `from` (0 = master), first bit out at true `t_tx` [ns], along
     /// the ring to the first node that processes it: a command's target, each slave whose
     /// slot a lumped frame carries, and the master for everything that comes back round.
-    pub fn send(&mut self, from: usize, t_tx: i64, mut bytes: Vec<u8>) -> Delivery {
+    pub fn send(&mut self, from: usize, t_tx: i64, mut frame: WireFrame) -> Delivery {
+        let capturing = self.captured.is_some();
+        // A decoded frame's bytes, emitted once for the capture.
+        let record = match &frame {
+            WireFrame::Pdu(_) if capturing => Some(frame.clone().into_bytes()),
+            _ => None,
+        };
         if let Some(c) = &mut self.captured
             && t_tx < self.end
         {
             c.push(Captured {
                 t: t_tx,
                 node: from,
-                bytes: bytes.clone(),
+                bytes: bytes_of(&frame, &record).to_vec(),
             });
         }
-        let Ok(f) = Frame::new_checked(&bytes[..]) else {
+        let Some((_, route)) = cycle_route(&frame) else {
             return Delivery::Gone;
         };
-        let route = f.route().ok();
         let ring = self.n + 1;
         // The node (0 = master) that processes the frame next.
         let stop = match route {
@@ -162,7 +191,6 @@ impl Link {
         let stop = if stop == 0 && from == 0 { ring } else { stop };
         let hops = ((stop + ring - from) % ring).max(1) as i64;
         let stop = stop % ring;
-        let capturing = self.captured.is_some();
         // The slaves between sender and receiver relay the frame; a dead one forwards nothing
         // (the frame is gone unless a hop before loses it).
         let mut relays = hops - 1;
@@ -197,8 +225,9 @@ impl Link {
                     self.counters.lost += 1;
                     // Lost on hop h: the slaves before it relayed the frame.
                     let count = relays.min(h - 1);
-                    self.capture_relays(from, t_tx, count, &jitter_sums, &bytes, None);
-                    return Delivery::Lost(bytes);
+                    let sent = bytes_of(&frame, &record);
+                    self.capture_relays(from, t_tx, count, &jitter_sums, sent, None);
+                    return Delivery::Lost(frame);
                 }
                 if rng.chance(self.hop_corruption) {
                     corrupted_on.get_or_insert(h);
@@ -209,7 +238,7 @@ impl Link {
             let (loss, corruption) = self.over_hops[hops as usize];
             if rng.chance(loss) {
                 self.counters.lost += 1;
-                return Delivery::Lost(bytes);
+                return Delivery::Lost(frame);
             }
             if rng.chance(corruption) {
                 corrupted_on = Some(1);
@@ -218,17 +247,24 @@ impl Link {
         // The bytes as sent, when a hop corrupts them and the hops before relay them.
         let mut as_sent = None;
         if corrupted_on.is_some() {
+            // The flipped bit is in the bytes: a decoded frame travels on as bytes.
+            let mut bytes = match frame {
+                WireFrame::Bytes(b) => b,
+                pdu => pdu.into_bytes(),
+            };
             if capturing {
                 as_sent = Some(bytes.clone());
             }
             let bit = (rng.next_u64() % (bytes.len() as u64 * 8)) as usize;
             bytes[bit / 8] ^= 1 << (bit % 8);
             self.counters.corrupted += 1;
+            frame = WireFrame::Bytes(bytes);
         }
         if capturing {
+            let now = bytes_of(&frame, &record);
             let (first, corrupted) = match (&as_sent, corrupted_on) {
-                (Some(sent), Some(h)) => (&sent[..], Some((h, &bytes[..]))),
-                _ => (&bytes[..], None),
+                (Some(sent), Some(h)) => (&sent[..], Some((h, now))),
+                _ => (now, None),
             };
             self.capture_relays(from, t_tx, relays, &jitter_sums, first, corrupted);
         }
@@ -239,7 +275,7 @@ impl Link {
             node: stop,
             rx_start: rx,
             at: rx + dur,
-            bytes,
+            frame,
         }
     }
 

@@ -14,9 +14,9 @@
 
 use ringsync_proto::Instant;
 use ringsync_proto::PlanKind;
-use ringsync_proto::node::FrameOutcome;
+use ringsync_proto::node::{FrameOutcome, WireFrame};
 use ringsync_proto::plan::{FrameRef, Node};
-use ringsync_wire::{Frame, Route, SlotCodec};
+use ringsync_wire::{Route, SlotCodec};
 
 use ringsync_model::devices::Devices;
 use ringsync_model::observer::Observer;
@@ -25,7 +25,7 @@ use ringsync_model::scenario::{Scenario, ScenarioError};
 use ringsync_model::spec::Spec;
 
 use crate::kernel::{Next, Queue};
-use crate::link::{Delivery, Link};
+use crate::link::{Delivery, Link, cycle_route};
 
 /// Assumptions of the simulation that the paper does not state (the model's, shared with
 /// the runtime's results).
@@ -40,6 +40,10 @@ pub struct RunOptions {
     pub trace: bool,
     /// Record every frame a node sends (for `--pcap`).
     pub capture: bool,
+    /// Carry every frame between the nodes as bytes, as the runtime does, rather than
+    /// decoded (no bytes, no CRC, where nothing reads them). The results are the same
+    /// (a test compares the two); bytes cost more.
+    pub bytes: bool,
 }
 
 /// What can stop a run from starting.
@@ -61,10 +65,10 @@ enum Ev {
     Arrive {
         node: usize,
         rx_start: i64,
-        bytes: Vec<u8>,
+        frame: WireFrame,
     },
     /// Slave i's response leaves (first bit).
-    SlaveSend { slave: usize, bytes: Vec<u8> },
+    SlaveSend { slave: usize, frame: WireFrame },
     /// Cycle start: read the true plant states.
     Probe { k: i64 },
 }
@@ -74,44 +78,44 @@ enum Ev {
 struct Net {
     q: Queue<Ev>,
     link: Link,
-    /// Buffers of lost frames, to hand back to (node, buffer) once the devices are free.
-    spare: Vec<(usize, Vec<u8>)>,
+    /// Lost frames, to hand back to (node, frame) once the devices are free.
+    spare: Vec<(usize, WireFrame)>,
 }
 
 impl Net {
     /// A frame node `from` sends with first bit at `at`: the master's go on the link now (it
     /// sends at the instant it handles its timeout); a slave's response leaves at its own
     /// time, an event.
-    fn send(&mut self, from: usize, at: i64, bytes: Vec<u8>) {
+    fn send(&mut self, from: usize, at: i64, frame: WireFrame) {
         if from == 0 {
-            self.transmit(0, at, bytes);
+            self.transmit(0, at, frame);
         } else {
             self.q.push(
                 at,
                 Ev::SlaveSend {
                     slave: from - 1,
-                    bytes,
+                    frame,
                 },
             );
         }
     }
 
-    fn transmit(&mut self, from: usize, at: i64, bytes: Vec<u8>) {
-        match self.link.send(from, at, bytes) {
+    fn transmit(&mut self, from: usize, at: i64, frame: WireFrame) {
+        match self.link.send(from, at, frame) {
             Delivery::Arrive {
                 node,
                 rx_start,
                 at,
-                bytes,
+                frame,
             } => self.q.push(
                 at,
                 Ev::Arrive {
                     node,
                     rx_start,
-                    bytes,
+                    frame,
                 },
             ),
-            Delivery::Lost(bytes) => self.spare.push((from, bytes)),
+            Delivery::Lost(frame) => self.spare.push((from, frame)),
             Delivery::Gone => {}
         }
     }
@@ -179,8 +183,10 @@ impl Sim {
         let t_cyc = s.ring.cycle.0.as_ns();
         let cycles = s.duration.0.as_ns() / t_cyc;
         let end = cycles * t_cyc;
+        let mut dev = Devices::new(spec, cycles, opts.trace)?;
+        dev.carry_decoded(!opts.bytes);
         let mut sim = Sim {
-            dev: Devices::new(spec, cycles, opts.trace)?,
+            dev,
             net: Net {
                 q: Queue::new(n),
                 link: Link::new(spec, end, opts.capture),
@@ -228,28 +234,31 @@ impl Sim {
 
     /// Hands the buffers of lost frames back to their senders.
     fn recycle(&mut self) {
-        for (node, bytes) in self.net.spare.drain(..) {
-            self.dev.recycle(node, bytes);
+        if self.net.spare.is_empty() {
+            return;
+        }
+        for (node, frame) in self.net.spare.drain(..) {
+            self.dev.recycle_frame(node, frame);
         }
     }
 
-    fn log(&mut self, node: usize, bytes: &[u8], rx_start: i64, rx_end: i64) {
+    fn log(&mut self, node: usize, frame: &WireFrame, rx_start: i64, rx_end: i64) {
         let Some((from, to)) = self.log_cycles else {
             return;
         };
-        let Ok(f) = Frame::new_checked(bytes) else {
+        let Some((cycle, route)) = cycle_route(frame) else {
             return;
         };
-        let cycle = i64::from(f.cycle());
+        let cycle = i64::from(cycle);
         if cycle < from || cycle >= to {
             return;
         }
-        let frame = match f.route() {
-            Ok(Route::Lumped { first_slot, .. }) => {
+        let frame = match route {
+            Some(Route::Lumped { first_slot, .. }) => {
                 FrameRef::Lumped((usize::from(first_slot) / self.slots_per_frame) as u32)
             }
-            Ok(Route::Command { target }) => FrameRef::Command(u32::from(target)),
-            Ok(Route::Response { source }) => FrameRef::Response(u32::from(source)),
+            Some(Route::Command { target }) => FrameRef::Command(u32::from(target)),
+            Some(Route::Response { source }) => FrameRef::Response(u32::from(source)),
             _ => return,
         };
         self.passages.push(PassageLog {
@@ -280,7 +289,7 @@ impl Sim {
                     self.sample_at[l.slave] = None;
                     let net = &mut self.net;
                     self.dev
-                        .latch(l.slave, l.t, &mut |from, at, b| net.send(from, at, b));
+                        .latch(l.slave, l.t, &mut |from, at, f| net.send(from, at, f));
                     self.recycle();
                     self.schedule_latch(l.slave);
                     continue;
@@ -304,25 +313,28 @@ impl Sim {
                 Ev::Arrive {
                     node,
                     rx_start,
-                    bytes,
+                    frame,
                 } => {
-                    self.log(node, &bytes, rx_start, t);
+                    self.log(node, &frame, rx_start, t);
                     if node != 0 && self.net.link.is_silent(node, t) {
                         continue;
                     }
                     if node == 0 {
                         let net = &mut self.net;
-                        self.dev
-                            .master_frame(t, &bytes, &mut |from, at, b| net.send(from, at, b));
-                        self.dev.recycle(0, bytes);
+                        let send = &mut |from, at, f| net.send(from, at, f);
+                        match &frame {
+                            WireFrame::Bytes(b) => self.dev.master_frame(t, b, send),
+                            WireFrame::Pdu(p) => self.dev.master_pdu(t, p, send),
+                        };
+                        self.dev.recycle_frame(0, frame);
                         self.recycle();
                         self.schedule_master();
                     } else {
-                        self.on_slave_frame(node - 1, rx_start, t, bytes);
+                        self.on_slave_frame(node - 1, rx_start, t, frame);
                     }
                 }
-                Ev::SlaveSend { slave, bytes } => {
-                    self.net.transmit(slave + 1, t, bytes);
+                Ev::SlaveSend { slave, frame } => {
+                    self.net.transmit(slave + 1, t, frame);
                     self.recycle();
                 }
                 Ev::Probe { k } => {
@@ -339,20 +351,20 @@ impl Sim {
         }
     }
 
-    fn on_slave_frame(&mut self, i: usize, rx_start: i64, rx_end: i64, mut bytes: Vec<u8>) {
+    fn on_slave_frame(&mut self, i: usize, rx_start: i64, rx_end: i64, mut frame: WireFrame) {
         let before = self.dev.slaves[i].poll_timeout();
         let net = &mut self.net;
-        let outcome = self
-            .dev
-            .slave_frame(i, rx_start, rx_end, &mut bytes, &mut |from, at, b| {
-                net.send(from, at, b)
-            });
+        let send = &mut |from, at, f| net.send(from, at, f);
+        let outcome = match &mut frame {
+            WireFrame::Bytes(b) => self.dev.slave_frame(i, rx_start, rx_end, b, send),
+            WireFrame::Pdu(p) => self.dev.slave_pdu(i, rx_start, rx_end, p, send),
+        };
         match outcome {
             FrameOutcome::Forward => {
                 let at = rx_start + self.net.link.residence();
-                self.net.transmit(i + 1, at, bytes);
+                self.net.transmit(i + 1, at, frame);
             }
-            FrameOutcome::Consumed | FrameOutcome::Dropped => self.dev.recycle(i + 1, bytes),
+            FrameOutcome::Consumed | FrameOutcome::Dropped => self.dev.recycle_frame(i + 1, frame),
         }
         self.recycle();
         if self.dev.slaves[i].poll_timeout() != before {

@@ -75,12 +75,19 @@ impl CommandRepr {
         COMMAND_PDU_LEN
     }
 
-    /// Writes the PDU into `buf`; returns the bytes written.
-    pub fn emit(&self, buf: &mut [u8]) -> Result<usize> {
+    /// Whether [`CommandRepr::emit`] into a buffer of [`CommandRepr::buffer_len`] bytes
+    /// would succeed: a slave target (not 0) and a finite command.
+    pub fn validate(&self) -> Result<()> {
         if self.target == 0 {
             return Err(Error::BadSlave(0));
         }
-        let command_v = finite("command", self.command_v)?;
+        finite("command", self.command_v).map(drop)
+    }
+
+    /// Writes the PDU into `buf`; returns the bytes written.
+    pub fn emit(&self, buf: &mut [u8]) -> Result<usize> {
+        self.validate()?;
+        let command_v = self.command_v;
         emit_common(
             buf,
             FrameKind::Command,

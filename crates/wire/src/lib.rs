@@ -87,6 +87,18 @@ pub enum Pdu {
     LumpedOnly(LumpedOnlyFrameRepr),
 }
 
+impl From<LumpedFrameRepr> for Pdu {
+    fn from(r: LumpedFrameRepr) -> Self {
+        Pdu::Lumped(r)
+    }
+}
+
+impl From<LumpedOnlyFrameRepr> for Pdu {
+    fn from(r: LumpedOnlyFrameRepr) -> Self {
+        Pdu::LumpedOnly(r)
+    }
+}
+
 impl Pdu {
     /// Parses any PDU: header, kind, payload and CRC are all checked. Bytes after the CRC
     /// (Ethernet padding) are ignored.
@@ -128,6 +140,59 @@ impl Pdu {
             Pdu::Command(r) => r.emit(buf),
             Pdu::Response(r) => r.emit(buf),
             Pdu::LumpedOnly(r) => r.emit(buf),
+        }
+    }
+
+    /// Whether [`Pdu::emit`] into a buffer of [`Pdu::buffer_len`] bytes would succeed (the
+    /// same checks, without writing).
+    pub fn validate(&self) -> Result<()> {
+        match self {
+            Pdu::Lumped(r) => r.validate().map(drop),
+            Pdu::Command(r) => r.validate(),
+            Pdu::Response(r) => r.validate(),
+            Pdu::LumpedOnly(r) => r.validate().map(drop),
+        }
+    }
+
+    /// The PDU's bytes in `buf` (cleared and resized to [`Pdu::buffer_len`]); `Err` (and
+    /// `buf` empty) for a PDU [`Pdu::emit`] refuses.
+    pub fn emit_into(&self, buf: &mut alloc::vec::Vec<u8>) -> Result<()> {
+        buf.clear();
+        buf.resize(self.buffer_len(), 0);
+        match self.emit(buf) {
+            Ok(_) => Ok(()),
+            Err(e) => {
+                buf.clear();
+                Err(e)
+            }
+        }
+    }
+
+    /// The common header fields (cycle, sequence, retry, flags).
+    pub fn common(&self) -> &Common {
+        match self {
+            Pdu::Lumped(r) => &r.common,
+            Pdu::Command(r) => &r.common,
+            Pdu::Response(r) => &r.common,
+            Pdu::LumpedOnly(r) => &r.common,
+        }
+    }
+
+    /// Where the frame goes, as [`Frame::route`] reads it from the bytes (a slot count
+    /// past 65535 saturates; [`Pdu::validate`] refuses it).
+    pub fn route(&self) -> Route {
+        let count = |n: usize| u16::try_from(n).unwrap_or(u16::MAX);
+        match self {
+            Pdu::Lumped(r) => Route::Lumped {
+                first_slot: r.first_slot,
+                slot_count: count(r.slots.len()),
+            },
+            Pdu::LumpedOnly(r) => Route::LumpedOnly {
+                first_slot: r.first_slot,
+                slot_count: count(r.slots.len()),
+            },
+            Pdu::Command(r) => Route::Command { target: r.target },
+            Pdu::Response(r) => Route::Response { source: r.source },
         }
     }
 }

@@ -97,12 +97,19 @@ impl ResponseRepr {
         RESPONSE_PDU_LEN
     }
 
-    /// Writes the PDU into `buf`; returns the bytes written.
-    pub fn emit(&self, buf: &mut [u8]) -> Result<usize> {
+    /// Whether [`ResponseRepr::emit`] into a buffer of [`ResponseRepr::buffer_len`] bytes
+    /// would succeed: a slave source (not 0) and a finite applied command.
+    pub fn validate(&self) -> Result<()> {
         if self.source == 0 {
             return Err(Error::BadSlave(0));
         }
-        let applied_v = finite("applied command", self.applied_v)?;
+        finite("applied command", self.applied_v).map(drop)
+    }
+
+    /// Writes the PDU into `buf`; returns the bytes written.
+    pub fn emit(&self, buf: &mut [u8]) -> Result<usize> {
+        self.validate()?;
+        let applied_v = self.applied_v;
         emit_common(
             buf,
             FrameKind::Response,

@@ -35,12 +35,12 @@ use std::collections::VecDeque;
 
 use ringsync_wire::{
     CommandRepr, Common, FeedbackSlot, Flags, Frame, FrameKind, LumpedOnlySlot, LumpedPayload,
-    LumpedRepr, ResponseRepr, SlotCodec, Status,
+    LumpedRepr, Pdu, ResponseRepr, SlotCodec, Status,
 };
 
-use super::Transmit;
 use super::motion::{CycleRecord, MonitorNews, Motion, MotionInput, MotionOutput, Setpoint};
 use super::reject::{Reject, Rejections};
+use super::{Outbox, Transmit, TransmitPdu};
 use crate::plan::{CyclePlan, FrameRef, Node, PlanKind};
 use crate::time::{Duration, Instant};
 
@@ -473,10 +473,9 @@ pub struct Master {
     last_back: Option<i64>,
     retry_queue: VecDeque<usize>,
     seq: u16,
-    out: VecDeque<Transmit>,
+    out: Outbox,
     events: VecDeque<MasterEvent>,
     counters: MasterCounters,
-    spares: super::Spares,
 }
 
 impl Master {
@@ -512,10 +511,9 @@ impl Master {
             last_back: None,
             retry_queue: VecDeque::new(),
             seq: 0,
-            out: VecDeque::new(),
+            out: Outbox::default(),
             events: VecDeque::new(),
             counters: MasterCounters::default(),
-            spares: super::Spares::default(),
             cfg,
         }
     }
@@ -727,11 +725,14 @@ impl Master {
         let mut slots = std::mem::take(&mut self.empty_slots);
         slots.clear();
         slots.resize(self.cfg.lumped_slots[j], FeedbackSlot::default());
-        self.empty_slots = self.queue_lumped(now, first, slots);
+        self.queue_lumped(now, first, slots);
     }
 
-    /// Sends a lumped frame of either layout, stamped with `now`, and gives the slots back.
-    fn queue_lumped<S: SlotCodec>(&mut self, now: Instant, first: usize, slots: Vec<S>) -> Vec<S> {
+    /// Sends a lumped frame of either layout, stamped with `now`.
+    fn queue_lumped<S: SlotCodec>(&mut self, now: Instant, first: usize, slots: Vec<S>)
+    where
+        LumpedRepr<S>: Into<Pdu>,
+    {
         self.seq = self.seq.wrapping_add(1);
         // In the lumped-only plan the lumped frame is the only way to the drives: once the
         // group stops it tells them all to brake.
@@ -751,23 +752,18 @@ impl Master {
             first_slot: first as u16,
             slots,
         };
-        let mut buf = self.spares.take(repr.buffer_len());
-        if repr.emit(&mut buf).is_ok() {
-            self.out.push_back(Transmit {
-                at: now,
-                bytes: buf,
-            });
+        let sent = SentLumped {
+            seq: repr.common.seq,
+            stamp: repr.master_time_ns,
+            sent: true,
+            back: false,
+        };
+        if self.out.push(now, repr.into()) {
             self.counters.frames_sent += 1;
             if let Some(s) = self.sent_lumped.get_mut(self.next_lumped) {
-                *s = SentLumped {
-                    seq: repr.common.seq,
-                    stamp: repr.master_time_ns,
-                    sent: true,
-                    back: false,
-                };
+                *s = sent;
             }
         }
-        repr.slots
     }
 
     /// The lumped-only plan's frame: last cycle's returned slots (not written this cycle),
@@ -894,12 +890,7 @@ impl Master {
                 .round()
                 .max(0.0) as u64,
         };
-        let mut buf = self.spares.take(cmd.buffer_len());
-        if cmd.emit(&mut buf).is_ok() {
-            self.out.push_back(Transmit {
-                at: now,
-                bytes: buf,
-            });
+        if self.out.push(now, Pdu::Command(cmd)) {
             self.counters.frames_sent += 1;
         }
         true
@@ -925,6 +916,30 @@ impl Master {
     /// in [`MasterCounters::rejected`].
     pub fn handle_frame(&mut self, now: Instant, bytes: &[u8]) {
         if let Err(r) = self.accept_frame(now, bytes) {
+            self.counters.rejected.count(r);
+        }
+    }
+
+    /// A decoded frame received completely at `now` [master ns] (a driver that carries
+    /// frames without their bytes): the checks of [`Master::handle_frame`] after the
+    /// decoding, with the same effect.
+    pub fn handle_pdu(&mut self, now: Instant, pdu: &Pdu) {
+        let taken = match (pdu, self.cfg.plan) {
+            (Pdu::Lumped(l), PlanKind::P2pLumped) => {
+                let (first, slots) = (usize::from(l.first_slot), &l.slots);
+                let c = &l.common;
+                self.echo_of(c.cycle, c.seq, l.master_time_ns, first, slots.len())
+                    .map(|j| {
+                        self.take_lumped_slots(now, j, first, slots.len(), |k| {
+                            slots.get(k).copied()
+                        })
+                    })
+            }
+            (Pdu::Response(r), PlanKind::P2pLumped) => self.take_response(now, r),
+            (Pdu::LumpedOnly(l), PlanKind::LumpedOnly) => self.take_lumped_only(now, l),
+            _ => Err(Reject::UnexpectedKind),
+        };
+        if let Err(r) = taken {
             self.counters.rejected.count(r);
         }
     }
@@ -1005,13 +1020,30 @@ impl Master {
                 _ => return Err(Reject::Malformed),
             }
         }
+        self.take_lumped_slots(now, j, first, count, |k| {
+            p.slot_bytes(k).and_then(|b| FeedbackSlot::parse(b).ok())
+        });
+        Ok(())
+    }
+
+    /// Lumped frame `j` of this cycle back (checked against what was sent, every slot
+    /// decoded: `slot(k)` for k < `count`, slave `first + k + 1`'s): the feedback of every
+    /// slave that wrote its slot.
+    fn take_lumped_slots(
+        &mut self,
+        now: Instant,
+        j: usize,
+        first: usize,
+        count: usize,
+        slot: impl Fn(usize) -> Option<FeedbackSlot>,
+    ) {
         self.sent_lumped[j].back = true;
         self.lumped_back += 1;
         self.last_back = Some(self.k);
         let newest = self.newest_sample(now);
         for k in 0..count {
             let i = first + k;
-            let Some(Ok(slot)) = p.slot_bytes(k).map(FeedbackSlot::parse) else {
+            let Some(slot) = slot(k) else {
                 continue;
             };
             if i >= self.latest.len() {
@@ -1019,7 +1051,6 @@ impl Master {
             }
             self.take_sample(i, slot, newest);
         }
-        Ok(())
     }
 
     /// One written feedback slot of slave i + 1 in an accepted lumped frame.
@@ -1158,14 +1189,38 @@ impl Master {
     /// Hands back the buffer of a frame the driver is done with (sent, or received and
     /// handled), for the master's next sends. Optional: without it the master allocates.
     pub fn recycle(&mut self, buf: Vec<u8>) {
-        self.spares.give(buf);
+        self.out.recycle(buf);
+    }
+
+    /// Hands back a decoded frame the driver is done with (a lumped frame back from its
+    /// round, or lost): its slots serve the next lumped frame. Optional, as
+    /// [`Master::recycle`].
+    pub fn recycle_pdu(&mut self, pdu: Pdu) {
+        self.keep_slots(pdu);
+    }
+
+    fn keep_slots(&mut self, pdu: Pdu) {
+        if let Pdu::Lumped(l) = pdu
+            && l.slots.capacity() > self.empty_slots.capacity()
+        {
+            self.empty_slots = l.slots;
+        }
     }
 
     /// The next frame to send, with its send instant; `None` when there is none (call after
     /// each `handle_*` until `None`).
     #[must_use]
     pub fn poll_transmit(&mut self) -> Option<Transmit> {
-        self.out.pop_front()
+        let (tx, pdu) = self.out.pop_bytes()?;
+        self.keep_slots(pdu);
+        Some(tx)
+    }
+
+    /// The next frame to send, decoded (in place of [`Master::poll_transmit`], for a driver
+    /// that carries frames without their bytes).
+    #[must_use]
+    pub fn poll_pdu(&mut self) -> Option<TransmitPdu> {
+        self.out.pop_pdu()
     }
 
     /// The next event for the driver; `None` when there is none (call after draining

@@ -26,6 +26,10 @@ pub use slave::{
     TorqueOffCause,
 };
 
+use std::collections::VecDeque;
+
+use ringsync_wire::Pdu;
+
 use crate::time::Instant;
 
 /// Spare frame buffers a node reuses for its next sends, so that a steady ring allocates
@@ -61,6 +65,84 @@ pub struct Transmit {
     pub at: Instant,
     /// The PDU.
     pub bytes: Vec<u8>,
+}
+
+/// A frame to send, decoded: what [`Master::poll_pdu`] and [`Slave::poll_pdu`] return to a
+/// driver that carries frames between nodes without their bytes (the simulator). A node
+/// queues only frames that emit ([`Pdu::validate`]), so these are exactly the frames
+/// `poll_transmit` would have given as bytes.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TransmitPdu {
+    /// When the first bit leaves [local ns].
+    pub at: Instant,
+    /// The PDU.
+    pub pdu: Pdu,
+}
+
+/// A frame as a driver carries it from node to node: its bytes (the runtime; the
+/// simulator's captures and corrupted frames), or decoded (the simulator's typed frames,
+/// whose bytes and CRC nobody reads). A node takes either: `handle_frame` checks the
+/// bytes (length, CRC, layout) and then applies the same checks against its state as
+/// `handle_pdu` does to a decoded frame.
+#[derive(Debug, Clone, PartialEq)]
+pub enum WireFrame {
+    /// The PDU's bytes, header to CRC.
+    Bytes(Vec<u8>),
+    /// The PDU, decoded.
+    Pdu(Pdu),
+}
+
+impl WireFrame {
+    /// The frame's bytes: `Bytes` as they are, a decoded PDU emitted (empty if it cannot
+    /// be; a node never queues one that cannot).
+    pub fn into_bytes(self) -> Vec<u8> {
+        match self {
+            WireFrame::Bytes(b) => b,
+            WireFrame::Pdu(p) => {
+                let mut b = Vec::new();
+                let _ = p.emit_into(&mut b);
+                b
+            }
+        }
+    }
+}
+
+/// The frames a node has queued, decoded and checked emittable; bytes are built when the
+/// driver polls for bytes.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct Outbox {
+    queue: VecDeque<TransmitPdu>,
+    spares: Spares,
+}
+
+impl Outbox {
+    /// Queues `pdu` to leave at `at`; false (and nothing queued) if it cannot be emitted.
+    pub(crate) fn push(&mut self, at: Instant, pdu: Pdu) -> bool {
+        if pdu.validate().is_err() {
+            return false;
+        }
+        self.queue.push_back(TransmitPdu { at, pdu });
+        true
+    }
+
+    /// The next frame, decoded.
+    pub(crate) fn pop_pdu(&mut self) -> Option<TransmitPdu> {
+        self.queue.pop_front()
+    }
+
+    /// The next frame as bytes (in a spare buffer), with the PDU it was built from.
+    pub(crate) fn pop_bytes(&mut self) -> Option<(Transmit, Pdu)> {
+        let TransmitPdu { at, pdu } = self.queue.pop_front()?;
+        let mut bytes = self.spares.take(pdu.buffer_len());
+        // Checked when queued: emit cannot fail here.
+        let _ = pdu.emit(&mut bytes);
+        Some((Transmit { at, bytes }, pdu))
+    }
+
+    /// Keeps a buffer for a later send.
+    pub(crate) fn recycle(&mut self, b: Vec<u8>) {
+        self.spares.give(b);
+    }
 }
 
 #[cfg(test)]

@@ -49,13 +49,13 @@
 use std::collections::VecDeque;
 
 use ringsync_wire::{
-    CommandRepr, Common, FeedbackSlot, Flags, Frame, FrameKind, LumpedOnlySlot, LumpedPayload,
+    CommandRepr, Common, FeedbackSlot, Flags, Frame, FrameKind, LumpedOnlySlot, LumpedPayload, Pdu,
     ResponseRepr, SlotCodec, Status,
 };
 
-use super::Transmit;
 use super::clock::SyncClock;
 use super::reject::{Reject, Rejections, unwrap_cycle};
+use super::{Outbox, Transmit, TransmitPdu};
 use crate::time::{Duration, Instant};
 
 /// Consecutive samples with at most one count of motion over the velocity window after
@@ -352,13 +352,12 @@ pub struct Slave {
     acquired: bool,
     candidate: Option<Candidate>,
     seq: u16,
-    out: VecDeque<Transmit>,
+    out: Outbox,
     events: VecDeque<SlaveEvent>,
     counters: SlaveCounters,
     law: Option<Box<dyn SlaveLaw>>,
     /// Scratch for the frame's slots handed to the law.
     law_slots: Vec<Option<FeedbackSlot>>,
-    spares: super::Spares,
 }
 
 impl std::fmt::Debug for Slave {
@@ -401,10 +400,9 @@ impl Slave {
             acquired: false,
             candidate: None,
             seq: 0,
-            out: VecDeque::new(),
+            out: Outbox::default(),
             events: VecDeque::new(),
             counters: SlaveCounters::default(),
-            spares: super::Spares::default(),
             law: None,
             law_slots: Vec::new(),
         }
@@ -471,7 +469,7 @@ impl Slave {
     /// Hands back the buffer of a frame the driver is done with (sent, consumed or
     /// dropped), for the slave's next sends. Optional: without it the slave allocates.
     pub fn recycle(&mut self, buf: Vec<u8>) {
-        self.spares.give(buf);
+        self.out.recycle(buf);
     }
 
     /// Local time of the next encoder latch; call [`Slave::handle_sample`] then.
@@ -655,6 +653,73 @@ impl Slave {
                 FrameOutcome::Forward
             }
             FrameKind::Response => FrameOutcome::Forward,
+        }
+    }
+
+    /// A decoded frame whose first bit arrived at local `rx_start` and last bit at `rx_end`
+    /// (a driver that carries frames without their bytes): the checks of
+    /// [`Slave::handle_frame`] after the decoding, with the same effect; a lumped frame
+    /// gets this slave's slot written in place, to be forwarded on
+    /// [`FrameOutcome::Forward`].
+    pub fn handle_pdu(
+        &mut self,
+        rx_start: Instant,
+        rx_end: Instant,
+        pdu: &mut Pdu,
+    ) -> FrameOutcome {
+        match pdu {
+            Pdu::Lumped(l) if self.law.is_none() => {
+                let k = usize::from(self.cfg.address)
+                    .checked_sub(usize::from(l.first_slot) + 1)
+                    .filter(|&k| k < l.slots.len());
+                let Some(k) = k else {
+                    return FrameOutcome::Forward;
+                };
+                if let Err(r) = self.take_sync(rx_start, l.common.cycle, l.master_time_ns) {
+                    self.reject(r);
+                    return FrameOutcome::Forward;
+                }
+                l.slots[k] = self.sample;
+                FrameOutcome::Forward
+            }
+            Pdu::Command(_) if self.law.is_some() => {
+                self.reject(Reject::UnexpectedKind);
+                FrameOutcome::Dropped
+            }
+            Pdu::Command(cmd) => {
+                if cmd.target != self.cfg.address {
+                    return FrameOutcome::Forward;
+                }
+                match self.check_command(cmd, rx_end) {
+                    Ok(action) => {
+                        self.take_command(cmd, rx_end, action);
+                        FrameOutcome::Consumed
+                    }
+                    Err(r) => {
+                        self.reject(r);
+                        FrameOutcome::Dropped
+                    }
+                }
+            }
+            // The lumped-only plan's slaves read and write the frame in place: through
+            // its bytes.
+            Pdu::LumpedOnly(_) if self.law.is_some() => {
+                let mut bytes = Vec::new();
+                if pdu.emit_into(&mut bytes).is_err() {
+                    self.reject(Reject::Malformed);
+                    return FrameOutcome::Dropped;
+                }
+                let outcome = self.handle_frame(rx_start, rx_end, &mut bytes);
+                if let Ok(p) = Pdu::parse(&bytes) {
+                    *pdu = p;
+                }
+                outcome
+            }
+            Pdu::Lumped(_) | Pdu::LumpedOnly(_) => {
+                self.reject(Reject::UnexpectedKind);
+                FrameOutcome::Forward
+            }
+            Pdu::Response(_) => FrameOutcome::Forward,
         }
     }
 
@@ -969,20 +1034,22 @@ impl Slave {
             sample_time_ns: self.sample.sample_time_ns,
             applied_v: self.u as f32,
         };
-        let mut buf = self.spares.take(resp.buffer_len());
-        if resp.emit(&mut buf).is_ok() {
-            self.out.push_back(Transmit {
-                at: rx_end + self.cfg.response_delay,
-                bytes: buf,
-            });
-        }
+        self.out
+            .push(rx_end + self.cfg.response_delay, Pdu::Response(resp));
     }
 
     /// The next frame this slave originates (a response), with its send instant; `None`
     /// when there is none (call after each `handle_*` until `None`).
     #[must_use]
     pub fn poll_transmit(&mut self) -> Option<Transmit> {
-        self.out.pop_front()
+        self.out.pop_bytes().map(|(tx, _)| tx)
+    }
+
+    /// The next frame this slave originates, decoded (in place of
+    /// [`Slave::poll_transmit`], for a driver that carries frames without their bytes).
+    #[must_use]
+    pub fn poll_pdu(&mut self) -> Option<TransmitPdu> {
+        self.out.pop_pdu()
     }
 
     /// The next event for the driver; `None` when there is none (call after draining

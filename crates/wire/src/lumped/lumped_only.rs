@@ -59,13 +59,18 @@ impl SlotCodec for LumpedOnlySlot {
 
     fn emit(&self, b: &mut [u8]) -> Result<()> {
         room(b, Self::LEN)?;
-        let command_v = finite("slot command", self.command_v)?;
+        self.validate()?;
+        let command_v = self.command_v;
         self.feedback.emit(&mut b[field::FEEDBACK])?;
         let mut v = LumpedOnlySlotView::new_unchecked(b);
         v.set_desired_position(self.desired_position);
         v.set_desired_velocity(self.desired_velocity);
         v.set_command_v(command_v);
         Ok(())
+    }
+
+    fn validate(&self) -> Result<()> {
+        finite("slot command", self.command_v).map(drop)
     }
 }
 

@@ -61,6 +61,11 @@ pub trait SlotCodec: Sized + Copy {
     fn parse(b: &[u8]) -> Result<Self>;
     /// Encodes into the first `LEN` bytes of `b` (reserved bytes zeroed).
     fn emit(&self, b: &mut [u8]) -> Result<()>;
+    /// Whether [`SlotCodec::emit`] into a buffer of `LEN` bytes would succeed (the values
+    /// it refuses, such as a non-finite command); `emit` checks the same.
+    fn validate(&self) -> Result<()> {
+        Ok(())
+    }
 }
 
 /// `Err(BufferTooSmall)` unless `b` holds `len` bytes (a slot to be emitted).
@@ -134,8 +139,10 @@ impl<S: SlotCodec> LumpedRepr<S> {
         lumped_pdu_len(self.slots.len(), S::LEN)
     }
 
-    /// Writes the PDU into `buf`; returns the bytes written.
-    pub fn emit(&self, buf: &mut [u8]) -> Result<usize> {
+    /// Whether [`LumpedRepr::emit`] into a buffer of [`LumpedRepr::buffer_len`] bytes
+    /// would succeed: the slot count within the MTU's capacity, the slot addresses within
+    /// 65535, every slot emittable. Returns the slot count.
+    pub fn validate(&self) -> Result<u16> {
         let count = self.slots.len();
         let capacity = slot_capacity(S::LEN);
         if count > capacity {
@@ -149,6 +156,14 @@ impl<S: SlotCodec> LumpedRepr<S> {
                 count: count16,
             });
         }
+        self.slots.iter().try_for_each(S::validate)?;
+        Ok(count16)
+    }
+
+    /// Writes the PDU into `buf`; returns the bytes written.
+    pub fn emit(&self, buf: &mut [u8]) -> Result<usize> {
+        let count = self.slots.len();
+        let count16 = self.validate()?;
         let len = LUMPED_PREFIX_LEN + count * S::LEN;
         emit_common(buf, S::KIND, &self.common, len, |p| {
             put(p, field::MASTER_TIME, self.master_time_ns);
