@@ -192,7 +192,10 @@ pub(crate) fn rt(args: &RtArgs) -> Result<Outcome, CliError> {
     )?;
     #[cfg(not(feature = "scope"))]
     let observers = Vec::new();
-    let r = ringsync::run_rt(s, &opts, stop, observers)?;
+    // trace.csv and the capture are written as the run goes: its memory does not grow
+    // with its duration.
+    let r =
+        ringsync::rt::run_rt_streamed(&mut dir, s, &opts, stop, observers, args.pcap.as_deref())?;
     #[cfg(feature = "scope")]
     scope.finish(&r.scenario, loaded.hash, &r.run);
     // The simulator's prediction for the scenario as run (after the overrides).

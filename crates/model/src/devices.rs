@@ -103,6 +103,12 @@ impl Devices {
         })
     }
 
+    /// Streams the trace rows to `sink` as the run goes, instead of keeping them
+    /// ([`crate::record::Recorder::stream_trace`]).
+    pub fn stream_trace(&mut self, sink: Box<dyn crate::stream::TraceSink>) {
+        self.rec.stream_trace(sink);
+    }
+
     /// Whether the nodes' frames go to `send` decoded ([`WireFrame::Pdu`]: no bytes, no
     /// CRC) rather than as bytes. Default: bytes. A driver that carries decoded frames
     /// hands received ones to [`Devices::master_pdu`] and [`Devices::slave_pdu`].

@@ -7,7 +7,8 @@
 //!   run as it goes;
 //! - the master's [motion](motion) application (the control law, supervision, the group
 //!   stop) behind `ringsync-proto`'s `Motion` trait;
-//! - the [results](result) (the trace in columns), where a ring [broke](locate), the seeded
+//! - the [results](result) (the trace in columns) and the [sinks](stream) a real-time run
+//!   streams them to, where a ring [broke](locate), the seeded
 //!   [random streams](rng), the [oscillators](oscillator) and the stability [check].
 //!
 //! The reference scenario is `paper-2015` (docs/system.md, "The reference scenario").
@@ -25,6 +26,7 @@ pub mod result;
 pub mod rng;
 pub mod scenario;
 pub mod spec;
+pub mod stream;
 
 pub use devices::Devices;
 pub use observer::Observer;

@@ -13,6 +13,7 @@ use ringsync_proto::node::{
 use crate::locate::RingBreak;
 use crate::observer::Observer;
 use crate::result::{Captured, LinkCounters, PassageLog, RunResult, Trace};
+use crate::stream::TraceSink;
 
 /// One axis at a cycle start, as the driver observes it.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -135,6 +136,8 @@ pub struct Recorder {
     faults: Vec<FaultEvent>,
     ring_break: Option<RingBreak>,
     monitor: Vec<crate::monitor::MonitorEvent>,
+    /// Where complete rows go instead of the trace ([`Recorder::stream_trace`]).
+    sink: Option<Box<dyn TraceSink>>,
 }
 
 impl Recorder {
@@ -178,7 +181,28 @@ impl Recorder {
             faults: Vec::new(),
             ring_break: None,
             monitor: Vec::new(),
+            sink: None,
         }
+    }
+
+    /// Streams the trace to `sink` instead of keeping it (whether or not the recorder was
+    /// made to keep it): each cycle's rows go there once complete, and the recorder holds
+    /// one cycle's rows at most. The result's trace is then empty. (Make the recorder
+    /// without the trace, so that it never reserves room for the whole run.)
+    pub fn stream_trace(&mut self, sink: Box<dyn TraceSink>) {
+        self.trace_on = true;
+        self.trace = Trace::with_capacity(self.n, 1);
+        self.sink = Some(sink);
+    }
+
+    /// Whether the trace goes to a sink.
+    pub fn streams_trace(&self) -> bool {
+        self.sink.is_some()
+    }
+
+    /// Rows the trace sink dropped (0 without one).
+    pub fn trace_rows_dropped(&self) -> u64 {
+        self.sink.as_ref().map_or(0, |s| s.dropped())
     }
 
     /// Gives the waiting rows the apply times seen since.
@@ -186,6 +210,12 @@ impl Recorder {
         if let Some(from) = self.pending.take() {
             for (r, a) in self.trace.apply_time[from..].iter_mut().enumerate() {
                 *a = self.apply_time[r % self.n.max(1)];
+            }
+            if let Some(sink) = &mut self.sink {
+                for row in self.trace.rows() {
+                    sink.row(row);
+                }
+                self.trace.clear();
             }
         }
     }
@@ -300,5 +330,86 @@ impl Observer for Recorder {
 
     fn monitor(&mut self, ev: &crate::monitor::MonitorEvent) {
         self.monitor.push(*ev);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::result::TraceRow;
+    use crate::stream::Kept;
+
+    /// Drives a recorder through `cycles` cycles of 3 axes (probes, law runs, applied
+    /// commands, one never applied), calling `each` after every cycle.
+    fn drive(rec: &mut Recorder, cycles: i64, mut each: impl FnMut(&Recorder)) {
+        let n = 3;
+        let mut record = CycleRecord::new(n);
+        for k in 0..cycles {
+            let t = k as f64 * 1e-3;
+            let probes: Vec<AxisProbe> = (0..n)
+                .map(|i| AxisProbe {
+                    x: 0.01 * (k as f64) + i as f64,
+                    x_d: 0.011 * (k as f64) + i as f64,
+                    clock_error_ns: (k % 7) as f64 - 3.0,
+                    u: 0.1 * i as f64,
+                    saturated: false,
+                })
+                .collect();
+            rec.cycle(k, t, &probes);
+            record.k = k;
+            for i in 0..n {
+                record.u[i] = 0.5 - 0.1 * (k as f64) * i as f64;
+                record.sample_time[i] = t - 1e-4;
+            }
+            rec.computed(k, &record);
+            // Axis 3's command of every fifth cycle never arrives.
+            for i in 0..n {
+                if !(i == 2 && k % 5 == 0) {
+                    rec.applied(i, t + 1e-4 * (i + 1) as f64, record.u[i]);
+                }
+            }
+            each(rec);
+        }
+    }
+
+    /// A streaming recorder hands on exactly the rows a keeping one keeps, apply times
+    /// included (NaN where a command never arrived), and holds no more than one cycle's
+    /// rows at any time: its memory does not grow with the run.
+    #[test]
+    fn a_streamed_trace_has_the_kept_rows_in_bounded_memory() {
+        let cycles = 200;
+        let mut kept = Recorder::new(3, cycles, 1e-3, true);
+        drive(&mut kept, cycles, |_| {});
+        let kept = kept.finish(
+            "t",
+            MasterCounters::default(),
+            Vec::new(),
+            LinkCounters::default(),
+            Vec::new(),
+            Vec::new(),
+        );
+        let sink = Kept::<TraceRow>::default();
+        let rows = sink.0.clone();
+        let mut streamed = Recorder::new(3, cycles, 1e-3, false);
+        streamed.stream_trace(Box::new(sink));
+        let mut most = 0;
+        drive(&mut streamed, cycles, |r| most = most.max(r.trace.len()));
+        let streamed = streamed.finish(
+            "t",
+            MasterCounters::default(),
+            Vec::new(),
+            LinkCounters::default(),
+            Vec::new(),
+            Vec::new(),
+        );
+        assert_eq!(most, 3, "one cycle's rows at most");
+        assert!(streamed.trace.is_empty());
+        let got = rows.lock().expect("rows").clone();
+        let want: Vec<TraceRow> = kept.trace.rows().collect();
+        assert_eq!(got.len(), 3 * cycles as usize);
+        // (NaN apply times: compare the text.)
+        assert_eq!(format!("{got:?}"), format!("{want:?}"));
+        assert!(got.iter().any(|r| r.apply_time.is_nan()));
+        assert_eq!(streamed.summary.sync_rmse, kept.summary.sync_rmse);
     }
 }

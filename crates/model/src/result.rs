@@ -150,6 +150,22 @@ impl Trace {
         );
     }
 
+    /// Removes every row (the room stays).
+    pub fn clear(&mut self) {
+        for c in [
+            &mut self.t,
+            &mut self.x_d,
+            &mut self.x,
+            &mut self.eps,
+            &mut self.u,
+            &mut self.sample_time,
+            &mut self.apply_time,
+            &mut self.clock_error_ns,
+        ] {
+            c.clear();
+        }
+    }
+
     /// Number of rows (groups × axes).
     pub fn len(&self) -> usize {
         self.x.len()

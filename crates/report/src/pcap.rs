@@ -27,6 +27,16 @@ pub fn mac(i: usize) -> [u8; 6] {
 
 /// A pcapng file of `frames` on a ring of `n` slaves.
 pub fn pcapng(frames: &[Captured], n: usize) -> Vec<u8> {
+    let mut out = pcapng_header(n);
+    for f in frames {
+        push_pcapng_frame(&mut out, f, n);
+    }
+    out
+}
+
+/// The start of a pcapng file on a ring of `n` slaves: the section header and one interface
+/// per node; the frames follow ([`push_pcapng_frame`]), for a writer that streams them.
+pub fn pcapng_header(n: usize) -> Vec<u8> {
     let mut out = Vec::new();
     // Section header: byte-order magic, version 1.0, section length unknown.
     let mut shb = Vec::new();
@@ -52,24 +62,27 @@ pub fn pcapng(frames: &[Captured], n: usize) -> Vec<u8> {
         idb.extend_from_slice(&[0, 0, 0, 0]);
         block(&mut out, 1, &idb);
     }
-    for f in frames {
-        let mut eth = Vec::with_capacity(14 + f.bytes.len());
-        eth.extend_from_slice(&mac((f.node + 1) % (n + 1)));
-        eth.extend_from_slice(&mac(f.node));
-        eth.extend_from_slice(&ringsync_wire::ETHERTYPE.to_be_bytes());
-        eth.extend_from_slice(&f.bytes);
-        eth.resize(eth.len().max(60), 0);
-        let ts = f.t.max(0) as u64;
-        let mut epb = Vec::with_capacity(20 + eth.len());
-        epb.extend_from_slice(&(f.node as u32).to_le_bytes());
-        epb.extend_from_slice(&((ts >> 32) as u32).to_le_bytes());
-        epb.extend_from_slice(&(ts as u32).to_le_bytes());
-        epb.extend_from_slice(&(eth.len() as u32).to_le_bytes());
-        epb.extend_from_slice(&(eth.len() as u32).to_le_bytes());
-        epb.extend_from_slice(&eth);
-        block(&mut out, 6, &epb);
-    }
     out
+}
+
+/// Appends frame `f` (of a ring of `n` slaves) to a pcapng file's bytes: one enhanced packet
+/// block on its sender's interface.
+pub fn push_pcapng_frame(out: &mut Vec<u8>, f: &Captured, n: usize) {
+    let mut eth = Vec::with_capacity(14 + f.bytes.len());
+    eth.extend_from_slice(&mac((f.node + 1) % (n + 1)));
+    eth.extend_from_slice(&mac(f.node));
+    eth.extend_from_slice(&ringsync_wire::ETHERTYPE.to_be_bytes());
+    eth.extend_from_slice(&f.bytes);
+    eth.resize(eth.len().max(60), 0);
+    let ts = f.t.max(0) as u64;
+    let mut epb = Vec::with_capacity(20 + eth.len());
+    epb.extend_from_slice(&(f.node as u32).to_le_bytes());
+    epb.extend_from_slice(&((ts >> 32) as u32).to_le_bytes());
+    epb.extend_from_slice(&(ts as u32).to_le_bytes());
+    epb.extend_from_slice(&(eth.len() as u32).to_le_bytes());
+    epb.extend_from_slice(&(eth.len() as u32).to_le_bytes());
+    epb.extend_from_slice(&eth);
+    block(out, 6, &epb);
 }
 
 #[cfg(test)]

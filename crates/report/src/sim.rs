@@ -267,27 +267,31 @@ pub const TRACE_CSV_HEADER: &str =
 /// held whole as text), with the bytes of [`trace_csv`]: times and positions to 9 decimals
 /// (t and u to 6), the clock error to whole ns ([`crate::fixed`]).
 pub fn write_trace_csv(r: &RunResult, w: &mut impl std::io::Write) -> std::io::Result<()> {
-    use crate::fixed::{push_fixed, push_u64};
     w.write_all(TRACE_CSV_HEADER.as_bytes())?;
-    crate::fixed::write_lines(w, r.trace.rows(), |o, row| {
-        push_fixed(o, row.t, 6);
+    crate::fixed::write_lines(w, r.trace.rows(), |o, row| push_trace_row(o, &row))
+}
+
+/// Appends one line of trace.csv (with its newline) to `o`: the bytes [`write_trace_csv`]
+/// writes for `row`, for a writer that streams the rows as a run makes them.
+pub fn push_trace_row(o: &mut Vec<u8>, row: &ringsync_model::result::TraceRow) {
+    use crate::fixed::{push_fixed, push_u64};
+    push_fixed(o, row.t, 6);
+    o.push(b',');
+    push_u64(o, row.axis as u64);
+    for (v, d) in [
+        (row.x_d, 9),
+        (row.x, 9),
+        (row.e, 9),
+        (row.eps, 9),
+        (row.u, 6),
+        (row.sample_time, 9),
+        (row.apply_time, 9),
+        (row.clock_error_ns, 0),
+    ] {
         o.push(b',');
-        push_u64(o, row.axis as u64);
-        for (v, d) in [
-            (row.x_d, 9),
-            (row.x, 9),
-            (row.e, 9),
-            (row.eps, 9),
-            (row.u, 6),
-            (row.sample_time, 9),
-            (row.apply_time, 9),
-            (row.clock_error_ns, 0),
-        ] {
-            o.push(b',');
-            push_fixed(o, v, d);
-        }
-        o.push(b'\n');
-    })
+        push_fixed(o, v, d);
+    }
+    o.push(b'\n');
 }
 
 /// `s` escaped for HTML text.

@@ -44,6 +44,7 @@ mod plan;
 pub mod reproduce;
 pub mod rt;
 mod simulate;
+pub mod stream;
 pub mod sweep;
 
 pub use check::{CheckReport, Verdict, check};

@@ -170,6 +170,26 @@ impl OutDir {
     /// Writes `bytes` to the file `path` given by an option (e.g. `--pcap`): inside the
     /// results directory with the rest, elsewhere beside its place until [`OutDir::commit`].
     pub fn write_file(&mut self, path: &Path, bytes: impl AsRef<[u8]>) -> Result<()> {
+        let tmp = self.stream_file(path)?;
+        std::fs::write(&tmp, bytes)
+            .map_err(|e| failure(e, format!("cannot write {}", path.display())))
+    }
+
+    /// Where to write the file `name` of the results while a run goes (a writer that
+    /// streams it): inside the temporary directory, its parents created.
+    pub fn stream_path(&self, name: &str) -> Result<PathBuf> {
+        let p = self.tmp.join(name);
+        if let Some(dir) = p.parent() {
+            std::fs::create_dir_all(dir)
+                .map_err(|e| failure(e, format!("cannot create {}", dir.display())))?;
+        }
+        Ok(p)
+    }
+
+    /// Where to write the file `path` given by an option (e.g. `--pcap`) while a run goes:
+    /// inside the results directory with the rest, elsewhere a temporary file beside its
+    /// place, renamed into place by [`OutDir::commit`].
+    pub fn stream_file(&mut self, path: &Path) -> Result<PathBuf> {
         let full = resolved(path)?;
         if full == self.path {
             return Err(Error::Input(format!(
@@ -180,13 +200,13 @@ impl OutDir {
         if let Ok(inside) = full.strip_prefix(&self.path)
             && !inside.as_os_str().is_empty()
         {
-            return self.write(&inside.to_string_lossy(), bytes);
+            return self.stream_path(&inside.to_string_lossy());
         }
         let tmp = sibling(path, "tmp", std::process::id());
-        std::fs::write(&tmp, bytes)
-            .map_err(|e| failure(e, format!("cannot write {}", path.display())))?;
-        self.beside.push((tmp, path.to_path_buf()));
-        Ok(())
+        if !self.beside.iter().any(|(t, _)| *t == tmp) {
+            self.beside.push((tmp.clone(), path.to_path_buf()));
+        }
+        Ok(tmp)
     }
 
     /// Refuses an input file (the scenario) inside the results directory, which the run

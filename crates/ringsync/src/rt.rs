@@ -55,9 +55,33 @@ pub fn predict(s: &Scenario, seeds: u64) -> Result<SimPrediction> {
     Ok(ringsync_sim::predict(s, seeds)?)
 }
 
+/// Runs `s` in real time as [`run_rt`] does, writing `trace.csv` into `dir` and the frames
+/// sent as pcapng to `pcap` (when given) while it runs ([`crate::stream`]): the run's memory
+/// does not grow with its duration. The result's trace and captured frames are empty
+/// ([`RtResult::streamed`] says what went to the files, and what they could not take);
+/// [`write_rt`] then writes the rest.
+pub fn run_rt_streamed(
+    dir: &mut OutDir,
+    s: &Scenario,
+    opts: &RtOptions,
+    stop: &AtomicBool,
+    observers: Vec<Box<dyn Observer>>,
+    pcap: Option<&Path>,
+) -> Result<RtResult> {
+    let pcap = pcap.filter(|_| opts.capture);
+    let (streams, sinks) = crate::stream::open(dir, s.axes_count(), opts.trace, pcap)?;
+    let run = ringsync_rt::run_streamed(s, opts, stop, observers, sinks);
+    // The run is over and its sinks are gone: the writers end.
+    let written = streams.finish();
+    let r = run?;
+    written?;
+    Ok(r)
+}
+
 /// Writes a real-time run into `dir`: `summary.json` (the simulator's fields, the timing,
 /// the calibration, the prediction when given), `trace.csv`, and the frames sent as pcapng
-/// to `pcap` when given. `hash` is the scenario text's hash, `transport` its name.
+/// to `pcap` when given; a trace or capture that went to its file as the run went
+/// ([`run_rt_streamed`]) is not written again. `hash` is the scenario text's hash.
 pub fn write_rt(
     dir: &mut OutDir,
     r: &RtResult,
@@ -70,8 +94,12 @@ pub fn write_rt(
         "summary.json",
         format!("{}\n", serde_json::to_string_pretty(&summary)?),
     )?;
-    dir.write_with("trace.csv", |w| write_trace_csv(&r.run, w))?;
-    if let Some(p) = pcap {
+    if !r.streamed.trace {
+        dir.write_with("trace.csv", |w| write_trace_csv(&r.run, w))?;
+    }
+    if let Some(p) = pcap
+        && !r.streamed.capture
+    {
         dir.write_file(
             p,
             ringsync_report::pcap::pcapng(&r.run.captured, r.scenario.axes_count()),
@@ -175,6 +203,12 @@ pub fn rt_summary(
             "max_applied_v": r.run.command_max.1,
         },
         "interrupted": r.interrupted,
+        "streamed": {
+            "trace": r.streamed.trace,
+            "capture": r.streamed.capture,
+            "trace_rows_dropped": r.streamed.trace_rows_dropped,
+            "frames_dropped": r.streamed.frames_dropped,
+        },
         "runtime_assumptions": ASSUMPTIONS,
     });
     if let (Value::Object(m), Value::Object(e)) = (&mut v, extra) {
@@ -240,6 +274,13 @@ pub fn rt_text(r: &RtResult, prediction: Option<SimPrediction>) -> String {
         "\n  rejected by the nodes: {}",
         ringsync_rt::run::rejected_summary(&r.run)
     );
+    let st = &r.streamed;
+    if st.trace_rows_dropped + st.frames_dropped > 0 {
+        text += &format!(
+            "\n  WARNING: the files written during the run could not keep up: {} trace rows and {} captured frames are missing from them",
+            st.trace_rows_dropped, st.frames_dropped
+        );
+    }
     if let Some((t_stop, reason)) = r.run.group_stop {
         text += &format!(
             "\n  GROUP STOP at {t_stop:.3} s{}: {} on axis {}; failed: {}",

@@ -24,7 +24,9 @@ pub mod transport;
 
 pub use inject::{Flap, Forgery};
 pub use realtime::{Applied, CpuClaim, Pin, Realtime};
-pub use run::{Kill, RtError, RtOptions, RtResult, run, run_observed};
+pub use run::{
+    Kill, RtError, RtOptions, RtResult, Sinks, Streamed, run, run_observed, run_streamed,
+};
 pub use timing::Timing;
 pub use transport::TransportKind;
 

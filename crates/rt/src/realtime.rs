@@ -113,8 +113,9 @@ impl Realtime {
 /// How much a run's memory may grow after its settings are applied [bytes]: a finite
 /// `RLIMIT_MEMLOCK` must leave this much beyond what is mapped then, or memory is not
 /// locked. With `MCL_FUTURE`, an allocation past the limit fails and aborts the process;
-/// a run's recorder grows about 0.8 MB per second of run at 1 ms with 4 axes (measured:
-/// docs/runtime.md), so 1 GiB is some 20 minutes of it.
+/// a run that keeps its trace in memory grows about 0.23 MB per second of run at 1 ms with
+/// 4 axes (70 minutes of 1 GiB), about 7 MB with the capture kept too (2.5 minutes); a
+/// streamed run does not grow (docs/runtime.md).
 pub const MEMORY_HEADROOM: u64 = 1 << 30;
 
 /// Whether memory may be locked: `Ok` when the process is privileged (`CAP_IPC_LOCK`), the

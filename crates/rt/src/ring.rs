@@ -17,13 +17,14 @@ use ringsync_model::Spec;
 use ringsync_model::devices::Devices;
 use ringsync_model::observer::Observer;
 use ringsync_model::result::{Captured, LinkCounters, RunResult};
+use ringsync_model::stream::CaptureSink;
 use ringsync_proto::Duration;
 use ringsync_proto::node::{ClockFilter, FrameOutcome, WireFrame};
 use ringsync_wire::Frame;
 
 use crate::clock::Clock;
 use crate::netns::VethRing;
-use crate::run::{Kill, RtError, RtOptions, io_err, rejected_line};
+use crate::run::{Kill, RtError, RtOptions, Sinks, io_err, rejected_line};
 use crate::sys;
 use crate::timing::{Timing, TimingLog};
 use crate::transport::{MAX_PDU, Port};
@@ -74,6 +75,8 @@ pub(crate) struct Finished {
     pub nodes_rx: Vec<(u64, Option<f64>)>,
     /// Cycles from the removal of a slave to the group stop.
     pub detection_cycles: Option<i64>,
+    /// Trace rows and captured frames the sinks dropped.
+    pub dropped: (u64, u64),
 }
 
 /// Frames the nodes send, waiting for the loop: the devices' `send` closure borrows this
@@ -121,6 +124,8 @@ pub(crate) struct Ring {
     /// CLOCK_MONOTONIC at true time 0, for the injectors' threads [ns].
     pub t0_shared: Arc<AtomicI64>,
     captured: Option<Vec<Captured>>,
+    /// Where captured frames go instead of `captured` ([`Ring::stream`]).
+    capture_sink: Option<Box<dyn CaptureSink>>,
     clock: Clock,
     /// End of the run [ns, true time].
     end: i64,
@@ -157,13 +162,22 @@ impl Ring {
         cycles: i64,
         mode: Mode,
         observers: Vec<Box<dyn Observer>>,
+        sinks: Sinks,
     ) -> Result<Ring, RtError> {
         let n = spec.axes();
         let (trace, capture) = match mode {
             Mode::WarmUp => (false, false),
             Mode::Run { trace, capture } => (trace, capture),
         };
-        let mut dev = Devices::new(spec, cycles, trace)?;
+        // A trace or capture that goes to a sink is never reserved for the whole run
+        // (under `mlockall` a reservation is resident at once, and would grow with the
+        // run's duration).
+        let trace_sink = sinks.trace.filter(|_| trace);
+        let capture_sink = sinks.capture.filter(|_| capture);
+        let mut dev = Devices::new(spec, cycles, trace && trace_sink.is_none())?;
+        if let Some(t) = trace_sink {
+            dev.stream_trace(t);
+        }
         for sl in &mut dev.slaves {
             sl.clock_mut().set_filter(RT_CLOCK_FILTER);
         }
@@ -185,9 +199,10 @@ impl Ring {
             t0_shared: Arc::new(AtomicI64::new(0)),
             // Every send: the lumped frame's n + 1 hops and each slice's n + 1 (command and
             // response), so that capturing never reallocates mid-run.
-            captured: capture.then(|| {
+            captured: (capture && capture_sink.is_none()).then(|| {
                 Vec::with_capacity(usize::try_from(cycles.max(0)).unwrap_or(0) * (n + 1) * (n + 2))
             }),
+            capture_sink,
             clock: Clock::start_in(0),
             t_cyc: spec.scenario.ring.cycle.0.as_ns(),
             end: cycles * spec.scenario.ring.cycle.0.as_ns(),
@@ -207,13 +222,24 @@ impl Ring {
             .collect()
     }
 
+    /// Whether the trace and the capture go to sinks (trace, capture).
+    pub fn streaming(&self) -> (bool, bool) {
+        (
+            self.dev.recorder().streams_trace(),
+            self.capture_sink.is_some(),
+        )
+    }
+
     fn send(&mut self, node: usize, t: i64, bytes: &[u8]) {
+        let frame = || Captured {
+            t,
+            node,
+            bytes: bytes.to_vec(),
+        };
         if let Some(c) = &mut self.captured {
-            c.push(Captured {
-                t,
-                node,
-                bytes: bytes.to_vec(),
-            });
+            c.push(frame());
+        } else if let Some(c) = &mut self.capture_sink {
+            c.frame(frame());
         }
         if let Some((link, from, to)) = self.flap
             && link == node
@@ -534,10 +560,15 @@ impl Ring {
             last_rx,
             rx_frames,
             captured,
+            capture_sink,
             kill_cycle,
             stop_cycle,
             ..
         } = self;
+        let dropped = (
+            dev.recorder().trace_rows_dropped(),
+            capture_sink.as_ref().map_or(0, |c| c.dropped()),
+        );
         let timing = log.finish(&dev.master.counters());
         let mut run = dev.finish(
             scenario,
@@ -552,6 +583,7 @@ impl Ring {
                 timing,
                 nodes_rx: rx_frames.into_iter().zip(last_rx).collect(),
                 detection_cycles: kill_cycle.zip(stop_cycle).map(|(k, s)| s - k),
+                dropped,
             },
             ports,
         )

@@ -14,6 +14,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::thread::JoinHandle;
 
 use ringsync_model::result::RunResult;
+use ringsync_model::stream::{CaptureSink, TraceSink};
 use ringsync_model::{Observer, Scenario};
 use ringsync_proto::node::Reject;
 use ringsync_proto::{Duration, PlanKind};
@@ -140,6 +141,21 @@ pub struct RtResult {
     pub killed: Option<(usize, f64)>,
     /// Cycles the master started from the slave's removal to the group stop.
     pub detection_cycles: Option<i64>,
+    /// What went to streaming sinks ([`Sinks`]) instead of this result.
+    pub streamed: Streamed,
+}
+
+/// What a run streamed to its [`Sinks`] instead of keeping it in its result.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Streamed {
+    /// The trace rows went to a sink (the result's trace is empty).
+    pub trace: bool,
+    /// The captured frames went to a sink (the result's are empty).
+    pub capture: bool,
+    /// Trace rows the sink could not take.
+    pub trace_rows_dropped: u64,
+    /// Captured frames the sink could not take.
+    pub frames_dropped: u64,
 }
 
 /// Frames injected onto the ring.
@@ -207,6 +223,17 @@ pub fn as_run(scenario: &Scenario, opts: &RtOptions) -> Scenario {
     s
 }
 
+/// Where a run streams its trace rows and the frames it captures instead of keeping them in
+/// its result (each used only when the run keeps the trace, or captures): then a run takes
+/// the same memory whatever its duration.
+#[derive(Debug, Default)]
+pub struct Sinks {
+    /// The trace rows, each cycle's once complete.
+    pub trace: Option<Box<dyn TraceSink>>,
+    /// The frames sent, as they are sent.
+    pub capture: Option<Box<dyn CaptureSink>>,
+}
+
 /// [`run`], with `observers` told every cycle, law run, applied command and fault step as
 /// the run goes. They are called from the real-time loop: each call must be short (copy
 /// into a preallocated buffer or a channel; never block or print).
@@ -215,6 +242,19 @@ pub fn run_observed(
     opts: &RtOptions,
     stop: &AtomicBool,
     observers: Vec<Box<dyn Observer>>,
+) -> Result<RtResult, RtError> {
+    run_streamed(scenario, opts, stop, observers, Sinks::default())
+}
+
+/// [`run_observed`], streaming the trace and the capture to `sinks` (the result's trace
+/// and captured frames are then empty; [`RtResult::dropped`] counts what the sinks could
+/// not take).
+pub fn run_streamed(
+    scenario: &Scenario,
+    opts: &RtOptions,
+    stop: &AtomicBool,
+    observers: Vec<Box<dyn Observer>>,
+    sinks: Sinks,
 ) -> Result<RtResult, RtError> {
     let mut spec = as_run(scenario, opts).build()?;
     let n = spec.axes();
@@ -277,7 +317,14 @@ pub fn run_observed(
     let t_cyc = spec.scenario.ring.cycle.0.as_ns();
     let warm = (300_000_000 / t_cyc).max(100);
     let ports = ports.into_iter().map(Some).collect();
-    let mut ring = Ring::new(&spec, ports, warm, Mode::WarmUp, Vec::new())?;
+    let mut ring = Ring::new(
+        &spec,
+        ports,
+        warm,
+        Mode::WarmUp,
+        Vec::new(),
+        Sinks::default(),
+    )?;
     ring.run_loop(opts, stop, None, &None, &mut None)?;
     for (c, d) in spec.slaves.iter_mut().zip(ring.measured_path_delays()) {
         if let Some(d) = d {
@@ -303,7 +350,8 @@ pub fn run_observed(
         trace: opts.trace,
         capture: opts.capture,
     };
-    let mut ring = Ring::new(&spec, ports, cycles, mode, observers)?;
+    let mut ring = Ring::new(&spec, ports, cycles, mode, observers, sinks)?;
+    let (trace_streamed, capture_streamed) = ring.streaming();
     // Fault injection: its own threads and sockets, like a faulty device on the ring.
     let injected = Arc::new(Injected::default());
     let stop_inject = Arc::new(AtomicBool::new(false));
@@ -385,6 +433,7 @@ pub fn run_observed(
             mut timing,
             nodes_rx,
             detection_cycles,
+            dropped,
         },
         ports,
     ) = ring.finish(&s.name);
@@ -419,6 +468,12 @@ pub fn run_observed(
         interrupted,
         killed,
         detection_cycles,
+        streamed: Streamed {
+            trace: trace_streamed,
+            capture: capture_streamed,
+            trace_rows_dropped: dropped.0,
+            frames_dropped: dropped.1,
+        },
     })
 }
 

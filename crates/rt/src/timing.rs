@@ -4,7 +4,7 @@
 
 use ringsync_proto::node::MasterCounters;
 
-use crate::stats::Percentiles;
+use crate::stats::{Delays, Percentiles};
 
 /// A stall this long or longer is the host holding the loop off its CPU (a pass of the
 /// loop takes a few µs; measured in docs/runtime.md) [ns].
@@ -59,15 +59,16 @@ pub struct Timing {
     pub longest_outage: u64,
 }
 
-/// The loop's running account of [`Timing`]: counters, and the samples its percentiles are
-/// taken over at the end (reserved for the whole run: recording never allocates mid-run).
+/// The loop's running account of [`Timing`]: counters, and histograms its percentiles are
+/// taken from at the end (allocated once: a run of any length takes the same memory, and
+/// recording never allocates).
 #[derive(Debug, Clone, Default)]
 pub(crate) struct TimingLog {
     /// The counters so far.
     pub timing: Timing,
-    lateness: Vec<i64>,
-    p2p: Vec<i64>,
-    stalls: Vec<i64>,
+    lateness: Delays,
+    p2p: Delays,
+    stalls: Delays,
     last_losses: u64,
     outage: u64,
     computed_at: Option<i64>,
@@ -77,15 +78,11 @@ pub(crate) struct TimingLog {
 impl TimingLog {
     /// The account of a run of `cycles` cycles.
     pub fn new(cycles: i64) -> Self {
-        let cap = usize::try_from(cycles.max(0)).unwrap_or(0);
         TimingLog {
             timing: Timing {
                 cycles_planned: cycles,
                 ..Timing::default()
             },
-            lateness: Vec::with_capacity(cap),
-            p2p: Vec::with_capacity(cap),
-            stalls: Vec::with_capacity(cap),
             ..TimingLog::default()
         }
     }
@@ -96,10 +93,10 @@ impl TimingLog {
     /// counts for the cycle that starts: its late start.
     pub fn cycle_start(&mut self, k: i64, now: i64, due: i64, losses: u64, stall: i64) -> i64 {
         let t = &mut self.timing;
-        self.lateness.push(now - due);
+        self.lateness.record(now - due);
         // A stall up to this cycle's start counts for the cycle that ends.
         if k > 0 {
-            self.stalls.push(stall);
+            self.stalls.record(stall);
             if stall >= STALL {
                 t.cycles_stalled += 1;
             }
@@ -118,7 +115,7 @@ impl TimingLog {
         if let Some(c) = self.computed_at.take()
             && self.last_master_rx > c
         {
-            self.p2p.push(self.last_master_rx - c);
+            self.p2p.record(self.last_master_rx - c);
         }
         t.cycles = k + 1;
         // A late start is a stall of the cycle it delays: its lumped frame leaves late
@@ -138,15 +135,15 @@ impl TimingLog {
 
     /// Cycle-start lateness so far (for a progress line).
     pub fn lateness(&self) -> Percentiles {
-        Percentiles::of(&self.lateness)
+        self.lateness.percentiles()
     }
 
     /// The run's timing, with the master's loss counters.
     pub fn finish(self, master: &MasterCounters) -> Timing {
         Timing {
-            lateness: Percentiles::of(&self.lateness),
-            p2p: Percentiles::of(&self.p2p),
-            stalls: Percentiles::of(&self.stalls),
+            lateness: self.lateness.percentiles(),
+            p2p: self.p2p.percentiles(),
+            stalls: self.stalls.percentiles(),
             lumped_lost: master.lumped_lost,
             commands_lost: master.commands_lost,
             ..self.timing
