@@ -64,31 +64,55 @@ pub fn push_fixed(out: &mut Vec<u8>, x: f64, decimals: usize) {
     let _ = write!(out, "{x:.decimals$}");
 }
 
+/// The two-digit strings "00" to "99", so that digits are made two at a time (one division
+/// by 100 where one by 10 made one digit).
+const PAIRS: &[u8; 200] = b"\
+0001020304050607080910111213141516171819\
+2021222324252627282930313233343536373839\
+4041424344454647484950515253545556575859\
+6061626364656667686970717273747576777879\
+8081828384858687888990919293949596979899";
+
+/// Writes the decimal digits of `n` into `buf` to end at `end`, two at a time, zero-padded
+/// on the left to at least `min` digits (at most `end`); returns where they start.
+#[inline]
+fn digits_into(buf: &mut [u8; 20], end: usize, mut n: u64, min: usize) -> usize {
+    let mut i = end;
+    while n >= 100 {
+        let p = (n % 100) as usize * 2;
+        n /= 100;
+        i -= 2;
+        buf[i..i + 2].copy_from_slice(&PAIRS[p..p + 2]);
+    }
+    if n >= 10 {
+        let p = n as usize * 2;
+        i -= 2;
+        buf[i..i + 2].copy_from_slice(&PAIRS[p..p + 2]);
+    } else {
+        i -= 1;
+        buf[i] = b'0' + n as u8;
+    }
+    while end - i < min.min(end) {
+        i -= 1;
+        buf[i] = b'0';
+    }
+    i
+}
+
 /// Appends the decimal digits of `n`.
 #[inline]
-pub fn push_u64(out: &mut Vec<u8>, mut n: u64) {
+pub fn push_u64(out: &mut Vec<u8>, n: u64) {
     let mut buf = [0u8; 20];
-    let mut i = buf.len();
-    loop {
-        i -= 1;
-        buf[i] = b'0' + (n % 10) as u8;
-        n /= 10;
-        if n == 0 {
-            break;
-        }
-    }
+    let i = digits_into(&mut buf, 20, n, 1);
     out.extend_from_slice(&buf[i..]);
 }
 
 /// Appends `n` (< 10^width) as exactly `width` digits, zero-padded on the left.
 #[inline]
-fn push_padded(out: &mut Vec<u8>, mut n: u64, width: usize) {
-    let mut buf = [b'0'; MAX_DECIMALS];
-    for i in (0..width).rev() {
-        buf[i] = b'0' + (n % 10) as u8;
-        n /= 10;
-    }
-    out.extend_from_slice(&buf[..width]);
+fn push_padded(out: &mut Vec<u8>, n: u64, width: usize) {
+    let mut buf = [b'0'; 20];
+    let i = digits_into(&mut buf, 20, n, width);
+    out.extend_from_slice(&buf[i..]);
 }
 
 /// Writes rows to `w` through one reused line buffer: `row` appends a line's bytes (with its
@@ -160,10 +184,22 @@ mod tests {
 
     #[test]
     fn integers_are_written_in_full() {
-        for n in [0u64, 7, 10, 99, 1_000_000, u64::MAX] {
+        let mut ns = vec![0u64, 7, 10, 99, 100, 101, 999, 1_000_000, u64::MAX];
+        ns.extend((0..20).map(|k| 10u64.pow(k)));
+        ns.extend((1..20).map(|k| 10u64.pow(k) - 1));
+        for n in ns {
             let mut v = Vec::new();
             push_u64(&mut v, n);
             assert_eq!(String::from_utf8(v).expect("ascii"), n.to_string());
+        }
+        // Zero-padded fractions, every width, odd and even digit counts.
+        for width in 1..=MAX_DECIMALS {
+            for n in [0, 1, 9, 10, 99, 100, 12345, IPOW10[width] - 1] {
+                let n = n.min(IPOW10[width] - 1);
+                let mut v = Vec::new();
+                push_padded(&mut v, n, width);
+                assert_eq!(String::from_utf8(v).expect("ascii"), format!("{n:0width$}"));
+            }
         }
     }
 
