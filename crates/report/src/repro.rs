@@ -376,7 +376,7 @@ pub fn repro_figures(
     if let Some(t) = timing {
         figs.push(("fig1-cycle.svg", t));
     }
-    let cmd = crate::sim::axis_series(&sync.trace, 1, |r| r.x_d)
+    let cmd = crate::sim::axis_series(&sync.trace, 1, |t, i| t.x_d[i])
         .finish("x^d, every axis".into(), PALETTE[0]);
     figs.push((
         "fig3-command.svg",
@@ -393,7 +393,7 @@ pub fn repro_figures(
             "Fig. 4a: position errors e = x^d − x, standard PD",
             "t [s]",
             "e [rad]",
-            &per_axis(pd, |r| r.e),
+            &per_axis(pd, |t, i| t.e(i)),
         ),
     ));
     figs.push((
@@ -402,7 +402,7 @@ pub fn repro_figures(
             "Fig. 4b: position errors e = x^d − x, sync controller",
             "t [s]",
             "e [rad]",
-            &per_axis(sync, |r| r.e),
+            &per_axis(sync, |t, i| t.e(i)),
         ),
     ));
     figs.push((
@@ -411,7 +411,7 @@ pub fn repro_figures(
             "Fig. 5a: synchronisation errors ε = Te, standard PD",
             "t [s]",
             "ε [rad]",
-            &per_axis(pd, |r| r.eps),
+            &per_axis(pd, |t, i| t.eps[i]),
         ),
     ));
     figs.push((
@@ -420,7 +420,7 @@ pub fn repro_figures(
             "Fig. 5b: synchronisation errors ε = Te, sync controller",
             "t [s]",
             "ε [rad]",
-            &per_axis(sync, |r| r.eps),
+            &per_axis(sync, |t, i| t.eps[i]),
         ),
     ));
     figs

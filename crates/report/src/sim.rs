@@ -304,7 +304,7 @@ pub(crate) fn esc(s: &str) -> String {
 /// Per-axis series of one trace column.
 pub(crate) fn per_axis(
     r: &RunResult,
-    f: fn(&ringsync_model::result::TraceRow) -> f64,
+    f: fn(&ringsync_model::result::Trace, usize) -> f64,
 ) -> Vec<crate::plot::Series<'static>> {
     use crate::plot::PALETTE;
     (1..=r.summary.axes.len())
@@ -315,19 +315,19 @@ pub(crate) fn per_axis(
         .collect()
 }
 
-/// Axis `a`'s (1-based) points (t, f(row)), thinned as they are built: a long run's column
-/// is never copied whole. The trace holds one group of n rows per cycle, so axis a's rows
-/// are every n-th, from a − 1.
+/// Axis `a`'s (1-based) points (t, f(trace, row)), thinned as they are built: a long run's
+/// column is never copied whole, and `f` reads the one column it plots. The trace holds one
+/// group of n rows per cycle, so axis a's rows are every n-th, from a − 1.
 pub(crate) fn axis_series(
     trace: &ringsync_model::result::Trace,
     a: usize,
-    f: impl Fn(&ringsync_model::result::TraceRow) -> f64,
+    f: impl Fn(&ringsync_model::result::Trace, usize) -> f64,
 ) -> crate::plot::Thinning {
-    let rows = (a - 1..trace.len()).step_by(trace.axes.max(1));
+    let n = trace.axes.max(1);
+    let rows = (a - 1..trace.len()).step_by(n);
     let mut t = crate::plot::Thinning::new(rows.len());
     for i in rows {
-        let row = trace.row(i);
-        t.push((row.t, f(&row)));
+        t.push((trace.t[i / n], f(trace, i)));
     }
     t
 }
@@ -346,7 +346,7 @@ pub fn run_figures(timing: Option<String>, r: &RunResult) -> Vec<(&'static str, 
             "Position errors e = x^d − x",
             "t [s]",
             "e [rad]",
-            &per_axis(r, |x| x.e),
+            &per_axis(r, |t, i| t.e(i)),
         ),
     ));
     figs.push((
@@ -355,12 +355,12 @@ pub fn run_figures(timing: Option<String>, r: &RunResult) -> Vec<(&'static str, 
             "Synchronisation errors ε = Te",
             "t [s]",
             "ε [rad]",
-            &per_axis(r, |x| x.eps),
+            &per_axis(r, |t, i| t.eps[i]),
         ),
     ));
     figs.push((
         "commands.svg",
-        line_chart("Commands", "t [s]", "u [V]", &per_axis(r, |x| x.u)),
+        line_chart("Commands", "t [s]", "u [V]", &per_axis(r, |t, i| t.u[i])),
     ));
     figs.push((
         "clock-errors.svg",
@@ -368,7 +368,7 @@ pub fn run_figures(timing: Option<String>, r: &RunResult) -> Vec<(&'static str, 
             "Slave clock minus master clock, at each cycle start",
             "t [s]",
             "clock error [ns]",
-            &per_axis(r, |x| x.clock_error_ns),
+            &per_axis(r, |t, i| t.clock_error_ns[i]),
         ),
     ));
     figs
