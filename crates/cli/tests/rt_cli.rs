@@ -323,6 +323,24 @@ fn an_ordinary_users_limits_give_one_warning_each_and_the_run_completes() {
     assert!(err.contains("ulimit -l unlimited"), "{err}");
     let summary = std::fs::read_to_string(dir.join("summary.json")).expect("summary.json");
     assert!(summary.contains("\"cycles\""), "{summary}");
+    // trace.csv went to its file as the run went (the run's memory does not grow with
+    // it), whole: a header, then the 4 axes' rows of every cycle the master computed.
+    let v: serde_json::Value = serde_json::from_str(&summary).expect("json");
+    assert_eq!(v["streamed"]["trace"], true, "{summary}");
+    assert_eq!(v["streamed"]["trace_rows_dropped"], 0, "{summary}");
+    let cycles = v["cycles"].as_i64().expect("cycles");
+    let trace = std::fs::read_to_string(dir.join("trace.csv")).expect("trace.csv");
+    let rows = trace.lines().count() as i64 - 1;
+    assert!(
+        trace.starts_with("t_s,axis,"),
+        "{}",
+        &trace[..80.min(trace.len())]
+    );
+    assert_eq!(rows % 4, 0, "{rows} rows");
+    assert!(
+        (cycles - 2..=cycles).contains(&(rows / 4)),
+        "{rows} rows, {cycles} cycles"
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }
 
