@@ -372,6 +372,18 @@ mod tests {
         }
     }
 
+    /// The recorder's result, without node or link counters.
+    fn result(rec: Recorder) -> RunResult {
+        rec.finish(
+            "t",
+            MasterCounters::default(),
+            Vec::new(),
+            LinkCounters::default(),
+            Vec::new(),
+            Vec::new(),
+        )
+    }
+
     /// A streaming recorder hands on exactly the rows a keeping one keeps, apply times
     /// included (NaN where a command never arrived), and holds no more than one cycle's
     /// rows at any time: its memory does not grow with the run.
@@ -380,28 +392,14 @@ mod tests {
         let cycles = 200;
         let mut kept = Recorder::new(3, cycles, 1e-3, true);
         drive(&mut kept, cycles, |_| {});
-        let kept = kept.finish(
-            "t",
-            MasterCounters::default(),
-            Vec::new(),
-            LinkCounters::default(),
-            Vec::new(),
-            Vec::new(),
-        );
+        let kept = result(kept);
         let sink = Kept::<TraceRow>::default();
         let rows = sink.0.clone();
         let mut streamed = Recorder::new(3, cycles, 1e-3, false);
         streamed.stream_trace(Box::new(sink));
         let mut most = 0;
         drive(&mut streamed, cycles, |r| most = most.max(r.trace.len()));
-        let streamed = streamed.finish(
-            "t",
-            MasterCounters::default(),
-            Vec::new(),
-            LinkCounters::default(),
-            Vec::new(),
-            Vec::new(),
-        );
+        let streamed = result(streamed);
         assert_eq!(most, 3, "one cycle's rows at most");
         assert!(streamed.trace.is_empty());
         let got = rows.lock().expect("rows").clone();
