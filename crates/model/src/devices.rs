@@ -187,14 +187,8 @@ impl Devices {
 
     fn drain_master(&mut self, send: &mut dyn FnMut(usize, i64, WireFrame)) -> MasterNews {
         let mut news = MasterNews::default();
-        if self.decoded {
-            while let Some(tx) = self.master.poll_pdu() {
-                send(0, tx.at.as_ns(), WireFrame::Pdu(tx.pdu));
-            }
-        } else {
-            while let Some(tx) = self.master.poll_transmit() {
-                send(0, tx.at.as_ns(), WireFrame::Bytes(tx.bytes));
-            }
+        while let Some((at, frame)) = self.master.poll_frame(self.decoded) {
+            send(0, at.as_ns(), frame);
         }
         while let Some(ev) = self.master.poll_event() {
             match ev {
@@ -347,16 +341,8 @@ impl Devices {
                 }
             }
         }
-        if self.decoded {
-            while let Some(tx) = self.slaves[i].poll_pdu() {
-                let at = self.osc[i].true_at(tx.at);
-                send(i + 1, at, WireFrame::Pdu(tx.pdu));
-            }
-        } else {
-            while let Some(tx) = self.slaves[i].poll_transmit() {
-                let at = self.osc[i].true_at(tx.at);
-                send(i + 1, at, WireFrame::Bytes(tx.bytes));
-            }
+        while let Some((at, frame)) = self.slaves[i].poll_frame(self.decoded) {
+            send(i + 1, self.osc[i].true_at(at), frame);
         }
     }
 

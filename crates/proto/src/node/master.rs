@@ -40,7 +40,7 @@ use ringsync_wire::{
 
 use super::motion::{CycleRecord, MonitorNews, Motion, MotionInput, MotionOutput, Setpoint};
 use super::reject::{Reject, Rejections};
-use super::{Outbox, Transmit, TransmitPdu};
+use super::{Outbox, Transmit, TransmitPdu, WireFrame};
 use crate::plan::{CyclePlan, FrameRef, Node, PlanKind};
 use crate::time::{Duration, Instant};
 
@@ -1221,6 +1221,18 @@ impl Master {
     #[must_use]
     pub fn poll_pdu(&mut self) -> Option<TransmitPdu> {
         self.out.pop_pdu()
+    }
+
+    /// The next frame to send with its send instant: decoded ([`Master::poll_pdu`]) when
+    /// `decoded`, else as bytes ([`Master::poll_transmit`]).
+    #[must_use]
+    pub fn poll_frame(&mut self, decoded: bool) -> Option<(Instant, WireFrame)> {
+        if decoded {
+            self.poll_pdu().map(|t| (t.at, WireFrame::Pdu(t.pdu)))
+        } else {
+            self.poll_transmit()
+                .map(|t| (t.at, WireFrame::Bytes(t.bytes)))
+        }
     }
 
     /// The next event for the driver; `None` when there is none (call after draining

@@ -55,7 +55,7 @@ use ringsync_wire::{
 
 use super::clock::SyncClock;
 use super::reject::{Reject, Rejections, unwrap_cycle};
-use super::{Outbox, Transmit, TransmitPdu};
+use super::{Outbox, Transmit, TransmitPdu, WireFrame};
 use crate::time::{Duration, Instant};
 
 /// Consecutive samples with at most one count of motion over the velocity window after
@@ -1050,6 +1050,18 @@ impl Slave {
     #[must_use]
     pub fn poll_pdu(&mut self) -> Option<TransmitPdu> {
         self.out.pop_pdu()
+    }
+
+    /// The next frame this slave originates with its send instant (local): decoded
+    /// ([`Slave::poll_pdu`]) when `decoded`, else as bytes ([`Slave::poll_transmit`]).
+    #[must_use]
+    pub fn poll_frame(&mut self, decoded: bool) -> Option<(Instant, WireFrame)> {
+        if decoded {
+            self.poll_pdu().map(|t| (t.at, WireFrame::Pdu(t.pdu)))
+        } else {
+            self.poll_transmit()
+                .map(|t| (t.at, WireFrame::Bytes(t.bytes)))
+        }
     }
 
     /// The next event for the driver; `None` when there is none (call after draining
