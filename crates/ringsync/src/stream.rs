@@ -12,8 +12,6 @@
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
-use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
 use std::thread::JoinHandle;
 
@@ -36,21 +34,21 @@ pub const CAPTURE_QUEUE_FRAMES: usize = 1 << 16;
 /// One bounded queue into a writer thread; what does not fit is dropped and counted.
 struct Queue<T> {
     tx: SyncSender<T>,
-    dropped: Arc<AtomicU64>,
+    dropped: u64,
 }
 
 impl<T> std::fmt::Debug for Queue<T> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Queue")
-            .field("dropped", &self.dropped.load(Ordering::Relaxed))
+            .field("dropped", &self.dropped)
             .finish_non_exhaustive()
     }
 }
 
 impl<T> Queue<T> {
-    fn put(&self, item: T) {
+    fn put(&mut self, item: T) {
         if self.tx.try_send(item).is_err() {
-            self.dropped.fetch_add(1, Ordering::Relaxed);
+            self.dropped += 1;
         }
     }
 }
@@ -60,7 +58,7 @@ impl TraceSink for Queue<TraceRow> {
         self.put(row);
     }
     fn dropped(&self) -> u64 {
-        self.dropped.load(Ordering::Relaxed)
+        self.dropped
     }
 }
 
@@ -69,7 +67,7 @@ impl CaptureSink for Queue<Captured> {
         self.put(frame);
     }
     fn dropped(&self) -> u64 {
-        self.dropped.load(Ordering::Relaxed)
+        self.dropped
     }
 }
 
@@ -133,10 +131,7 @@ fn spawn<T: Send + 'static>(
             w.flush()
         })
         .map_err(|e| Error::io(format!("cannot start the writer of {shown}"), e))?;
-    let queue = Queue {
-        tx,
-        dropped: Arc::new(AtomicU64::new(0)),
-    };
+    let queue = Queue { tx, dropped: 0 };
     Ok((queue, Writer { shown, handle }))
 }
 
@@ -221,10 +216,7 @@ mod tests {
         // A queue of two with nobody reading: the third row is dropped, counted, and the
         // call returns at once.
         let (tx, _rx) = sync_channel::<TraceRow>(2);
-        let mut q = Queue {
-            tx,
-            dropped: Arc::new(AtomicU64::new(0)),
-        };
+        let mut q = Queue { tx, dropped: 0 };
         for k in 0..3 {
             q.row(row(k));
         }
