@@ -71,7 +71,7 @@ pub struct RtArgs {
     #[arg(long, default_value_t = 0.0)]
     inject_garbage: f64,
     /// Inject forged frames with a valid CRC (repeatable): wrong-cycle-commands (commands
-    /// 2-1000 cycles off at ±10 V, 1000/s), future-lumped (lumped frames stamped 1 s ahead,
+    /// 2-1000 cycles behind or 200-1000 ahead at ±10 V, 1000/s), future-lumped (lumped frames stamped 1 s ahead,
     /// 100/s), sync-burst (30 lumped frames with a wrong cycle and a far timestamp, 1/s).
     #[arg(long, value_name = "KIND")]
     forge: Vec<Forgery>,

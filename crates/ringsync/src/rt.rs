@@ -192,6 +192,7 @@ pub fn rt_summary(
         "injected": {
             "garbage": r.injected.garbage,
             "garbage_counted_malformed": r.injected.counted_malformed,
+            "malformed_unread_at_end": r.injected.malformed_unread,
             "forged": r.injected.forged.iter().map(|(f, n)| json!({"kind": f.name(), "frames": n})).collect::<Vec<_>>(),
         },
         "flap": {
@@ -263,8 +264,8 @@ pub fn rt_text(r: &RtResult, prediction: Option<SimPrediction>) -> String {
     );
     if r.injected.garbage > 0 {
         text += &format!(
-            "\n  injected {} garbage frames; the nodes refused {} malformed frames",
-            r.injected.garbage, r.injected.counted_malformed
+            "\n  injected {} garbage frames; the nodes refused {} malformed frames, {} more were unread at the end",
+            r.injected.garbage, r.injected.counted_malformed, r.injected.malformed_unread
         );
     }
     for (f, frames) in &r.injected.forged {

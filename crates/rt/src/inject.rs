@@ -16,11 +16,20 @@ use crate::netns::VethRing;
 use crate::sys;
 use crate::transport::{Port, RawSender, UdpSender, VethPort};
 
+/// The nearest cycle ahead a forged command is stamped with: 200 cycles (200 ms at 1 ms),
+/// so that it is still a wrong cycle when it is read: 18 times the longest stall a loaded
+/// CI host gave the ring's loop (11 ms), 6 times the longest under
+/// `stress-ng --cpu 2 --cpu-load 60 --sched fifo --sched-prio 90` (35 ms).
+pub const FAR_AHEAD: i64 = 200;
+
 /// A kind of forged frame with a valid CRC.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Forgery {
-    /// Commands of another cycle (2 to 1000 cycles off), ±10 V, each at its target's
-    /// input link, 1000 a second.
+    /// Commands of another cycle, ±10 V, each at its target's input link, 1000 a second:
+    /// 2 to 1000 cycles behind, or [`FAR_AHEAD`] to 1000 cycles ahead. Never nearer ahead:
+    /// a command stamped a few cycles ahead is a current command once a stall of the host
+    /// has held it that long (the injector preempted between reading the clock and sending,
+    /// or the slave's loop between its arrival and its read), and a slave rightly takes it.
     WrongCycleCommands,
     /// Lumped frames stamped 1 s in the future with a cycle that matches the stamp, into
     /// slave 1's input link, 100 a second.
@@ -305,12 +314,12 @@ fn forged(f: Forgery, rng: &mut Rng, cycle: i64, t_cyc: i64, n: usize) -> Vec<(u
     match f {
         Forgery::WrongCycleCommands => {
             let target = 1 + (rng.next_u64() % n.max(1) as u64) as usize;
-            let off = 2 + (rng.next_u64() % 999) as i64;
             // Always another cycle: behind only when there is a cycle that far behind.
-            let c = if cycle >= off && rng.next_u64().is_multiple_of(2) {
-                cycle - off
+            let behind = 2 + (rng.next_u64() % 999) as i64;
+            let c = if cycle >= behind && rng.next_u64().is_multiple_of(2) {
+                cycle - behind
             } else {
-                cycle + off
+                cycle + FAR_AHEAD + (rng.next_u64() % (1001 - FAR_AHEAD) as u64) as i64
             };
             let v = if rng.next_u64().is_multiple_of(2) {
                 10.0

@@ -21,6 +21,7 @@ use ringsync_model::stream::CaptureSink;
 use ringsync_proto::Duration;
 use ringsync_proto::node::{ClockFilter, FrameOutcome, WireFrame};
 use ringsync_wire::Frame;
+use ringsync_wire::Pdu;
 
 use crate::clock::Clock;
 use crate::netns::VethRing;
@@ -146,12 +147,23 @@ enum Due {
     Pending(usize),
 }
 
-/// Reads and discards whatever is waiting on the ports.
-pub(crate) fn drain(ports: &mut [Option<Box<dyn Port>>]) {
+/// Reads and discards whatever is waiting on the ports; returns how many of those frames a
+/// node would have refused as malformed (not ringsync's at the link layer, or failing the
+/// PDU's header, payload or CRC checks).
+pub(crate) fn drain(ports: &mut [Option<Box<dyn Port>>]) -> u64 {
     let mut buf = vec![0u8; MAX_PDU];
+    let mut malformed = 0;
     for p in ports.iter_mut().flatten() {
-        while let Ok(Some(_)) = p.recv(&mut buf) {}
+        while let Ok(Some(len)) = p.recv(&mut buf) {
+            if buf
+                .get(..len)
+                .is_none_or(|b| len == 0 || Pdu::parse(b).is_err())
+            {
+                malformed += 1;
+            }
+        }
     }
+    malformed
 }
 
 impl Ring {

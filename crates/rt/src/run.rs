@@ -167,6 +167,9 @@ pub struct Injection {
     pub forged: Vec<(Forgery, u64)>,
     /// Frames the nodes refused as malformed (the garbage among them).
     pub counted_malformed: u64,
+    /// Malformed frames still waiting on the nodes' ports when the run ended, read after
+    /// the injector stopped and handed to no node.
+    pub malformed_unread: u64,
 }
 
 /// What can stop a real-time run from starting.
@@ -335,7 +338,7 @@ pub fn run_streamed(
     // Frames of the warm-up still in the kernel's queues arrive within microseconds: let
     // them, then read them all away, so that the run's fresh nodes never see one.
     sys::sleep_until(sys::now_ns() + 2_000_000);
-    drain(&mut ports);
+    let _ = drain(&mut ports);
     say(&format!(
         "warm-up of {warm} cycles: path delays {} µs",
         spec.slaves
@@ -435,8 +438,11 @@ pub fn run_streamed(
             detection_cycles,
             dropped,
         },
-        ports,
+        mut ports,
     ) = ring.finish(&s.name);
+    // What the injector sent that the nodes never read (a host stall at the end holds the
+    // loop while the injector catches up): the injector has stopped, so this is all of it.
+    let malformed_unread = drain(&mut ports);
     // Close every socket before the namespaces go (a socket keeps its namespace alive).
     drop(ports);
     drop(veth);
@@ -463,6 +469,7 @@ pub fn run_streamed(
                 .map(|f| (*f, injected.forged(*f)))
                 .collect(),
             counted_malformed: counted,
+            malformed_unread,
         },
         nodes_rx,
         interrupted,
