@@ -91,6 +91,12 @@ pub struct RtArgs {
     /// tens of µs; a latch after the lumped frame has passed sends last cycle's sample.
     #[arg(long, value_parser = duration)]
     sample_lead: Option<Duration>,
+    /// How the slaves stamp the lumped frames their clocks follow: phy (the instant the
+    /// master sent the frame plus the slave's path delay, as the scenario's hardware stamps
+    /// on links of constant delay) or software (the instant the loop reads the frame: the
+    /// clocks then see the loop's forwarding jitter, a few µs).
+    #[arg(long, value_name = "KIND", default_value = "phy")]
+    stamps: ringsync::Stamps,
     /// Skip the simulator's prediction for the same scenario.
     #[arg(long)]
     no_sim_prediction: bool,
@@ -178,6 +184,7 @@ pub(crate) fn rt(args: &RtArgs) -> Result<Outcome, CliError> {
         forge: args.forge.clone(),
         flap,
         sample_lead: args.sample_lead,
+        stamps: args.stamps,
         verbose: true,
         ..RtOptions::default()
     };

@@ -63,7 +63,7 @@ pub use ringsync_model::result::{Trace, TraceRow};
 pub use ringsync_model::{RunResult, Scenario, ScenarioError, Spec, builtin, builtin_names};
 pub use ringsync_proto::node::CycleRecord;
 pub use ringsync_proto::{CyclePlan, Duration, PlanKind, RingParams};
-pub use ringsync_rt::{Kill, RtOptions, RtResult, TransportKind};
+pub use ringsync_rt::{Kill, RtOptions, RtResult, Stamps, TransportKind};
 
 /// The crates underneath, for what the front door does not cover (driving nodes by hand,
 /// the wire format, the control library).

@@ -147,6 +147,7 @@ pub fn rt_summary(
     let mc = &r.run.master;
     let extra = json!({
         "transport": transport,
+        "stamps": r.stamps.name(),
         "cycles_planned": t.cycles_planned,
         "overruns": t.overruns,
         "stalls_us": pct(&t.stalls),
@@ -210,7 +211,7 @@ pub fn rt_summary(
             "trace_rows_dropped": r.streamed.trace_rows_dropped,
             "frames_dropped": r.streamed.frames_dropped,
         },
-        "runtime_assumptions": ASSUMPTIONS,
+        "runtime_assumptions": ASSUMPTIONS.iter().copied().chain([r.stamps.assumption()]).collect::<Vec<_>>(),
     });
     if let (Value::Object(m), Value::Object(e)) = (&mut v, extra) {
         m.extend(e);
@@ -259,8 +260,9 @@ pub fn rt_text(r: &RtResult, prediction: Option<SimPrediction>) -> String {
         );
     }
     text += &format!(
-        "\n  residual clock error ≤ {:.0} ns",
-        r.run.clock_error_max_ns.iter().copied().fold(0.0, f64::max)
+        "\n  residual clock error ≤ {:.0} ns ({} stamps)",
+        r.run.clock_error_max_ns.iter().copied().fold(0.0, f64::max),
+        r.stamps.name()
     );
     if r.injected.garbage > 0 {
         text += &format!(

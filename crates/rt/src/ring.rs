@@ -25,7 +25,7 @@ use ringsync_wire::Pdu;
 
 use crate::clock::Clock;
 use crate::netns::VethRing;
-use crate::run::{Kill, RtError, RtOptions, Sinks, io_err, rejected_line};
+use crate::run::{Kill, RtError, RtOptions, Sinks, Stamps, io_err, rejected_line};
 use crate::sys;
 use crate::timing::{Timing, TimingLog};
 use crate::transport::{MAX_PDU, Port};
@@ -63,6 +63,8 @@ pub(crate) enum Mode {
         trace: bool,
         /// Keep every frame sent.
         capture: bool,
+        /// How the slaves stamp the lumped frames they receive.
+        stamps: Stamps,
     },
 }
 
@@ -108,6 +110,10 @@ pub(crate) struct Ring {
     dev: Devices,
     /// Each slave's next latch [true ns], kept as the devices tell it after each call.
     latch_due: Vec<i64>,
+    /// The emulated PHY stamps ([`Stamps::Phy`]); `None`: the loop's reading times.
+    phy: Option<PhyStamps>,
+    /// The next cycle probe's cycle.
+    probe_k: i64,
     out: Outbox,
     /// Per node (0 = master): still in the ring.
     alive: Vec<bool>,
@@ -166,6 +172,59 @@ pub(crate) fn drain(ports: &mut [Option<Box<dyn Port>>]) -> u64 {
     malformed
 }
 
+/// The master's timestamp of a lumped frame (of either plan), if `bytes` is one.
+fn lumped_stamp(bytes: &[u8]) -> Option<u64> {
+    let f = Frame::new_checked(bytes).ok()?;
+    f.lumped().ok().map(|p| p.master_time_ns())
+}
+
+/// Emulated PHY receive stamps ([`Stamps::Phy`]): the loop knows when the master sent each
+/// lumped frame; a slave's stamp is that instant plus its path delay, as a hardware stamp
+/// reads on links of constant delay, whatever the loop's forwarding took. Keyed by the
+/// master's timestamp in the frame, for the frames the loop itself sent: a frame from
+/// elsewhere (injected, forged) gets the loop's reading time, never a stamp from its own
+/// content.
+pub(crate) struct PhyStamps {
+    /// Each slave's path delay [ns].
+    path: Vec<i64>,
+    /// The master's latest lumped sends: (its timestamp in the frame, when the loop sent
+    /// it [true ns]), a ring of [`PhyStamps::KEPT`].
+    sent: Vec<(u64, i64)>,
+    next: usize,
+}
+
+impl PhyStamps {
+    /// Lumped sends remembered: several cycles of the largest ring's frames per cycle.
+    const KEPT: usize = 64;
+
+    fn new(path: Vec<i64>) -> PhyStamps {
+        PhyStamps {
+            path,
+            sent: Vec::with_capacity(Self::KEPT),
+            next: 0,
+        }
+    }
+
+    /// The master sent a lumped frame stamped `stamp` at `at`.
+    fn sent(&mut self, stamp: u64, at: i64) {
+        if self.sent.len() < Self::KEPT {
+            self.sent.push((stamp, at));
+        } else {
+            self.sent[self.next] = (stamp, at);
+        }
+        self.next = (self.next + 1) % Self::KEPT;
+    }
+
+    /// Slave `i`'s stamp of the lumped frame stamped `stamp`: `None` when the loop did not
+    /// send it (lately). It may lie a little after the loop's reading of the frame, when the
+    /// loop forwarded faster than in any cycle of the warm-up: a stamp held back to the
+    /// reading would bias the slave's clock by the difference.
+    fn received(&self, i: usize, stamp: u64) -> Option<i64> {
+        let &(_, at) = self.sent.iter().find(|(s, _)| *s == stamp)?;
+        Some(at.saturating_add(*self.path.get(i)?))
+    }
+}
+
 impl Ring {
     /// The ring `spec` describes on `ports` for `cycles` cycles, `observers` watching.
     pub fn new(
@@ -179,8 +238,16 @@ impl Ring {
         let n = spec.axes();
         let (trace, capture) = match mode {
             Mode::WarmUp => (false, false),
-            Mode::Run { trace, capture } => (trace, capture),
+            Mode::Run { trace, capture, .. } => (trace, capture),
         };
+        let phy = matches!(
+            mode,
+            Mode::Run {
+                stamps: Stamps::Phy,
+                ..
+            }
+        )
+        .then(|| PhyStamps::new(spec.slaves.iter().map(|c| c.path_delay.as_ns()).collect()));
         // A trace or capture that goes to a sink is never reserved for the whole run
         // (under `mlockall` a reservation is resident at once, and would grow with the
         // run's duration).
@@ -220,17 +287,24 @@ impl Ring {
             end: cycles * spec.scenario.ring.cycle.0.as_ns(),
             log: TimingLog::new(cycles),
             delays: (mode == Mode::WarmUp).then(|| vec![Vec::new(); n]),
+            phy,
+            probe_k: 0,
             kill_cycle: None,
             stop_cycle: None,
         })
     }
 
-    /// The slaves' path delays as the warm-up measured them (median per slave) [ns].
-    pub fn measured_path_delays(&self) -> Vec<Option<i64>> {
+    /// The slaves' path delays as the warm-up measured them [ns]: per slave the median for
+    /// software stamps, the shortest for emulated PHY stamps (a stamp is never later than
+    /// the loop's reading of the frame).
+    pub fn measured_path_delays(&self, stamps: Stamps) -> Vec<Option<i64>> {
         self.delays
             .iter()
             .flatten()
-            .map(|v| (!v.is_empty()).then(|| crate::stats::Percentiles::of(v).p50))
+            .map(|v| match stamps {
+                Stamps::Software => (!v.is_empty()).then(|| crate::stats::Percentiles::of(v).p50),
+                Stamps::Phy => v.iter().copied().min(),
+            })
             .collect()
     }
 
@@ -272,6 +346,11 @@ impl Ring {
     fn flush_master(&mut self, now: i64) {
         let mut out = std::mem::take(&mut self.out.now);
         for bytes in out.drain(..) {
+            if let Some(p) = self.phy.as_mut()
+                && let Some(stamp) = lumped_stamp(&bytes)
+            {
+                p.sent(stamp, now);
+            }
             self.send(0, now, &bytes);
             self.dev.recycle(0, bytes);
         }
@@ -290,15 +369,22 @@ impl Ring {
         }
         let i = node - 1;
         if let Some(d) = self.delays.as_mut()
-            && let Some(sent) = Frame::new_checked(&bytes[..])
-                .ok()
-                .and_then(|f| f.lumped().ok().map(|p| p.master_time_ns()))
+            && let Some(sent) = lumped_stamp(bytes).and_then(|t| i64::try_from(t).ok())
         {
-            d[i].push(now - sent as i64);
+            d[i].push(now.saturating_sub(sent));
         }
-        self.latch_due(i, now);
+        // Everything due before the frame first: a command it carries advances the axis to
+        // `now`, and a cycle probe or latch due earlier would then read a later state (a
+        // host stall between the loop's timers and its reads made a probe read axis 4
+        // 0.8 ms on and put 11.7 mrad into the run's errors).
+        self.locals_until(now);
+        let rx = self
+            .phy
+            .as_ref()
+            .and_then(|p| p.received(i, lumped_stamp(bytes)?))
+            .unwrap_or(now);
         let Ring { dev, out, .. } = self;
-        let outcome = dev.slave_frame(i, now, now, bytes, &mut |f, at, b| out.send(f, at, b));
+        let outcome = dev.slave_frame(i, rx, rx, bytes, &mut |f, at, b| out.send(f, at, b));
         if outcome == FrameOutcome::Forward {
             self.send(node, now, bytes);
         }
@@ -348,14 +434,29 @@ impl Ring {
         best
     }
 
+    /// Runs every timer other than the master's that is due by `now`, in time order:
+    /// latches, cycle probes, responses.
+    fn locals_until(&mut self, now: i64) {
+        loop {
+            let (at, due) = self.next_local(self.probe_k * self.t_cyc);
+            if at > now || at >= self.end {
+                return;
+            }
+            if now - at > 1_000_000 {
+                self.log.timing.late_timers += 1;
+            }
+            self.run_local(due, at, now);
+        }
+    }
+
     /// Runs a timer other than the master's.
-    fn run_local(&mut self, due: Due, due_at: i64, now: i64, probe_k: &mut i64) {
+    fn run_local(&mut self, due: Due, due_at: i64, now: i64) {
         match due {
             Due::Probe => {
-                if self.dev.probe(*probe_k, due_at) > 0 {
+                if self.dev.probe(self.probe_k, due_at) > 0 {
                     self.log.timing.probes_late += 1;
                 }
-                *probe_k += 1;
+                self.probe_k += 1;
             }
             Due::Latch(i) => self.latch_due(i, due_at),
             Due::Pending(j) => {
@@ -440,7 +541,8 @@ impl Ring {
                     .collect()
             };
         let mut fds = fds_of(&self.ports, &self.rx_paused);
-        let (mut probe_k, mut cycle_k) = (0i64, 0i64);
+        let mut cycle_k = 0i64;
+        self.probe_k = 0;
         let mut kill = kill;
         let mut killed = None;
         let mut next_progress = 1_000_000_000;
@@ -477,17 +579,7 @@ impl Ring {
             }
             // 1. Latches, probes and responses that are due: they happen at their instants
             //    in the devices, before any frame the loop has yet to read.
-            loop {
-                let (at, due) = self.next_local(probe_k * t_cyc);
-                if at > now || at >= end {
-                    break;
-                }
-                if now - at > 1_000_000 {
-                    self.log.timing.late_timers += 1;
-                }
-                self.run_local(due, at, now, &mut probe_k);
-                now = self.clock.now();
-            }
+            self.locals_until(now);
             // 2. Every frame waiting anywhere.
             let got = self.receive_all(&mut buf);
             if std::mem::take(&mut self.fds_dirty) {
@@ -541,11 +633,11 @@ impl Ring {
             // the master's deadlines (the cycle start, the P2P start) are worth `spin` of
             // busy-waiting; a latch is taken at its instant whenever the loop gets to it,
             // and a slave's response goes out when its command has been read.
-            let mut wake = self.next_local(probe_k * t_cyc).0.min(m).min(end);
+            let mut wake = self.next_local(self.probe_k * t_cyc).0.min(m).min(end);
             if let Some(k) = kill {
                 wake = wake.min(k.at.as_ns());
             }
-            let lead = if wake >= m || wake == probe_k * t_cyc {
+            let lead = if wake >= m || wake == self.probe_k * t_cyc {
                 spin
             } else {
                 spin.min(SPIN_OTHER)
@@ -599,5 +691,29 @@ impl Ring {
             },
             ports,
         )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn phy_stamps_come_from_the_masters_sends_never_from_a_frames_content() {
+        let mut p = PhyStamps::new(vec![2_000, 4_000]);
+        p.sent(1_000_000, 1_000_300);
+        // The send instant plus the slave's path delay, whatever the stamp in the frame.
+        assert_eq!(p.received(0, 1_000_000), Some(1_002_300));
+        assert_eq!(p.received(1, 1_000_000), Some(1_004_300));
+        // A frame the loop never sent (a forged one from the future) gets no PHY stamp.
+        assert_eq!(p.received(0, 2_000_000_000), None);
+        // Only the latest sends are kept.
+        for k in 1..=PhyStamps::KEPT as u64 {
+            p.sent(1_000_000 + k, 1_000_300 + k as i64);
+        }
+        assert_eq!(p.received(0, 1_000_000), None);
+        assert_eq!(p.received(0, 1_000_001), Some(1_002_301));
+        // A slave beyond the ring gets none either.
+        assert_eq!(p.received(2, 1_000_001), None);
     }
 }

@@ -32,8 +32,8 @@ use crate::transport::{OpenRing, TransportKind};
 /// Assumptions of a real-time run that the paper does not state (beyond the simulator's).
 pub const ASSUMPTIONS: &[&str] = &[
     "one process and one event-loop thread serve every node's sockets; every hop is a real send and receive through the kernel",
-    "frames are timestamped in software when the loop reads them (no hardware timestamps); slaves forward at once, in software",
-    "path delays and time slices are measured at start-up (median of the calibration rounds) in place of the wire figures of the plan",
+    "slaves forward frames at once, in software",
+    "path delays and time slices are measured at start-up (a warm-up of the running loop for the path delays, calibration rounds for the slices) in place of the wire figures of the plan",
     "slave encoders latch at their synchronised sampling instants exactly (as hardware latches); commands take effect when the loop reads them",
     "slaves latch their encoders a lead before each cycle start (--sample-lead, 100 µs unless the scenario or the option sets one) where the paper latches at the cycle start: software-synchronised clocks are off by tens of µs, and a latch that falls after the lumped frame has passed sends last cycle's sample again; the simulator's prediction uses the same lead",
     "the axes are simulated in the runtime's process, advanced exactly between events with the command held",
@@ -87,8 +87,60 @@ pub struct RtOptions {
     /// Sampling lead (slaves latch this long before each cycle start). `None`: the
     /// scenario's `clock.sample_lead`, or [`SAMPLE_LEAD`] when that is 0.
     pub sample_lead: Option<Duration>,
+    /// How the slaves stamp the lumped frames they receive (their clocks' measurements).
+    pub stamps: Stamps,
     /// Print start-up messages and a progress line a second to standard error.
     pub verbose: bool,
+}
+
+/// How the slaves stamp the lumped frames they receive, from which their clocks follow the
+/// master's.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Stamps {
+    /// Emulated PHY stamps, the scenario's hardware timestamps: the instant the loop sent
+    /// the frame from the master plus the slave's path delay (the shortest the warm-up
+    /// measured), as a hardware stamp reads on links of constant delay. The loop's
+    /// forwarding jitter (µs, the host's) then moves the frames but not the clocks.
+    #[default]
+    Phy,
+    /// Software stamps: the instant the loop read the frame. The clocks then follow the
+    /// master to within the loop's forwarding jitter (a few µs here).
+    Software,
+}
+
+impl Stamps {
+    /// Both kinds.
+    pub const ALL: [Stamps; 2] = [Stamps::Phy, Stamps::Software];
+
+    /// The name used on the command line and in summary.json.
+    pub fn name(self) -> &'static str {
+        match self {
+            Stamps::Phy => "phy",
+            Stamps::Software => "software",
+        }
+    }
+
+    /// What a run with these stamps assumes (summary.json's `runtime_assumptions`).
+    pub fn assumption(self) -> &'static str {
+        match self {
+            Stamps::Phy => {
+                "slaves stamp the lumped frames they receive as a PHY would on links of constant delay (--stamps phy): the instant the loop sent the frame from the master plus the slave's path delay, the shortest the warm-up measured; frames the loop did not send get the instant the loop read them"
+            }
+            Stamps::Software => {
+                "slaves stamp the lumped frames they receive in software, at the instant the loop reads them (--stamps software): the clocks see the loop's forwarding jitter"
+            }
+        }
+    }
+}
+
+impl std::str::FromStr for Stamps {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        Stamps::ALL
+            .into_iter()
+            .find(|k| k.name() == s)
+            .ok_or_else(|| format!("unknown stamps '{s}': use phy or software"))
+    }
 }
 
 impl Default for RtOptions {
@@ -108,6 +160,7 @@ impl Default for RtOptions {
             forge: Vec::new(),
             flap: None,
             sample_lead: None,
+            stamps: Stamps::Phy,
             verbose: false,
         }
     }
@@ -120,6 +173,8 @@ pub struct RtResult {
     pub scenario: Scenario,
     /// The transport the frames travelled on.
     pub transport: TransportKind,
+    /// How the slaves stamped the lumped frames.
+    pub stamps: Stamps,
     /// The same result a simulation gives: metrics, counters, trace, faults.
     pub run: RunResult,
     /// Timing statistics.
@@ -329,7 +384,11 @@ pub fn run_streamed(
         Sinks::default(),
     )?;
     ring.run_loop(opts, stop, None, &None, &mut None)?;
-    for (c, d) in spec.slaves.iter_mut().zip(ring.measured_path_delays()) {
+    for (c, d) in spec
+        .slaves
+        .iter_mut()
+        .zip(ring.measured_path_delays(opts.stamps))
+    {
         if let Some(d) = d {
             c.path_delay = Duration::from_ns(d);
         }
@@ -352,6 +411,7 @@ pub fn run_streamed(
     let mode = Mode::Run {
         trace: opts.trace,
         capture: opts.capture,
+        stamps: opts.stamps,
     };
     let mut ring = Ring::new(&spec, ports, cycles, mode, observers, sinks)?;
     let (trace_streamed, capture_streamed) = ring.streaming();
@@ -456,6 +516,7 @@ pub fn run_streamed(
     Ok(RtResult {
         scenario: spec.scenario,
         transport: opts.transport,
+        stamps: opts.stamps,
         run,
         timing,
         calibration: cal,
