@@ -140,6 +140,8 @@ pub(crate) struct Ring {
     log: TimingLog,
     /// With `Some`, the delay from the master's send to each slave's read of every lumped
     /// frame [ns] (the warm-up's measurement).
+    /// Warm-up: when each axis's commands took effect, from its cycle's start [ns].
+    arrivals: Option<Vec<Vec<i64>>>,
     delays: Option<Vec<Vec<i64>>>,
     /// Cycles started at the removal of a slave, and at the group stop.
     kill_cycle: Option<i64>,
@@ -287,6 +289,7 @@ impl Ring {
             end: cycles * spec.scenario.ring.cycle.0.as_ns(),
             log: TimingLog::new(cycles),
             delays: (mode == Mode::WarmUp).then(|| vec![Vec::new(); n]),
+            arrivals: (mode == Mode::WarmUp).then(|| vec![Vec::new(); n]),
             phy,
             probe_k: 0,
             kill_cycle: None,
@@ -305,6 +308,16 @@ impl Ring {
                 Stamps::Software => (!v.is_empty()).then(|| crate::stats::Percentiles::of(v).p50),
                 Stamps::Phy => v.iter().copied().min(),
             })
+            .collect()
+    }
+
+    /// When each axis's commands took effect in the warm-up, from the cycle start (median
+    /// per axis) [ns].
+    pub fn measured_command_arrivals(&self) -> Vec<Option<i64>> {
+        self.arrivals
+            .iter()
+            .flatten()
+            .map(|v| (!v.is_empty()).then(|| crate::stats::Percentiles::of(v).p50))
             .collect()
     }
 
@@ -383,8 +396,14 @@ impl Ring {
             .as_ref()
             .and_then(|p| p.received(i, lumped_stamp(bytes)?))
             .unwrap_or(now);
+        let applied = self.dev.slaves[i].counters().commands;
         let Ring { dev, out, .. } = self;
         let outcome = dev.slave_frame(i, rx, rx, bytes, &mut |f, at, b| out.send(f, at, b));
+        if let Some(a) = self.arrivals.as_mut()
+            && self.dev.slaves[i].counters().commands > applied
+        {
+            a[i].push(rx.rem_euclid(self.t_cyc.max(1)));
+        }
         if outcome == FrameOutcome::Forward {
             self.send(node, now, bytes);
         }

@@ -393,6 +393,21 @@ pub fn run_streamed(
             c.path_delay = Duration::from_ns(d);
         }
     }
+    // The law times its feed-forward for each command's arrival: the arrivals the running
+    // loop gave, not the calibration's estimate (a few µs apart per axis, and at an error of
+    // one encoder count that decides the synchronisation error).
+    if spec.master.plan == PlanKind::P2pLumped {
+        for (a, d) in spec
+            .master
+            .command_arrival
+            .iter_mut()
+            .zip(ring.measured_command_arrivals())
+        {
+            if let Some(d) = d {
+                *a = Duration::from_ns(d);
+            }
+        }
+    }
     let (_, mut ports) = ring.finish(&spec.scenario.name);
     // Frames of the warm-up still in the kernel's queues arrive within microseconds: let
     // them, then read them all away, so that the run's fresh nodes never see one.
