@@ -21,9 +21,10 @@ def test_rt_gives_a_run_with_the_timing(tmp_path: Path) -> None:
     assert r.summary["sim_prediction"]["seeds"] == 1
     assert r.e.shape[1] == 4 and 0 < r.e.shape[0] <= 300
     n = r.metrics["samples"]
-    # A trace row is taken when the master computes, from the latest cycle probe; when the
-    # host delays the loop (the ring counts overruns and late probes), a computation can
-    # come after the next probe, so one row in n may be another cycle's: 2/n then.
+    # A trace row is taken when the master computes, from its cycle's probe (or the one
+    # before's, for a computation the host delayed past the next cycle start); a computation
+    # delayed past two cycle starts takes the latest probe, so when the host delays the loop
+    # (the ring counts overruns and late probes) one row in n may be another cycle's: 2/n.
     disturbed = r.summary["overruns"] > 0 or r.summary["probes_late"] > 0
     rtol = 2.0 / n if disturbed else 1e-12
     assert np.isclose(np.sqrt(np.sum(r.e**2) / n), r.metrics["track_rmse"], rtol=rtol, atol=0)

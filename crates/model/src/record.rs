@@ -115,6 +115,12 @@ pub struct Recorder {
     t_cyc: f64,
     trace_on: bool,
     probe: Vec<AxisProbe>,
+    /// The cycle of `probe` and `eps`.
+    probe_k: i64,
+    /// The cycle before's probe and synchronisation errors, for a law run that came after
+    /// the next cycle's start (a real-time master its host held up): its trace rows show
+    /// its own cycle's state.
+    prev: (i64, Vec<AxisProbe>, Vec<f64>),
     e: Vec<f64>,
     u: Vec<f64>,
     sat: Vec<bool>,
@@ -162,6 +168,8 @@ impl Recorder {
             t_cyc,
             trace_on: trace,
             probe: vec![zero; n],
+            probe_k: -1,
+            prev: (-1, vec![zero; n], vec![0.0; n]),
             e: vec![0.0; n],
             u: vec![0.0; n],
             sat: vec![false; n],
@@ -269,6 +277,11 @@ impl Observer for Recorder {
     /// run.
     fn cycle(&mut self, k: i64, _t: f64, axes: &[AxisProbe]) {
         self.flush_trace();
+        // Both are written whole below: the last cycle's become the previous ones.
+        self.prev.0 = self.probe_k;
+        std::mem::swap(&mut self.probe, &mut self.prev.1);
+        std::mem::swap(&mut self.eps, &mut self.prev.2);
+        self.probe_k = k;
         for (i, p) in axes.iter().enumerate().take(self.n) {
             self.probe[i] = *p;
             self.e[i] = p.x_d - p.x;
@@ -300,11 +313,16 @@ impl Observer for Recorder {
         let tr = &mut self.trace;
         self.pending = Some(tr.len());
         tr.t.push(k as f64 * self.t_cyc);
+        let (probe, eps) = if k != self.probe_k && k == self.prev.0 {
+            (&self.prev.1, &self.prev.2)
+        } else {
+            (&self.probe, &self.eps)
+        };
         for i in 0..self.n {
-            let p = self.probe[i];
+            let p = probe[i];
             tr.x_d.push(p.x_d);
             tr.x.push(p.x);
-            tr.eps.push(self.eps[i]);
+            tr.eps.push(eps[i]);
             tr.u.push(r.u[i]);
             tr.sample_time.push(r.sample_time[i]);
             tr.apply_time.push(f64::NAN);
@@ -382,6 +400,40 @@ mod tests {
             Vec::new(),
             Vec::new(),
         )
+    }
+
+    /// A law run that comes after the next cycle has started (a real-time master held up
+    /// by its host) gets trace rows with its own cycle's axis states, not the next cycle's.
+    #[test]
+    fn a_late_law_run_records_its_own_cycles_state() {
+        let n = 2;
+        let mut rec = Recorder::new(n, 3, 1e-3, true);
+        let probe = |k: i64| -> Vec<AxisProbe> {
+            (0..n)
+                .map(|i| AxisProbe {
+                    x: k as f64 + 0.1 * i as f64,
+                    x_d: k as f64 + 0.5,
+                    clock_error_ns: k as f64,
+                    u: 0.0,
+                    saturated: false,
+                })
+                .collect()
+        };
+        let mut record = CycleRecord::new(n);
+        rec.cycle(0, 0.0, &probe(0));
+        rec.computed(0, &record);
+        // Cycle 1 starts before its law runs.
+        rec.cycle(1, 1e-3, &probe(1));
+        rec.cycle(2, 2e-3, &probe(2));
+        record.k = 1;
+        rec.computed(1, &record);
+        let r = result(rec);
+        let t = &r.trace;
+        // Rows: cycle 0's two axes, then cycle 1's.
+        assert_eq!(t.t, vec![0.0, 1e-3]);
+        assert_eq!(t.x, vec![0.0, 0.1, 1.0, 1.1]);
+        assert_eq!(t.x_d, vec![0.5, 0.5, 1.5, 1.5]);
+        assert_eq!(t.clock_error_ns, vec![0.0, 0.0, 1.0, 1.0]);
     }
 
     /// A streaming recorder hands on exactly the rows a keeping one keeps, apply times
