@@ -87,14 +87,15 @@ pub struct RtArgs {
     #[arg(long, value_parser = duration, requires = "flap_link")]
     flap_for: Option<Duration>,
     /// Slaves latch their encoders this long before each cycle start (default: the
-    /// scenario's clock.sample_lead, or 100us when that is 0). Software clocks are off by
-    /// tens of µs; a latch after the lumped frame has passed sends last cycle's sample.
+    /// scenario's clock.sample_lead, or 100us when that is 0). Software-stamped clocks are
+    /// off by tens of µs, and a host stall can hold the loop past the latch; a latch after
+    /// the lumped frame has passed sends last cycle's sample.
     #[arg(long, value_parser = duration)]
     sample_lead: Option<Duration>,
     /// How the slaves stamp the lumped frames their clocks follow: phy (the instant the
     /// master sent the frame plus the slave's path delay, as the scenario's hardware stamps
     /// on links of constant delay) or software (the instant the loop reads the frame: the
-    /// clocks then see the loop's forwarding jitter, a few µs).
+    /// clocks then see the loop's forwarding jitter, µs to tens of µs).
     #[arg(long, value_name = "KIND", default_value = "phy")]
     stamps: ringsync::Stamps,
     /// Skip the simulator's prediction for the same scenario.

@@ -210,7 +210,7 @@ impl Devices {
                     news.stopped = true;
                     // Where the ring broke, from what each node last took.
                     self.rec
-                        .ring_break(locate_break_of(&self.master, &self.slaves));
+                        .ring_break(locate_break_of(&self.master, &self.slaves, at));
                     let t = at.as_ns() as f64 * 1e-9;
                     self.fault(t, reason.axis() + 1, FaultStep::GroupStop(reason));
                 }

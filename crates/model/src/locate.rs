@@ -1,5 +1,6 @@
 //! Where a ring broke, from the nodes' own "last seen" counters.
 
+use ringsync_proto::Instant;
 use ringsync_proto::node::{Master, Slave};
 
 /// Where a ring broke, told from what each node last received (EtherCAT's working-counter
@@ -83,11 +84,18 @@ pub fn locate_break(
     }
 }
 
-/// [`locate_break`] for a ring of nodes at the master's current cycle, each node's
-/// "running" told by its own heartbeat: a slave runs while its encoder latches keep up with
-/// the cycles (its sample counter is within two of the master's cycle).
-pub fn locate_break_of(master: &Master, slaves: &[Slave]) -> RingBreak {
-    let k = master.cycle();
+/// [`locate_break`] for a ring of nodes at the group stop at `at` (the master's time),
+/// each node's "running" told by its own heartbeat: a slave runs while its encoder latches
+/// keep up with the cycles (its sample counter is within two of the cycle). The cycle it
+/// is told at is the master's, but no later than one after the newest whose lumped frame
+/// went out a cycle time before `at` ([`Master::settled_cycle`]; in the simulator always
+/// the master's): a master its host held up runs the missed cycles back to back, and nodes
+/// that have not yet seen those frames are not behind a break (after such a stall the
+/// nodes before a broken link had seen the cycle before the stall, and slave 1 was named).
+pub fn locate_break_of(master: &Master, slaves: &[Slave], at: Instant) -> RingBreak {
+    let k = master
+        .settled_cycle(at)
+        .map_or(master.cycle(), |c| master.cycle().min(c + 1));
     let seen: Vec<Option<i64>> = slaves.iter().map(|s| s.last_lumped_cycle()).collect();
     let running: Vec<bool> = slaves.iter().map(|s| s.samples_taken() >= k - 1).collect();
     locate_break(k, &seen, master.last_lumped_cycle(), &running)

@@ -194,6 +194,7 @@ pub fn rt_summary(
             "garbage": r.injected.garbage,
             "garbage_counted_malformed": r.injected.counted_malformed,
             "malformed_unread_at_end": r.injected.malformed_unread,
+            "valid_unread_at_end": r.injected.valid_unread,
             "forged": r.injected.forged.iter().map(|(f, n)| json!({"kind": f.name(), "frames": n})).collect::<Vec<_>>(),
         },
         "flap": {

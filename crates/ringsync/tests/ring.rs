@@ -51,7 +51,7 @@ fn run_ref(opts: RtOptions) -> RtResult {
 /// the host, and the test asserts on them no further.
 ///
 /// The host leaves a run alone when its longest outage (consecutive cycles that lost their
-/// lumped frame or a command) is shorter than W, no more than W cycles were left unstarted
+/// lumped frame or a command) is shorter than W, fewer than W cycles were left unstarted
 /// at the end, and the host stalled the loop into an overrun in fewer than 2 % of its
 /// cycles, all by the ring's own accounting. A virtual machine's host now and then holds the
 /// loop off its CPU for milliseconds on end (docs/runtime.md: the host's stalls, measured
@@ -69,7 +69,15 @@ fn run_measured(opts: RtOptions, always: impl Fn(&RtResult)) -> Option<RtResult>
     for _ in 0..ATTEMPTS {
         let r = run_ref(opts.clone());
         always(&r);
-        match host_stalled(&r).or_else(|| host_outage(&r)) {
+        // On every run: an outage of W is the host's only with stalls that account for it,
+        // and a group stop comes only with such an outage.
+        let outage = host_outage(&r);
+        assert!(
+            r.run.group_stop.is_none() || outage.is_some(),
+            "a group stop {:?} without an outage of W the host caused: the ring stopped itself",
+            r.run.group_stop
+        );
+        match host_stalled(&r).or(outage) {
             None => return Some(r),
             Some(w) => {
                 report_cut(&r, &w);
@@ -472,17 +480,20 @@ fn refuses_every_forgery(r: &RtResult) {
         |a: ringsync::layers::proto::node::Rejections, c| a.plus(&c.rejected),
     );
     let n = r.run.slaves.len() as u64;
-    // Every forged command reaches its target and is refused (a few may still be in a
-    // socket at the end); each forged lumped frame passes every slave.
+    // Every forged command reaches its target and is refused, or was still waiting on a
+    // port when the run ended (a stall at the end holds the loop while the injector goes
+    // on); each forged lumped frame passes every slave. A few more may still have been in
+    // the kernel.
+    let unread = r.injected.valid_unread;
     assert!(
-        slaves.get(Reject::WrongCycle) + 5 >= commands + n * burst,
-        "{name}: {slaves:?}"
+        slaves.get(Reject::WrongCycle) + unread + 5 >= commands + n * burst,
+        "{name}: {slaves:?}, {unread} unread"
     );
     assert!(
-        slaves.get(Reject::FutureTimestamp) + 5 * n >= n * future,
-        "{name}: {slaves:?}"
+        slaves.get(Reject::FutureTimestamp) + n * (unread + 5) >= n * future,
+        "{name}: {slaves:?}, {unread} unread"
     );
-    assert!(r.run.master.rejected.get(Reject::WrongCycle) + 5 >= future + burst);
+    assert!(r.run.master.rejected.get(Reject::WrongCycle) + unread + 5 >= future + burst);
     let (sent, applied) = &r.run.command_max;
     for (i, (s, a)) in sent.iter().zip(applied).enumerate() {
         assert!(
@@ -535,7 +546,6 @@ fn a_link_flap_shorter_than_w_costs_cycles_not_the_run() {
             r.run.group_stop
         );
         assert!(t.overruns >= 5, "{name}: the flap cost no cycle? {t:?}");
-        assert!(t.longest_outage < u64::from(FAULT_W), "{name}: {t:?}");
         match transport {
             TransportKind::Veth => {
                 assert!(t.flap_down_ns.is_some_and(|d| d >= 8_000_000), "{t:?}");

@@ -41,7 +41,8 @@ const SPIN_OTHER: i64 = 20_000;
 /// link flap costs the cycles it lasts, not the run.
 pub const RX_RETRY: i64 = 1_000_000;
 
-/// The slave clock servo for software timestamps (see the runtime's assumptions).
+/// The slave clock servo of the runtime (both stamps): it rides out bursts of late or lost
+/// frames, which software stamps see as outliers (see the runtime's assumptions).
 const RT_CLOCK_FILTER: ClockFilter = ClockFilter {
     offset_gain: 0.25,
     rate_gain: 0.25,
@@ -140,9 +141,9 @@ pub(crate) struct Ring {
     log: TimingLog,
     /// With `Some`, the delay from the master's send to each slave's read of every lumped
     /// frame [ns] (the warm-up's measurement).
-    /// Warm-up: when each axis's commands took effect, from its cycle's start [ns].
-    arrivals: Option<Vec<Vec<i64>>>,
     delays: Option<Vec<Vec<i64>>>,
+    /// Warm-up: when each axis's commands took effect, from their cycle's start [ns].
+    arrivals: Option<Vec<Vec<i64>>>,
     /// Cycles started at the removal of a slave, and at the group stop.
     kill_cycle: Option<i64>,
     stop_cycle: Option<i64>,
@@ -157,10 +158,10 @@ enum Due {
 
 /// Reads and discards whatever is waiting on the ports; returns how many of those frames a
 /// node would have refused as malformed (not ringsync's at the link layer, or failing the
-/// PDU's header, payload or CRC checks).
-pub(crate) fn drain(ports: &mut [Option<Box<dyn Port>>]) -> u64 {
+/// PDU's header, payload or CRC checks), and how many were well-formed.
+pub(crate) fn drain(ports: &mut [Option<Box<dyn Port>>]) -> (u64, u64) {
     let mut buf = vec![0u8; MAX_PDU];
-    let mut malformed = 0;
+    let (mut malformed, mut valid) = (0, 0);
     for p in ports.iter_mut().flatten() {
         while let Ok(Some(len)) = p.recv(&mut buf) {
             if buf
@@ -168,10 +169,18 @@ pub(crate) fn drain(ports: &mut [Option<Box<dyn Port>>]) -> u64 {
                 .is_none_or(|b| len == 0 || Pdu::parse(b).is_err())
             {
                 malformed += 1;
+            } else {
+                valid += 1;
             }
         }
     }
-    malformed
+    (malformed, valid)
+}
+
+/// The cycle counter of a command frame, if `bytes` is one.
+fn command_cycle(bytes: &[u8]) -> Option<u32> {
+    let f = Frame::new_checked(bytes).ok()?;
+    (f.kind().ok()? == ringsync_wire::FrameKind::Command).then(|| f.common().cycle)
 }
 
 /// The master's timestamp of a lumped frame (of either plan), if `bytes` is one.
@@ -182,10 +191,11 @@ fn lumped_stamp(bytes: &[u8]) -> Option<u64> {
 
 /// Emulated PHY receive stamps ([`Stamps::Phy`]): the loop knows when the master sent each
 /// lumped frame; a slave's stamp is that instant plus its path delay, as a hardware stamp
-/// reads on links of constant delay, whatever the loop's forwarding took. Keyed by the
-/// master's timestamp in the frame, for the frames the loop itself sent: a frame from
-/// elsewhere (injected, forged) gets the loop's reading time, never a stamp from its own
-/// content.
+/// reads on links of constant delay, whatever the loop's forwarding took. Looked up by the
+/// master's timestamp in the frame among the last [`PhyStamps::KEPT`] lumped frames the loop
+/// sent: a frame from elsewhere (injected, forged) gets the loop's reading time, and one
+/// that replays a recent stamp gets that send's instant (a true measurement; the slave's
+/// cycle and sequence checks refuse the replay).
 pub(crate) struct PhyStamps {
     /// Each slave's path delay [ns].
     path: Vec<i64>,
@@ -298,8 +308,8 @@ impl Ring {
     }
 
     /// The slaves' path delays as the warm-up measured them [ns]: per slave the median for
-    /// software stamps, the shortest for emulated PHY stamps (a stamp is never later than
-    /// the loop's reading of the frame).
+    /// software stamps, the shortest for emulated PHY stamps (so that a stamp is seldom
+    /// later than the loop's reading of the frame; see [`PhyStamps::received`]).
     pub fn measured_path_delays(&self, stamps: Stamps) -> Vec<Option<i64>> {
         self.delays
             .iter()
@@ -381,10 +391,13 @@ impl Ring {
             return;
         }
         let i = node - 1;
+        // (Only delays a frame of the ring can have: the stamp is the frame's own.)
         if let Some(d) = self.delays.as_mut()
             && let Some(sent) = lumped_stamp(bytes).and_then(|t| i64::try_from(t).ok())
+            && let delay = now.saturating_sub(sent)
+            && (0..self.t_cyc).contains(&delay)
         {
-            d[i].push(now.saturating_sub(sent));
+            d[i].push(delay);
         }
         // Everything due before the frame first: a command it carries advances the axis to
         // `now`, and a cycle probe or latch due earlier would then read a later state (a
@@ -397,12 +410,17 @@ impl Ring {
             .and_then(|p| p.received(i, lumped_stamp(bytes)?))
             .unwrap_or(now);
         let applied = self.dev.slaves[i].counters().commands;
+        // The stamp starts the frame (the clock's measurement); what the frame makes the
+        // slave do happens when the loop hands it over.
         let Ring { dev, out, .. } = self;
-        let outcome = dev.slave_frame(i, rx, rx, bytes, &mut |f, at, b| out.send(f, at, b));
+        let outcome = dev.slave_frame(i, rx, now, bytes, &mut |f, at, b| out.send(f, at, b));
+        // A command taken in its own cycle: when it took effect, from that cycle's start.
+        let t_cyc = self.t_cyc.max(1);
         if let Some(a) = self.arrivals.as_mut()
             && self.dev.slaves[i].counters().commands > applied
+            && command_cycle(bytes) == Some(now.div_euclid(t_cyc) as u32)
         {
-            a[i].push(rx.rem_euclid(self.t_cyc.max(1)));
+            a[i].push(now.rem_euclid(t_cyc));
         }
         if outcome == FrameOutcome::Forward {
             self.send(node, now, bytes);

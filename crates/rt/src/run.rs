@@ -34,15 +34,16 @@ pub const ASSUMPTIONS: &[&str] = &[
     "one process and one event-loop thread serve every node's sockets; every hop is a real send and receive through the kernel",
     "slaves forward frames at once, in software",
     "path delays and time slices are measured at start-up (a warm-up of the running loop for the path delays, calibration rounds for the slices) in place of the wire figures of the plan",
-    "slave encoders latch at their synchronised sampling instants exactly (as hardware latches); commands take effect when the loop reads them",
-    "slaves latch their encoders a lead before each cycle start (--sample-lead, 100 µs unless the scenario or the option sets one) where the paper latches at the cycle start: software-synchronised clocks are off by tens of µs, and a latch that falls after the lumped frame has passed sends last cycle's sample again; the simulator's prediction uses the same lead",
+    "slave encoders latch at their synchronised sampling instants exactly (as hardware latches); commands take effect when the loop reads them, and the master's law times its feed-forward for the arrivals the warm-up measured",
+    "slaves latch their encoders a lead before each cycle start (--sample-lead, 100 µs unless the scenario or the option sets one) where the paper latches at the cycle start: software-stamped clocks are off by tens of µs and a host stall can hold the loop past the latch, and a latch that falls after the lumped frame has passed sends last cycle's sample again; the simulator's prediction uses the same lead",
     "the axes are simulated in the runtime's process, advanced exactly between events with the command held",
     "a cycle overruns when the master loses a lumped frame or a command of it (not back, not acknowledged in its cycle)",
 ];
 
-/// The runtime's default sampling lead: the slaves' software-synchronised clocks are off
-/// by up to a few tens of µs (measured: docs/runtime.md), and the latch must come before
-/// the lumped frame reaches the slave, 5-30 µs after the cycle start.
+/// The runtime's default sampling lead: software-stamped clocks are off by up to a few
+/// tens of µs (measured: docs/runtime.md) and a host stall can hold the loop past the
+/// latch, and the latch must come before the lumped frame reaches the slave, 5-30 µs after
+/// the cycle start.
 pub const SAMPLE_LEAD: Duration = Duration::from_us(100);
 
 /// A slave taken out of the ring mid-run.
@@ -104,7 +105,7 @@ pub enum Stamps {
     #[default]
     Phy,
     /// Software stamps: the instant the loop read the frame. The clocks then follow the
-    /// master to within the loop's forwarding jitter (a few µs here).
+    /// master to within the loop's forwarding jitter (µs to tens of µs here).
     Software,
 }
 
@@ -225,6 +226,9 @@ pub struct Injection {
     /// Malformed frames still waiting on the nodes' ports when the run ended, read after
     /// the injector stopped and handed to no node.
     pub malformed_unread: u64,
+    /// Well-formed frames still waiting on the nodes' ports when the run ended (forged
+    /// ones among them), likewise.
+    pub valid_unread: u64,
 }
 
 /// What can stop a real-time run from starting.
@@ -516,8 +520,10 @@ pub fn run_streamed(
         mut ports,
     ) = ring.finish(&s.name);
     // What the injector sent that the nodes never read (a host stall at the end holds the
-    // loop while the injector catches up): the injector has stopped, so this is all of it.
-    let malformed_unread = drain(&mut ports);
+    // loop while the injector catches up): the injector has stopped; what it sent last
+    // arrives within microseconds (as after the warm-up), so this is all of it.
+    sys::sleep_until(sys::now_ns() + 2_000_000);
+    let (malformed_unread, valid_unread) = drain(&mut ports);
     // Close every socket before the namespaces go (a socket keeps its namespace alive).
     drop(ports);
     drop(veth);
@@ -546,6 +552,7 @@ pub fn run_streamed(
                 .collect(),
             counted_malformed: counted,
             malformed_unread,
+            valid_unread,
         },
         nodes_rx,
         interrupted,

@@ -1,6 +1,6 @@
 //! The schedule of a real ring: the plan's P2P start, slices and command arrivals replaced
-//! by what calibration measured on this host, and the clock windows widened for software
-//! timestamps. Everything else in the nodes' configurations is the scenario's, as built by
+//! by what calibration measured on this host, and the clock windows widened for the
+//! runtime (software stamps; commands are always checked at the loop's reading). Everything else in the nodes' configurations is the scenario's, as built by
 //! `Scenario::build`.
 
 use ringsync_model::Spec;
@@ -12,8 +12,9 @@ use crate::calibrate::Calibration;
 use crate::run::RtError;
 
 /// How far from a node's clock a received timestamp may be in the runtime, ahead or behind
-/// (software timestamps: the slaves' clocks are good to tens of µs, measured in
-/// docs/runtime.md; a frame read later than this after a host stall is refused as stale).
+/// (software stamps: the slaves' clocks are good to tens of µs, measured in
+/// docs/runtime.md; a command, or a software-stamped frame, read later than this after a
+/// host stall is refused as stale).
 pub const RT_TIMESTAMP_TOLERANCE: Duration = Duration::from_us(200);
 
 /// The master's P2P schedule on the measured ring [ns].
@@ -78,7 +79,7 @@ pub fn apply(
             m.command_arrival[i] = Duration::from_ns(cal.path[i] + frame);
         }
     }
-    // The clock window: software timestamps, and what free-running clocks drift apart
+    // The clock window: software stamps and commands read late, and what free-running clocks drift apart
     // when the scenario turns clock sync off (as the simulator allows for it).
     let tolerance = RT_TIMESTAMP_TOLERANCE.max(timestamp_tolerance(s));
     m.timestamp_tolerance = tolerance;

@@ -471,6 +471,10 @@ pub struct Master {
     sent_lumped: Vec<SentLumped>,
     /// The cycle of the last lumped frame taken.
     last_back: Option<i64>,
+    /// The cycles whose first lumped frame went out in the last cycle time, with their send
+    /// instants, and the newest one sent before that at the front: what frames have had the
+    /// time to go round (see [`Master::settled_cycle`]).
+    recent_sends: VecDeque<(i64, Instant)>,
     retry_queue: VecDeque<usize>,
     seq: u16,
     out: Outbox,
@@ -509,6 +513,7 @@ impl Master {
             sent_u: vec![0.0; n],
             sent_lumped: vec![SentLumped::default(); cfg.lumped_offsets.len()],
             last_back: None,
+            recent_sends: VecDeque::new(),
             retry_queue: VecDeque::new(),
             seq: 0,
             out: Outbox::default(),
@@ -549,6 +554,29 @@ impl Master {
     /// "last seen" counter, from which a driver tells where a ring broke.
     pub fn last_lumped_cycle(&self) -> Option<i64> {
         self.last_back
+    }
+
+    /// The newest cycle whose first lumped frame went out at least a cycle time before `at`
+    /// (`None` before any): every node had the time to take it. A master that runs late
+    /// runs the cycles it missed back to back, and their frames, sent at once, have not gone
+    /// round yet.
+    pub fn settled_cycle(&self, at: Instant) -> Option<i64> {
+        let &(first, _) = self.recent_sends.front()?;
+        Some(
+            self.recent_sends
+                .iter()
+                .rev()
+                .find(|(_, sent)| *sent + self.cfg.cycle <= at)
+                .map_or(first - 1, |(k, _)| *k),
+        )
+    }
+
+    /// Notes that cycle k's first lumped frame goes out at `now`.
+    fn note_lumped_sent(&mut self, now: Instant) {
+        self.recent_sends.push_back((self.k, now));
+        while self.recent_sends.len() >= 2 && self.recent_sends[1].1 + self.cfg.cycle <= now {
+            self.recent_sends.pop_front();
+        }
     }
     /// The order the master gave axis `i` (0-based) during a group stop, if any.
     pub fn order(&self, i: usize) -> Option<StopOrder> {
@@ -600,6 +628,9 @@ impl Master {
     pub fn handle_timeout(&mut self, now: Instant) {
         let c = self.cycle_start();
         if self.next_lumped < self.cfg.lumped_offsets.len() {
+            if self.next_lumped == 0 {
+                self.note_lumped_sent(now);
+            }
             if self.cfg.plan == PlanKind::LumpedOnly {
                 self.send_lumped_only(now);
             } else {

@@ -142,3 +142,37 @@ fn a_measured_schedule_places_each_command() {
         ]
     );
 }
+
+/// The settled cycle: the newest whose lumped frame went out a cycle time ago. A master
+/// that runs on time settles the cycle before its current one; one that runs the cycles a
+/// host stall made it miss back to back settles none of them until a cycle time has passed.
+#[test]
+fn a_master_late_by_a_stall_settles_only_the_cycles_sent_a_cycle_ago() {
+    let (mut m, _) = ring(2, Duration::ZERO);
+    let step = |m: &mut Master, until: i64| {
+        while m.poll_timeout().as_ns() <= until {
+            let at = m.poll_timeout();
+            m.handle_timeout(at);
+            while m.poll_transmit().is_some() {}
+        }
+    };
+    // On time through cycle 5: at 5.5 ms, cycle 4's frame went out 1.5 ms before.
+    step(&mut m, 5 * T_CYC + T_CYC / 2);
+    assert_eq!(m.cycle(), 5);
+    assert_eq!(
+        m.settled_cycle(Instant::from_ns(5 * T_CYC + T_CYC / 2)),
+        Some(4)
+    );
+    // The host holds the master until 12.2 ms; it then runs cycles 6-12 at once.
+    let late = 12 * T_CYC + T_CYC / 5;
+    while m.cycle() < 12 {
+        m.handle_timeout(Instant::from_ns(late));
+        while m.poll_transmit().is_some() {}
+    }
+    m.handle_timeout(Instant::from_ns(late));
+    assert_eq!(m.cycle(), 12);
+    // Only cycle 5's frame went out a cycle time before: none of the ones just sent.
+    assert_eq!(m.settled_cycle(Instant::from_ns(late)), Some(5));
+    // A cycle time later they have.
+    assert_eq!(m.settled_cycle(Instant::from_ns(late + T_CYC)), Some(12));
+}
