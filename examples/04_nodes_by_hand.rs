@@ -92,7 +92,9 @@ fn main() -> Result<(), ringsync::Error> {
                     }
                 }
                 MasterEvent::GroupStop { reason, .. } => println!("group stop: {}", reason.name()),
-                MasterEvent::Order { .. } | MasterEvent::Monitor { .. } => {}
+                MasterEvent::Order { .. }
+                | MasterEvent::Monitor { .. }
+                | MasterEvent::Ring { .. } => {}
             }
         }
     }

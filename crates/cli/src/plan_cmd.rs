@@ -71,6 +71,44 @@ pub struct PlanArgs {
     /// Also draw the cycle as an SVG timing diagram (like the paper's Fig. 1) into FILE.
     #[arg(long, value_name = "FILE")]
     svg: Option<PathBuf>,
+    /// Also plan the cycle with link J broken (1..=n+1; link J joins node J-1 to node J, 0
+    /// and n+1 being the master's two ports): the master reaches every slave from one end
+    /// of the ring or the other (docs/planner.md, "A broken link").
+    #[arg(long, value_name = "J", allow_negative_numbers = true)]
+    break_link: Option<i64>,
+}
+
+/// The cycle with link `j` broken, as a table (times in µs).
+fn broken_table(b: &ringsync::layers::proto::plan::BrokenRing) -> String {
+    let us = |d: ringsync::layers::proto::Duration| format!("{:.3} µs", d.as_us_f64());
+    let opt = |d: Option<ringsync::layers::proto::Duration>| d.map_or("-".to_string(), us);
+    let side = |from: u32, count: u32| match count {
+        0 => "none".to_string(),
+        1 => format!("slave {from}"),
+        _ => format!("slaves {from}..{}", from + count - 1),
+    };
+    let mut t = format!(
+        "\nWith link {} broken (port A reaches {}, port B {}):\n",
+        b.link,
+        side(1, b.side_a),
+        side(b.side_a + 1, b.side_b)
+    );
+    for (name, v) in [
+        ("lumped frame back at port A", opt(b.lumped_back_a)),
+        ("lumped frame back at port B", opt(b.lumped_back_b)),
+        ("P2P start", us(b.p2p_start)),
+        ("slice, side A", opt(b.slice_a)),
+        ("slice, side B", opt(b.slice_b)),
+        ("stamp shift of the copy on port B", us(b.stamp_shift)),
+        ("shortest cycle", us(b.min_t_cyc)),
+        ("T_idle", us(b.t_idle)),
+    ] {
+        t.push_str(&format!("  {name:<36} {v:>14}\n"));
+    }
+    if b.t_idle.is_negative() {
+        t.push_str("  The broken ring's plan does not fit this cycle.\n");
+    }
+    t
 }
 
 /// The CLI option that sets a [`RingParams`] field.
@@ -156,6 +194,25 @@ impl PlanArgs {
 pub(crate) fn run(args: &PlanArgs) -> Result<Outcome, CliError> {
     let params = args.params()?;
     let plan = ringsync::plan(&params, args.plan).map_err(usage)?;
+    let broken = match args.break_link {
+        None => None,
+        Some(_) if args.plan != PlanKind::P2pLumped => {
+            return Err(CliError::Usage(
+                "--break-link plans the p2p-lumped plan only".into(),
+            ));
+        }
+        Some(j) => Some(
+            u32::try_from(j)
+                .ok()
+                .and_then(|j| plan.broken(j))
+                .ok_or_else(|| {
+                    CliError::Usage(format!(
+                        "--break-link {j} is not a link of this ring: allowed 1..={}",
+                        params.slaves + 1
+                    ))
+                })?,
+        ),
+    };
     if let Some(path) = &args.svg {
         let svg = timing_svg(&plan).ok_or_else(|| {
             CliError::Usage(format!(
@@ -166,7 +223,12 @@ pub(crate) fn run(args: &PlanArgs) -> Result<Outcome, CliError> {
         ringsync::output::write_file(path, svg)?;
     }
     if args.json {
-        let v = plan_json(&plan, args.plan, args.events);
+        let mut v = plan_json(&plan, args.plan, args.events);
+        if let (Some(b), serde_json::Value::Object(o)) = (&broken, &mut v) {
+            let b = serde_json::to_value(b)
+                .map_err(|e| CliError::Failure(format!("cannot format JSON: {e}")))?;
+            o.insert("broken_ring".into(), b);
+        }
         let text = serde_json::to_string_pretty(&v)
             .map_err(|e| CliError::Failure(format!("cannot format JSON: {e}")))?;
         crate::out(&format!("{text}\n"))?;
@@ -175,6 +237,9 @@ pub(crate) fn run(args: &PlanArgs) -> Result<Outcome, CliError> {
             return Err(CliError::Usage("--events goes with --json".into()));
         }
         let mut text = plan_table(&plan, args.plan);
+        if let Some(b) = &broken {
+            text.push_str(&broken_table(b));
+        }
         if let Some(path) = &args.svg {
             text.push_str(&format!(
                 "\nTiming diagram written to {}.\n",

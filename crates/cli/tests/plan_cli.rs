@@ -230,3 +230,31 @@ fn lumped_only_plan_checks_its_own_cycle() {
     assert!(table.contains("lumped-only plan of ref. [3]"));
     assert_eq!(table_ns(&table, "T_idle"), 1_000_000 - 199_630);
 }
+
+/// `--break-link J`: the broken ring's cycle, in the table and in the JSON, and a link
+/// outside the ring refused with the range and exit code 2.
+#[test]
+fn break_link_plans_the_broken_ring() {
+    let o = ringsync(&["plan", "--break-link", "3"]);
+    assert!(o.status.success(), "{o:?}");
+    let text = stdout(&o);
+    assert!(
+        text.contains("With link 3 broken (port A reaches slaves 1..2, port B slaves 3..4):"),
+        "{text}"
+    );
+    let o = ringsync(&["plan", "--break-link", "1", "--json"]);
+    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).expect("JSON");
+    let b = &v["broken_ring"];
+    assert_eq!(b["side_a"], 0);
+    assert_eq!(b["side_b"], 4);
+    // Port A dead: every slave from port B, the copy stamped for its longer path (Δ > 0).
+    assert!(b["stamp_shift"].as_i64().expect("ns") > 0, "{b}");
+    assert!(b["lumped_back_a"].is_null());
+    let o = ringsync(&["plan", "--break-link", "6"]);
+    assert_eq!(o.status.code(), Some(2));
+    let err = String::from_utf8(o.stderr).expect("utf-8");
+    assert!(
+        err.contains("--break-link 6 is not a link of this ring: allowed 1..=5"),
+        "{err}"
+    );
+}

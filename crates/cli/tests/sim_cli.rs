@@ -605,3 +605,56 @@ fn outputs_selects_the_files_written() {
     assert!(err.contains("unknown output 'plots'"), "{err}");
     assert!(err.contains("parquet"), "the names it lists: {err}");
 }
+
+/// A broken link in `sim --set`: the run goes on (exit 0), and summary.json names the link,
+/// when the master found it and the cycles it cost; two breaks stop the group (exit 3)
+/// and name the slaves cut off.
+#[test]
+fn a_broken_link_is_reported_in_the_summary() {
+    let d = dir("broken");
+    let o = ringsync(&[
+        "sim",
+        "paper-2015",
+        "--set",
+        "duration=\"1s\"",
+        "--set",
+        "faults.break_link=\"2@500ms..800ms\"",
+        "--outputs",
+        "summary",
+        "--out",
+        d.to_str().expect("utf-8"),
+    ]);
+    assert_eq!(o.status.code(), Some(0), "{o:?}");
+    let v: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(d.join("summary.json")).expect("summary"))
+            .expect("JSON");
+    let ring = &v["ring"];
+    assert_eq!(ring["scheduled"][0], "2@0.5s..0.8s");
+    assert_eq!(ring["changes"][0]["event"], "broken");
+    assert_eq!(ring["changes"][0]["broken_link"], 2);
+    assert_eq!(ring["changes"][0]["cycle"], 500);
+    assert!(ring["changes"][0]["cycles_lost"].as_u64().expect("count") <= 1);
+    assert_eq!(ring["changes"][1]["event"], "healed");
+    assert_eq!(ring["at_end"], "whole");
+    let d = dir("split");
+    let o = ringsync(&[
+        "sim",
+        "paper-2015",
+        "--set",
+        "duration=\"1s\"",
+        "--set",
+        "faults.break_link=[\"2@300ms\",\"4@600ms\"]",
+        "--outputs",
+        "summary",
+        "--out",
+        d.to_str().expect("utf-8"),
+    ]);
+    assert_eq!(o.status.code(), Some(3), "{o:?}");
+    let v: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(d.join("summary.json")).expect("summary"))
+            .expect("JSON");
+    let stop = &v["faults"]["group_stop"];
+    assert_eq!(stop["reason"], "ring-split");
+    assert_eq!(stop["isolated_slaves"], serde_json::json!([2, 3]));
+    let _ = std::fs::remove_dir_all(&d);
+}

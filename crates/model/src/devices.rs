@@ -5,8 +5,8 @@
 //!
 //! Times in the calls are true (master) time in ns; a slave's local time is its
 //! oscillator's reading of it. Frames a node sends go out through the driver's `send`
-//! closure, `send(from, at, frame)`: from node `from` (0 = the master, i = slave i), first bit
-//! at true time `at`. The master's frames leave when it handles its timeout (or a frame);
+//! closure, `send(from, at, frame)`: from node `from` (0 = the master, i = slave i; n + 1 =
+//! the master's port B, on a broken ring), first bit at true time `at`. The master's frames leave when it handles its timeout (or a frame);
 //! a slave's responses at their own time, after its response delay. The frames are bytes
 //! ([`WireFrame::Bytes`]) unless the driver asked for decoded ones
 //! ([`Devices::carry_decoded`]: the simulator, which then computes no CRC).
@@ -25,7 +25,7 @@
 
 use ringsync_proto::Instant;
 use ringsync_proto::node::{
-    FrameOutcome, Master, MasterEvent, SafeState, Slave, SlaveEvent, WireFrame,
+    FrameOutcome, Master, MasterEvent, Port, SafeState, Slave, SlaveEvent, WireFrame,
 };
 use ringsync_wire::{Pdu, Status};
 
@@ -185,10 +185,40 @@ impl Devices {
         self.drain_master(send)
     }
 
+    /// [`Devices::master_frame`] or [`Devices::master_pdu`] for a frame that came back to
+    /// the master's port `port` (a whole ring brings every frame back to port B).
+    pub fn master_frame_on(
+        &mut self,
+        port: Port,
+        now: i64,
+        frame: &WireFrame,
+        send: &mut dyn FnMut(usize, i64, WireFrame),
+    ) -> MasterNews {
+        let at = Instant::from_ns(now);
+        match frame {
+            WireFrame::Bytes(b) => self.master.handle_frame_on(port, at, b),
+            WireFrame::Pdu(p) => self.master.handle_pdu_on(port, at, p),
+        }
+        self.drain_master(send)
+    }
+
+    /// The link of the master's port `port` went down (`up` false) or came up at true time
+    /// `now`.
+    pub fn master_link(&mut self, now: i64, port: Port, up: bool) {
+        self.master.handle_link(Instant::from_ns(now), port, up);
+    }
+
+    /// The node index a driver's `send` gets for the master's frames on port B: n + 1, the
+    /// node after slave n (port A's are node 0).
+    pub fn port_b_node(&self) -> usize {
+        self.slaves.len() + 1
+    }
+
     fn drain_master(&mut self, send: &mut dyn FnMut(usize, i64, WireFrame)) -> MasterNews {
         let mut news = MasterNews::default();
-        while let Some((at, frame)) = self.master.poll_frame(self.decoded) {
-            send(0, at.as_ns(), frame);
+        let b = self.port_b_node();
+        while let Some((at, port, frame)) = self.master.poll_frame_on(self.decoded) {
+            send(if port == Port::B { b } else { 0 }, at.as_ns(), frame);
         }
         while let Some(ev) = self.master.poll_event() {
             match ev {
@@ -224,6 +254,9 @@ impl Devices {
                     axis + 1,
                     FaultStep::Ordered(order, why),
                 ),
+                MasterEvent::Ring { at, k, from, to } => {
+                    self.rec.ring_change(at.as_ns() as f64 * 1e-9, k, from, to);
+                }
                 MasterEvent::Monitor { at, news } => {
                     let ev = MonitorEvent {
                         t: at.as_ns() as f64 * 1e-9,

@@ -6,13 +6,13 @@
 use ringsync_control::{Coupling, Metrics};
 use ringsync_proto::Duration;
 use ringsync_proto::node::{
-    CycleRecord, MasterCounters, OffReason, SafeState, SlaveCounters, StopOrder, StopReason,
-    TorqueOffCause,
+    CycleRecord, MasterCounters, OffReason, RingState, SafeState, SlaveCounters, StopOrder,
+    StopReason, TorqueOffCause,
 };
 
 use crate::locate::RingBreak;
 use crate::observer::Observer;
-use crate::result::{Captured, LinkCounters, PassageLog, RunResult, Trace};
+use crate::result::{Captured, LinkCounters, PassageLog, RingChange, RunResult, Trace};
 use crate::stream::TraceSink;
 
 /// One axis at a cycle start, as the driver observes it.
@@ -141,6 +141,9 @@ pub struct Recorder {
     group_stop: Option<(f64, StopReason)>,
     faults: Vec<FaultEvent>,
     ring_break: Option<RingBreak>,
+    ring_changes: Vec<RingChange>,
+    /// The ring change whose lost cycles are still being counted.
+    counting: Option<usize>,
     monitor: Vec<crate::monitor::MonitorEvent>,
     /// Where complete rows go instead of the trace ([`Recorder::stream_trace`]).
     sink: Option<Box<dyn TraceSink>>,
@@ -188,6 +191,8 @@ impl Recorder {
             group_stop: None,
             faults: Vec::new(),
             ring_break: None,
+            ring_changes: Vec::new(),
+            counting: None,
             monitor: Vec::new(),
             sink: None,
         }
@@ -233,6 +238,19 @@ impl Recorder {
         self.ring_break.get_or_insert(b);
     }
 
+    /// The master found the ring changed at `t` [s], in its cycle `k`: the law runs from
+    /// then on without every axis's fresh sample count as its lost cycles.
+    pub fn ring_change(&mut self, t: f64, k: i64, from: RingState, to: RingState) {
+        self.counting = Some(self.ring_changes.len());
+        self.ring_changes.push(RingChange {
+            t,
+            k,
+            from,
+            to,
+            cycles_lost: 0,
+        });
+    }
+
     /// The first group stop, if any.
     pub fn group_stop_seen(&self) -> Option<(f64, StopReason)> {
         self.group_stop
@@ -263,6 +281,7 @@ impl Recorder {
             group_stop: self.group_stop,
             faults: self.faults,
             ring_break: self.ring_break,
+            ring_changes: self.ring_changes,
             monitor: self.monitor,
             command_max: (self.sent_max, self.applied_max),
             trace: self.trace,
@@ -305,6 +324,13 @@ impl Observer for Recorder {
     fn computed(&mut self, k: i64, r: &CycleRecord) {
         for (m, u) in self.sent_max.iter_mut().zip(&r.u) {
             *m = m.max(u.abs());
+        }
+        if let Some(c) = self.counting {
+            if r.fresh.iter().all(|f| *f) {
+                self.counting = None;
+            } else if let Some(change) = self.ring_changes.get_mut(c) {
+                change.cycles_lost += 1;
+            }
         }
         if !self.trace_on {
             return;

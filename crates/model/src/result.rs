@@ -3,7 +3,7 @@
 
 use ringsync_control::Summary;
 use ringsync_proto::Instant;
-use ringsync_proto::node::{MasterCounters, SlaveCounters, StopReason};
+use ringsync_proto::node::{MasterCounters, RingState, SlaveCounters, StopReason};
 use ringsync_proto::plan::{FrameRef, Node};
 
 use crate::locate::RingBreak;
@@ -210,6 +210,23 @@ pub struct LinkCounters {
     pub events: u64,
 }
 
+/// A change of the ring the master found (ring redundancy, docs/planner.md "A broken
+/// link").
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RingChange {
+    /// When the master found it (its P2P start) [s].
+    pub t: f64,
+    /// The master's cycle then.
+    pub k: i64,
+    /// The ring before.
+    pub from: RingState,
+    /// The ring after.
+    pub to: RingState,
+    /// Law runs from this one on that lacked a fresh sample of some axis, up to the first
+    /// that had every axis's (the cycles the change cost).
+    pub cycles_lost: u64,
+}
+
 /// What a run produced.
 #[derive(Debug, Clone)]
 pub struct RunResult {
@@ -237,6 +254,9 @@ pub struct RunResult {
     pub faults: Vec<FaultEvent>,
     /// Where the ring broke, located from the nodes' own counters when the group stopped.
     pub ring_break: Option<RingBreak>,
+    /// Every change of the ring the master found (a link broke, healed, or the break
+    /// moved), in time order.
+    pub ring_changes: Vec<RingChange>,
     /// Every warning and trip the sync-error and following-error monitors raised or
     /// cleared, in time order.
     pub monitor: Vec<crate::monitor::MonitorEvent>,

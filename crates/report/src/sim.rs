@@ -24,7 +24,13 @@ fn stop_json(stop: &Option<(f64, StopReason)>) -> Value {
                 StopReason::FollowingTrip { axis, error } => {
                     ("following-error-trip", axis, Some(error))
                 }
+                StopReason::RingSplit { axis, .. } => ("ring-split", axis, None),
             };
+            if let StopReason::RingSplit { axis, last } = *r {
+                let isolated: Vec<usize> = (axis + 1..=last + 1).collect();
+                return json!({ "time_s": t, "reason": "ring-split", "axis": axis + 1,
+                    "error_rad": Value::Null, "isolated_slaves": isolated });
+            }
             json!({ "time_s": t, "reason": reason, "axis": axis + 1, "error_rad": error })
         }
     }
@@ -42,8 +48,57 @@ pub fn stop_reason_text(r: &StopReason) -> String {
             "following error trip on axis {} (e = {error:+.5} rad beyond the monitor's trip limit)",
             axis + 1
         ),
+        StopReason::RingSplit { axis, last } if axis == last => format!(
+            "ring split: slave {} is cut off from both of the master's ports",
+            axis + 1
+        ),
+        StopReason::RingSplit { axis, last } => format!(
+            "ring split: slaves {}..{} are cut off from both of the master's ports",
+            axis + 1,
+            last + 1
+        ),
         other => format!("{other:?}"),
     }
+}
+
+/// The `ring` key of summary.json: every change of the ring the master found (a link
+/// broke, healed, or the break moved), with the cycles each cost; `None` (no key) on a
+/// ring that never changed and had no break scheduled.
+pub fn ring_json(s: &Scenario, r: &RunResult) -> Option<Value> {
+    if r.ring_changes.is_empty() && s.faults.break_link.is_empty() {
+        return None;
+    }
+    let link = |st: &ringsync_proto::node::RingState| match st {
+        ringsync_proto::node::RingState::Whole => Value::Null,
+        ringsync_proto::node::RingState::Broken { link } => json!(link),
+    };
+    let changes: Vec<Value> = r
+        .ring_changes
+        .iter()
+        .map(|c| {
+            let event = match (c.from, c.to) {
+                (_, ringsync_proto::node::RingState::Whole) => "healed",
+                (ringsync_proto::node::RingState::Whole, _) => "broken",
+                _ => "moved",
+            };
+            json!({
+                "time_s": c.t, "cycle": c.k, "event": event,
+                "from": c.from.describe(), "to": c.to.describe(),
+                "broken_link": link(&c.to), "cycles_lost": c.cycles_lost,
+            })
+        })
+        .collect();
+    let end = r
+        .ring_changes
+        .last()
+        .map_or("whole".to_string(), |c| c.to.describe());
+    Some(json!({
+        "scheduled": s.faults.break_link.iter().map(|b| b.to_string()).collect::<Vec<_>>(),
+        "changes": changes,
+        "at_end": end,
+        "breaks_found": r.master.ring_breaks,
+        "heals_found": r.master.ring_heals,
+    }))
 }
 
 /// A node's refused frames, per reason (every reason listed, zeros included).
@@ -146,6 +201,9 @@ pub fn summary_json(s: &Scenario, hash: u64, r: &RunResult) -> Value {
     });
     if let (Some(m), Value::Object(o)) = (monitor_json(s, r), &mut v) {
         o.insert("monitor".into(), m);
+    }
+    if let (Some(m), Value::Object(o)) = (ring_json(s, r), &mut v) {
+        o.insert("ring".into(), m);
     }
     v
 }

@@ -328,6 +328,11 @@ pub fn run_streamed(
             k.slave
         )));
     }
+    if let Some(b) = spec.scenario.faults.break_link.first() {
+        return Err(RtError::Config(format!(
+            "faults.break_link = \"{b}\": broken links are simulated only so far (ringsync sim); the runtime breaks a link for a while with --flap-link"
+        )));
+    }
     if spec.scenario.ring.plan == PlanKind::LumpedOnly
         && n > ringsync_wire::lumped::slot_capacity(
             <ringsync_wire::LumpedOnlySlot as ringsync_wire::SlotCodec>::LEN,

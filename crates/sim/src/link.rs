@@ -23,7 +23,8 @@
 use ringsync_model::Spec;
 use ringsync_model::result::{Captured, LinkCounters};
 use ringsync_model::rng::Rng;
-use ringsync_proto::node::WireFrame;
+use ringsync_model::scenario::LinkBreak;
+use ringsync_proto::node::{Port, WireFrame};
 use ringsync_wire::{Frame, Route};
 
 /// The bytes of `frame`: its own, or (decoded) `record`, its emitted bytes (empty without).
@@ -47,10 +48,11 @@ pub(crate) fn cycle_route(frame: &WireFrame) -> Option<(u32, Option<Route>)> {
 
 /// What became of a frame sent.
 pub(crate) enum Delivery {
-    /// Its last bit reaches `node` (0 = the master) at true time `at` [ns], its first at
-    /// `rx_start`.
+    /// Its last bit reaches `node` (0 = the master, on `port`) at true time `at` [ns], its
+    /// first at `rx_start`.
     Arrive {
         node: usize,
+        port: Port,
         rx_start: i64,
         at: i64,
         frame: WireFrame,
@@ -77,6 +79,8 @@ pub(crate) struct Link {
     rng: Vec<Rng>,
     /// The slave (1-based) that goes silent, and from when [ns].
     silent: Option<(usize, i64)>,
+    /// Links that break (and heal).
+    breaks: Vec<LinkBreak>,
     /// Link counters (loss, corruption; the driver counts events).
     pub counters: LinkCounters,
     /// Frames sent before `end`, when capturing.
@@ -116,6 +120,7 @@ impl Link {
                     s.faults.silent_from.0.as_ns(),
                 )
             }),
+            breaks: s.faults.break_link.clone(),
             counters: LinkCounters::default(),
             captured: capture.then(Vec::new),
             end,
@@ -133,9 +138,106 @@ impl Link {
         self.silent.is_some_and(|(s, from)| node == s && t >= from)
     }
 
-    /// Sends `frame` from node `from` (0 = master), first bit out at true `t_tx` [ns], along
-    /// the ring to the first node that processes it: a command's target, each slave whose
-    /// slot a lumped frame carries, and the master for everything that comes back round.
+    /// Whether link `link` (1..=n+1) is broken at true time `t` [ns].
+    fn is_broken(&self, link: usize, t: i64) -> bool {
+        self.breaks
+            .iter()
+            .any(|b| b.link as usize == link && b.broken_at(t))
+    }
+
+    /// The links of the master's ports (port A: link 1, port B: link n + 1) and the times
+    /// their state changes: (true time [ns], port, up).
+    pub fn port_changes(&self) -> Vec<(i64, Port, bool)> {
+        let mut v = Vec::new();
+        for b in &self.breaks {
+            let port = match b.link as usize {
+                1 => Port::A,
+                l if l == self.n + 1 => Port::B,
+                _ => continue,
+            };
+            v.push((b.at.as_ns(), port, false));
+            if let Some(h) = b.heal {
+                v.push((h.as_ns(), port, true));
+            }
+        }
+        v.sort_by_key(|c| c.0);
+        v
+    }
+
+    /// The path of a frame sent at `t` on a ring with broken links (docs/planner.md, "A
+    /// broken link"), walked node by node: positions 0..=n+1, 0 and n+1 the master's ports
+    /// A and B, link k joining k−1 and k. A frame moves forward from a slave or port A,
+    /// backward from port B; a node whose next link is broken turns it back; a slave takes
+    /// only frames moving forward. Returns (the node that takes it, its hops, the relays
+    /// on the way, the master's port it reaches), or `None` when it cannot go on (a dead
+    /// port, a slave cut off, a silent relay).
+    fn walk(
+        &self,
+        from: usize,
+        route: Option<Route>,
+        t: i64,
+    ) -> Option<(usize, i64, Vec<usize>, Port)> {
+        let ring = self.n + 1;
+        let takes = |pos: usize| match route {
+            Some(Route::Command { target }) => {
+                (from == 0 || from == ring) && usize::from(target) == pos
+            }
+            Some(
+                Route::Lumped {
+                    first_slot,
+                    slot_count,
+                }
+                | Route::LumpedOnly {
+                    first_slot,
+                    slot_count,
+                },
+            ) => {
+                let (f, c) = (usize::from(first_slot), usize::from(slot_count));
+                pos > f && pos <= f + c
+            }
+            _ => false,
+        };
+        let (mut pos, mut dir): (usize, i64) = if from == ring { (ring, -1) } else { (from, 1) };
+        let next_link = |pos: usize, dir: i64| if dir > 0 { pos + 1 } else { pos };
+        let mut relays = Vec::new();
+        let mut hops = 0i64;
+        // The sender: a master's dead port loses the frame; a slave turns it back.
+        if self.is_broken(next_link(pos, dir), t) {
+            if from == 0 || from == ring || self.is_broken(next_link(pos, -dir), t) {
+                return None;
+            }
+            dir = -dir;
+        }
+        loop {
+            pos = if dir > 0 { pos + 1 } else { pos - 1 };
+            hops += 1;
+            if pos == 0 || pos == ring {
+                return Some((0, hops, relays, if pos == 0 { Port::A } else { Port::B }));
+            }
+            if dir > 0 && takes(pos) {
+                return Some((pos, hops, relays, Port::B));
+            }
+            if self.is_broken(next_link(pos, dir), t) {
+                if self.is_broken(next_link(pos, -dir), t) {
+                    return None;
+                }
+                dir = -dir;
+                if dir > 0 && takes(pos) {
+                    return Some((pos, hops, relays, Port::B));
+                }
+            }
+            let at = t + hops * (self.hop + self.residence);
+            if self.is_silent(pos, at) || hops > 2 * ring as i64 {
+                return None;
+            }
+            relays.push(pos);
+        }
+    }
+
+    /// Sends `frame` from node `from` (0 = master, n + 1 = the master's port B), first bit
+    /// out at true `t_tx` [ns], along the ring to the first node that processes it: a
+    /// command's target, each slave whose slot a lumped frame carries, and the master for
+    /// everything that comes back round.
     pub fn send(&mut self, from: usize, t_tx: i64, mut frame: WireFrame) -> Delivery {
         let capturing = self.captured.is_some();
         // A decoded frame's bytes, emitted once for the capture.
@@ -148,7 +250,7 @@ impl Link {
         {
             c.push(Captured {
                 t: t_tx,
-                node: from,
+                node: from % (self.n + 1),
                 bytes: bytes_of(&frame, &record).to_vec(),
             });
         }
@@ -156,6 +258,9 @@ impl Link {
             return Delivery::Gone;
         };
         let ring = self.n + 1;
+        if from == ring || self.breaks.iter().any(|b| b.broken_at(t_tx)) {
+            return self.send_broken(from, t_tx, route, frame, record);
+        }
         // The node (0 = master) that processes the frame next.
         let stop = match route {
             Some(Route::Command { target }) if from == 0 => usize::from(target).min(self.n),
@@ -273,6 +378,87 @@ impl Link {
         }
         Delivery::Arrive {
             node: stop,
+            port: Port::B,
+            rx_start: rx,
+            at: rx + dur,
+            frame,
+        }
+    }
+
+    /// [`Link::send`] on a ring with a broken link: the path walked node by node
+    /// ([`Link::walk`]), with the same draws per hop.
+    fn send_broken(
+        &mut self,
+        from: usize,
+        t_tx: i64,
+        route: Option<Route>,
+        mut frame: WireFrame,
+        record: Option<Vec<u8>>,
+    ) -> Delivery {
+        let capturing = self.captured.is_some();
+        let dur = self.frame_ns[match route {
+            Some(Route::Lumped { .. }) => 0,
+            Some(Route::Command { .. }) => 1,
+            Some(Route::LumpedOnly { .. }) => 3,
+            _ => 2,
+        }];
+        let walked = self.walk(from, route, t_tx);
+        let gone = walked.is_none();
+        let (stop, hops, relays, port) = walked.unwrap_or((0, 0, Vec::new(), Port::A));
+        let rng_ix = from % (self.n + 1);
+        let rng = &mut self.rng[rng_ix];
+        let mut rx = t_tx + hops * self.hop + (hops - 1).max(0) * self.residence;
+        let mut jitter_sums = Vec::new();
+        let mut corrupted = false;
+        for _ in 1..=hops {
+            if self.jitter > 0 {
+                let j = (rng.unit() * (self.jitter + 1) as f64) as i64;
+                rx += j;
+                jitter_sums.push(jitter_sums.last().copied().unwrap_or(0) + j);
+            }
+            if rng.chance(self.hop_loss) {
+                self.counters.lost += 1;
+                return Delivery::Lost(frame);
+            }
+            if rng.chance(self.hop_corruption) {
+                corrupted = true;
+            }
+        }
+        if capturing {
+            let sent = bytes_of(&frame, &record).to_vec();
+            let (hop, residence, end) = (self.hop, self.residence, self.end);
+            if let Some(c) = &mut self.captured {
+                for (d, &node) in relays.iter().enumerate() {
+                    let d = d as i64 + 1;
+                    let t = t_tx
+                        + d * (hop + residence)
+                        + jitter_sums.get(d as usize - 1).copied().unwrap_or(0);
+                    if t < end {
+                        c.push(Captured {
+                            t,
+                            node,
+                            bytes: sent.clone(),
+                        });
+                    }
+                }
+            }
+        }
+        if gone {
+            return Delivery::Gone;
+        }
+        if corrupted {
+            let mut bytes = match frame {
+                WireFrame::Bytes(b) => b,
+                pdu => pdu.into_bytes(),
+            };
+            let bit = (rng.next_u64() % (bytes.len() as u64 * 8)) as usize;
+            bytes[bit / 8] ^= 1 << (bit % 8);
+            self.counters.corrupted += 1;
+            frame = WireFrame::Bytes(bytes);
+        }
+        Delivery::Arrive {
+            node: stop,
+            port,
             rx_start: rx,
             at: rx + dur,
             frame,

@@ -14,7 +14,7 @@
 
 use ringsync_proto::Instant;
 use ringsync_proto::PlanKind;
-use ringsync_proto::node::{FrameOutcome, WireFrame};
+use ringsync_proto::node::{FrameOutcome, Port, WireFrame};
 use ringsync_proto::plan::{FrameRef, Node};
 use ringsync_wire::{Route, SlotCodec};
 
@@ -61,9 +61,10 @@ pub enum RunError {
 enum Ev {
     /// The master's next timeout; `generation` invalidates stale timers.
     Master { generation: u64 },
-    /// A frame's last bit reaches `node` (0 = master).
+    /// A frame's last bit reaches `node` (0 = master, on `port`).
     Arrive {
         node: usize,
+        port: Port,
         rx_start: i64,
         frame: WireFrame,
     },
@@ -71,6 +72,8 @@ enum Ev {
     SlaveSend { slave: usize, frame: WireFrame },
     /// Cycle start: read the true plant states.
     Probe { k: i64 },
+    /// The link of the master's port `port` goes down or comes up (a broken link).
+    PortLink { port: Port, up: bool },
 }
 
 /// The wire side of the simulation: the queue, the links, and the buffers a lost frame
@@ -80,6 +83,8 @@ struct Net {
     link: Link,
     /// Lost frames, to hand back to (node, frame) once the devices are free.
     spare: Vec<(usize, WireFrame)>,
+    /// The node index of the master's port B (n + 1).
+    port_b: usize,
 }
 
 impl Net {
@@ -87,8 +92,8 @@ impl Net {
     /// sends at the instant it handles its timeout); a slave's response leaves at its own
     /// time, an event.
     fn send(&mut self, from: usize, at: i64, frame: WireFrame) {
-        if from == 0 {
-            self.transmit(0, at, frame);
+        if from == 0 || from == self.port_b {
+            self.transmit(from, at, frame);
         } else {
             self.q.push(
                 at,
@@ -104,6 +109,7 @@ impl Net {
         match self.link.send(from, at, frame) {
             Delivery::Arrive {
                 node,
+                port,
                 rx_start,
                 at,
                 frame,
@@ -111,11 +117,12 @@ impl Net {
                 at,
                 Ev::Arrive {
                     node,
+                    port,
                     rx_start,
                     frame,
                 },
             ),
-            Delivery::Lost(frame) => self.spare.push((from, frame)),
+            Delivery::Lost(frame) => self.spare.push((from % self.port_b, frame)),
             Delivery::Gone => {}
         }
     }
@@ -191,6 +198,7 @@ impl Sim {
                 q: Queue::new(n),
                 link: Link::new(spec, end, opts.capture),
                 spare: Vec::new(),
+                port_b: n + 1,
             },
             gens: vec![0; n],
             sample_at: vec![None; n],
@@ -207,6 +215,9 @@ impl Sim {
         }
         // Probes are scheduled one at a time, so the queue stays a few entries deep.
         sim.net.q.push(0, Ev::Probe { k: 0 });
+        for (t, port, up) in sim.net.link.port_changes() {
+            sim.net.q.push(t, Ev::PortLink { port, up });
+        }
         Ok(sim)
     }
 
@@ -312,6 +323,7 @@ impl Sim {
                 Ev::Master { .. } => {}
                 Ev::Arrive {
                     node,
+                    port,
                     rx_start,
                     frame,
                 } => {
@@ -322,9 +334,10 @@ impl Sim {
                     if node == 0 {
                         let net = &mut self.net;
                         let send = &mut |from, at, f| net.send(from, at, f);
-                        match &frame {
-                            WireFrame::Bytes(b) => self.dev.master_frame(t, b, send),
-                            WireFrame::Pdu(p) => self.dev.master_pdu(t, p, send),
+                        match (&frame, port) {
+                            (WireFrame::Bytes(b), Port::B) => self.dev.master_frame(t, b, send),
+                            (WireFrame::Pdu(p), Port::B) => self.dev.master_pdu(t, p, send),
+                            (f, Port::A) => self.dev.master_frame_on(Port::A, t, f, send),
                         };
                         self.dev.recycle_frame(0, frame);
                         self.recycle();
@@ -332,6 +345,9 @@ impl Sim {
                     } else {
                         self.on_slave_frame(node - 1, rx_start, t, frame);
                     }
+                }
+                Ev::PortLink { port, up } => {
+                    self.dev.master_link(t, port, up);
                 }
                 Ev::SlaveSend { slave, frame } => {
                     self.net.transmit(slave + 1, t, frame);
@@ -385,5 +401,7 @@ impl Sim {
 
 #[cfg(test)]
 mod arm_tests;
+#[cfg(test)]
+mod redundancy_tests;
 #[cfg(test)]
 mod tests;

@@ -39,6 +39,90 @@ impl<'de> Deserialize<'de> for Dur {
     }
 }
 
+/// A link of the ring that breaks at `at` and heals at `heal` (or never), written
+/// `"I@T"` or `"I@T..T2"`, e.g. `"2@2s"`, `"2@2s..3s"`. Link I (1..=n+1) joins node I−1 to
+/// node I, node 0 and node n+1 being the master's ports A and B (docs/planner.md, "A
+/// broken link").
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct LinkBreak {
+    /// The link, 1..=n+1.
+    pub link: u32,
+    /// When it breaks (from the run's start).
+    pub at: Duration,
+    /// When it heals, if it does.
+    pub heal: Option<Duration>,
+}
+
+impl LinkBreak {
+    /// Whether the link is broken at true time `t` [ns].
+    pub fn broken_at(&self, t: i64) -> bool {
+        t >= self.at.as_ns() && self.heal.is_none_or(|h| t < h.as_ns())
+    }
+}
+
+impl FromStr for LinkBreak {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        let bad = |why: &str| {
+            format!(
+                "'{s}' is not a link break: {why} (write I@T or I@T..T2, e.g. \"2@2s\" or \"2@2s..3s\")"
+            )
+        };
+        let (link, when) = s.split_once('@').ok_or_else(|| bad("no '@'"))?;
+        let link: u32 = link
+            .trim()
+            .parse()
+            .map_err(|_| bad("the link is not a whole number"))?;
+        let (at, heal) = match when.split_once("..") {
+            Some((a, h)) => (a, Some(h)),
+            None => (when, None),
+        };
+        let time = |t: &str| Duration::from_str(t.trim()).map_err(|e| bad(&e.to_string()));
+        let at = time(at)?;
+        let heal = heal.map(time).transpose()?;
+        if at.is_negative() {
+            return Err(bad("the time is negative"));
+        }
+        if let Some(h) = heal
+            && h <= at
+        {
+            return Err(bad("it heals before it breaks"));
+        }
+        Ok(LinkBreak { link, at, heal })
+    }
+}
+
+impl fmt::Display for LinkBreak {
+    /// As written: `I@Ts` or `I@Ts..T2s`, times in seconds.
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let secs = |d: Duration| d.as_ns() as f64 * 1e-9;
+        write!(f, "{}@{}s", self.link, secs(self.at))?;
+        if let Some(h) = self.heal {
+            write!(f, "..{}s", secs(h))?;
+        }
+        Ok(())
+    }
+}
+
+/// `faults.break_link`: one break or a list of them.
+fn link_breaks<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<LinkBreak>, D::Error> {
+    #[derive(Deserialize)]
+    #[serde(untagged)]
+    enum Raw {
+        One(String),
+        Many(Vec<String>),
+    }
+    let list = match Raw::deserialize(d).map_err(|_| {
+        serde::de::Error::custom("expected a link break \"I@T\" or \"I@T..T2\", or a list of them")
+    })? {
+        Raw::One(s) => vec![s],
+        Raw::Many(v) => v,
+    };
+    list.iter()
+        .map(|s| s.parse().map_err(serde::de::Error::custom))
+        .collect()
+}
+
 /// A bit rate written as `"100M"` or a number of bit/s.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct BitRate(pub u64);
@@ -233,6 +317,11 @@ pub struct Faults {
     pub silent_slave: u32,
     /// When the silent slave goes silent.
     pub silent_from: Dur,
+    /// Links of the ring that break (and heal): `"I@T"` or `"I@T..T2"`, one or a list
+    /// ([`LinkBreak`]). The master reaches every slave from both ends of a ring broken
+    /// once; a second break cuts slaves off and stops the group.
+    #[serde(deserialize_with = "link_breaks")]
+    pub break_link: Vec<LinkBreak>,
     /// What a slave does with its axis when it loses the master (no valid command for W
     /// cycles): "brake" damps the axis to standstill, then cuts torque; "torque-off" cuts
     /// torque at once.
@@ -257,6 +346,7 @@ impl Default for Faults {
             following_error_limit: 1.0,
             silent_slave: 0,
             silent_from: Dur(Duration::ZERO),
+            break_link: Vec::new(),
             safe_state: SafeState::Brake,
             brake_gain: 1.591,
         }

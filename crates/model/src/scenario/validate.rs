@@ -202,6 +202,22 @@ impl Scenario {
                 "0 (none) ..= ring.slaves",
             ));
         }
+        for b in &f.break_link {
+            if !(1..=self.ring.slaves + 1).contains(&b.link) {
+                return Err(out_of_range(
+                    "faults.break_link",
+                    b,
+                    "links 1 ..= ring.slaves + 1 (link I joins node I-1 to node I; 0 and n+1 are the master)",
+                ));
+            }
+        }
+        if !f.break_link.is_empty() && self.ring.plan != PlanKind::P2pLumped {
+            return Err(out_of_range(
+                "faults.break_link",
+                f.break_link[0],
+                "breaks only with ring.plan = \"p2p-lumped\" (the lumped-only plan has no ring redundancy yet)",
+            ));
+        }
         if !(f.following_error_limit.is_finite() && f.following_error_limit > 0.0) {
             return Err(out_of_range(
                 "faults.following_error_limit",

@@ -40,8 +40,8 @@ use ringsync_wire::{
 
 use super::motion::{CycleRecord, MonitorNews, Motion, MotionInput, MotionOutput, Setpoint};
 use super::reject::{Reject, Rejections};
-use super::{Outbox, Transmit, TransmitPdu, WireFrame};
-use crate::plan::{CyclePlan, FrameRef, Node, PlanKind};
+use super::{Outbox, Port, Transmit, TransmitPdu, WireFrame};
+use crate::plan::{BrokenRing, CyclePlan, FrameRef, Node, PlanKind, RingModel};
 use crate::time::{Duration, Instant};
 
 /// Everything the master knows about the ring and the motion.
@@ -79,6 +79,35 @@ pub struct MasterConfig {
     /// How far in the future (by the master's clock) a feedback sample's sampling instant
     /// may lie and still be taken (the slaves' clock error).
     pub timestamp_tolerance: Duration,
+    /// The ring's timing model, from which the master works out the cycle on a broken
+    /// ring (ring redundancy, docs/planner.md "A broken link"); `None`: the master uses
+    /// port A alone and a broken ring is a broken ring (the lumped-only plan).
+    pub ring: Option<RingModel>,
+}
+
+/// The ring as the master sees it (ring redundancy, docs/planner.md "A broken link").
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum RingState {
+    /// Frames leave on port A and come back on port B.
+    #[default]
+    Whole,
+    /// Link `link` (1..=n+1; link j joins node j−1 to node j, 0 and n+1 being the master)
+    /// is broken: the master sends on both ports and reaches slaves 1..link−1 from A and
+    /// link..n from B.
+    Broken {
+        /// The broken link.
+        link: u32,
+    },
+}
+
+impl RingState {
+    /// One line: "whole" or "link j broken".
+    pub fn describe(&self) -> String {
+        match self {
+            RingState::Whole => "whole".into(),
+            RingState::Broken { link } => format!("link {link} broken"),
+        }
+    }
 }
 
 /// A ring's P2P schedule as measured on real links (see [`MasterConfig::with_measured`]).
@@ -109,6 +138,7 @@ impl MasterConfig {
             .map(|j| lo.frame_offset(j, plan.link.gap()))
             .collect();
         c.command_arrival = plan.d_c.iter().map(|d| *d + lo.frame_time[0]).collect();
+        c.ring = None;
         c
     }
 
@@ -151,6 +181,7 @@ impl MasterConfig {
             watchdog_cycles: 5,
             plan: PlanKind::P2pLumped,
             timestamp_tolerance: Duration::from_us(50),
+            ring: Some(RingModel::of(plan)),
         }
     }
 
@@ -230,6 +261,13 @@ pub enum StopReason {
         /// The error when it tripped [rad].
         error: f64,
     },
+    /// A second break cut axes `axis..=last` (0-based) off both of the master's ports.
+    RingSplit {
+        /// The first isolated axis.
+        axis: usize,
+        /// The last isolated axis.
+        last: usize,
+    },
 }
 
 impl StopReason {
@@ -242,7 +280,8 @@ impl StopReason {
             | StopReason::NoFeedback { axis }
             | StopReason::CommandMismatch { axis, .. }
             | StopReason::SyncTrip { axis, .. }
-            | StopReason::FollowingTrip { axis, .. } => axis,
+            | StopReason::FollowingTrip { axis, .. }
+            | StopReason::RingSplit { axis, .. } => axis,
         }
     }
     /// A short name for outputs.
@@ -255,6 +294,7 @@ impl StopReason {
             StopReason::CommandMismatch { .. } => "command mismatch",
             StopReason::SyncTrip { .. } => "sync error trip",
             StopReason::FollowingTrip { .. } => "following error trip",
+            StopReason::RingSplit { .. } => "ring split",
         }
     }
 }
@@ -347,6 +387,18 @@ pub enum MasterEvent {
         /// What.
         news: MonitorNews,
     },
+    /// The master found the ring changed at `at` (a link broke, healed, or the break
+    /// moved) and from this cycle's P2P phase on sends as the new ring needs.
+    Ring {
+        /// When [master ns].
+        at: Instant,
+        /// The master's cycle.
+        k: i64,
+        /// The ring before.
+        from: RingState,
+        /// The ring now.
+        to: RingState,
+    },
 }
 
 /// Counters that explain every lost cycle.
@@ -374,6 +426,19 @@ pub struct MasterCounters {
     pub rejected: Rejections,
     /// Responses whose applied command was not the one the master sent.
     pub command_mismatches: u64,
+    /// Times the master found a link broken (a whole ring broken, or a break moved).
+    pub ring_breaks: u64,
+    /// Times the master found a broken ring whole again.
+    pub ring_heals: u64,
+}
+
+/// A lumped frame back at the master: frame `j` of the cycle, the port its copy left on
+/// and the port it came back to.
+#[derive(Debug, Clone, Copy)]
+struct Back {
+    j: usize,
+    sent: Port,
+    port: Port,
 }
 
 /// A lumped frame as it went out, to recognise it when it comes back.
@@ -476,6 +541,21 @@ pub struct Master {
     /// time to go round (see [`Master::settled_cycle`]).
     recent_sends: VecDeque<(i64, Instant)>,
     retry_queue: VecDeque<usize>,
+    /// The ring as the master sees it, and its timing when broken.
+    ring: RingState,
+    broken: Option<BrokenRing>,
+    /// The master's ports whose link is down, as its PHYs say: [A, B].
+    port_down: [bool; 2],
+    /// This cycle's lumped frames to send: (offset from the cycle start, port, frame).
+    sends: Vec<(Duration, Port, usize)>,
+    /// The copies of this cycle's lumped frames sent on port B (a broken ring).
+    sent_lumped_b: Vec<SentLumped>,
+    /// What came back this cycle: the furthest slave that wrote its slot in a copy that
+    /// came back to port A, the nearest in one that came back to port B (n + 1 when none
+    /// wrote), and whether a copy went all the way round.
+    back_a: Option<usize>,
+    back_b: Option<usize>,
+    round_trip: bool,
     seq: u16,
     out: Outbox,
     events: VecDeque<MasterEvent>,
@@ -515,6 +595,19 @@ impl Master {
             last_back: None,
             recent_sends: VecDeque::new(),
             retry_queue: VecDeque::new(),
+            ring: RingState::Whole,
+            broken: None,
+            port_down: [false; 2],
+            sends: cfg
+                .lumped_offsets
+                .iter()
+                .enumerate()
+                .map(|(j, &o)| (o, Port::A, j))
+                .collect(),
+            sent_lumped_b: vec![SentLumped::default(); cfg.lumped_offsets.len()],
+            back_a: None,
+            back_b: None,
+            round_trip: false,
             seq: 0,
             out: Outbox::default(),
             events: VecDeque::new(),
@@ -606,14 +699,14 @@ impl Master {
     #[must_use]
     pub fn poll_timeout(&self) -> Instant {
         let c = self.cycle_start();
-        if self.next_lumped < self.cfg.lumped_offsets.len() {
-            return c + self.cfg.lumped_offsets[self.next_lumped];
+        if let Some(&(offset, _, _)) = self.sends.get(self.next_lumped) {
+            return c + offset;
         }
         if self.cfg.plan == PlanKind::LumpedOnly {
             return c + self.cfg.cycle;
         }
         if !self.computed {
-            return c + self.cfg.p2p_start;
+            return c + self.p2p_start();
         }
         match (self.open_at, self.deadline) {
             (Some(o), Some(d)) => o.min(d),
@@ -627,7 +720,7 @@ impl Master {
     /// Runs what is due at `now` (the time [`Master::poll_timeout`] gave).
     pub fn handle_timeout(&mut self, now: Instant) {
         let c = self.cycle_start();
-        if self.next_lumped < self.cfg.lumped_offsets.len() {
+        if self.next_lumped < self.sends.len() {
             if self.next_lumped == 0 {
                 self.note_lumped_sent(now);
             }
@@ -651,6 +744,7 @@ impl Master {
                 self.lumped_back = 0;
                 self.fresh.fill(false);
                 self.sent_lumped.fill(SentLumped::default());
+                self.sent_lumped_b.fill(SentLumped::default());
             }
             return;
         }
@@ -711,11 +805,12 @@ impl Master {
         while self.next_slot < self.slots_total() {
             let s = self.next_slot;
             self.next_slot += 1;
-            if now + self.cfg.slice + self.cfg.guard > next_cycle {
+            let slice = self.slice();
+            if now + slice + self.cfg.guard > next_cycle {
                 break;
             }
             if self.open_slice(s, now) {
-                self.deadline = Some(now + self.cfg.slice + self.cfg.guard);
+                self.deadline = Some(now + slice + self.cfg.guard);
                 return;
             }
         }
@@ -747,23 +842,40 @@ impl Master {
         self.fresh.fill(false);
         self.acked.fill(false);
         self.sent_lumped.fill(SentLumped::default());
+        self.sent_lumped_b.fill(SentLumped::default());
+        self.back_a = None;
+        self.back_b = None;
+        self.round_trip = false;
     }
 
     fn send_lumped(&mut self, now: Instant) {
-        let j = self.next_lumped;
+        let Some(&(_, port, j)) = self.sends.get(self.next_lumped) else {
+            return;
+        };
         let first: usize = self.cfg.lumped_slots[..j].iter().sum();
         // Empty slots, reused from cycle to cycle.
         let mut slots = std::mem::take(&mut self.empty_slots);
         slots.clear();
         slots.resize(self.cfg.lumped_slots[j], FeedbackSlot::default());
-        self.queue_lumped(now, first, slots);
+        self.queue_lumped(now, port, j, first, slots);
     }
 
-    /// Sends a lumped frame of either layout, stamped with `now`.
-    fn queue_lumped<S: SlotCodec>(&mut self, now: Instant, first: usize, slots: Vec<S>)
-    where
+    /// Sends lumped frame `j` of either layout on `port`, stamped with `now` (on port B of a
+    /// broken ring, `now` + Δ: see [`BrokenRing::stamp_shift`]).
+    fn queue_lumped<S: SlotCodec>(
+        &mut self,
+        now: Instant,
+        port: Port,
+        j: usize,
+        first: usize,
+        slots: Vec<S>,
+    ) where
         LumpedRepr<S>: Into<Pdu>,
     {
+        let stamp = match (port, &self.broken) {
+            (Port::B, Some(b)) => now.as_ns().saturating_add(b.stamp_shift.as_ns()),
+            _ => now.as_ns(),
+        };
         self.seq = self.seq.wrapping_add(1);
         // In the lumped-only plan the lumped frame is the only way to the drives: once the
         // group stops it tells them all to brake.
@@ -779,7 +891,7 @@ impl Master {
                 seq: self.seq,
                 ..Common::default()
             },
-            master_time_ns: now.as_ns().max(0) as u64,
+            master_time_ns: stamp.max(0) as u64,
             first_slot: first as u16,
             slots,
         };
@@ -789,9 +901,13 @@ impl Master {
             sent: true,
             back: false,
         };
-        if self.out.push(now, repr.into()) {
+        if self.out.push_on(now, port, repr.into()) {
             self.counters.frames_sent += 1;
-            if let Some(s) = self.sent_lumped.get_mut(self.next_lumped) {
+            let record = match port {
+                Port::A => &mut self.sent_lumped,
+                Port::B => &mut self.sent_lumped_b,
+            };
+            if let Some(s) = record.get_mut(j) {
                 *s = sent;
             }
         }
@@ -800,7 +916,9 @@ impl Master {
     /// The lumped-only plan's frame: last cycle's returned slots (not written this cycle),
     /// with the desired state at this cycle's sampling instant for monitoring.
     fn send_lumped_only(&mut self, now: Instant) {
-        let j = self.next_lumped;
+        let j = self
+            .next_lumped
+            .min(self.cfg.lumped_slots.len().saturating_sub(1));
         let first: usize = self.cfg.lumped_slots[..j].iter().sum();
         let t = self.cycle_start().as_ns() as f64 * 1e-9;
         let slots: Vec<LumpedOnlySlot> = (first..first + self.cfg.lumped_slots[j])
@@ -820,13 +938,15 @@ impl Master {
                 s
             })
             .collect();
-        self.queue_lumped(now, first, slots);
+        self.queue_lumped(now, Port::A, j, first, slots);
     }
 
     fn compute(&mut self, now: Instant) {
-        if self.lumped_back < self.cfg.lumped_offsets.len() {
-            self.counters.lumped_lost += (self.cfg.lumped_offsets.len() - self.lumped_back) as u64;
+        let expected = self.expected_back();
+        if self.lumped_back < expected {
+            self.counters.lumped_lost += (expected - self.lumped_back) as u64;
         }
+        self.supervise_ring(now);
         self.feedback_watchdog();
         let input = MotionInput {
             k: self.k,
@@ -835,7 +955,10 @@ impl Master {
             samples: &self.latest,
             fresh: &self.fresh,
             blind: &self.blind,
-            command_arrival: &self.cfg.command_arrival,
+            command_arrival: match &self.broken {
+                Some(b) => &b.command_arrival,
+                None => &self.cfg.command_arrival,
+            },
             pending: self.pending_stop.take(),
             commanded: true,
         };
@@ -921,7 +1044,10 @@ impl Master {
                 .round()
                 .max(0.0) as u64,
         };
-        if self.out.push(now, Pdu::Command(cmd)) {
+        if self
+            .out
+            .push_on(now, self.port_of(target), Pdu::Command(cmd))
+        {
             self.counters.frames_sent += 1;
         }
         true
@@ -946,7 +1072,13 @@ impl Master {
     /// master sent and its own clock before it changes anything; a refused frame is counted
     /// in [`MasterCounters::rejected`].
     pub fn handle_frame(&mut self, now: Instant, bytes: &[u8]) {
-        if let Err(r) = self.accept_frame(now, bytes) {
+        self.handle_frame_on(Port::B, now, bytes);
+    }
+
+    /// [`Master::handle_frame`] for a frame received on `port` (a whole ring brings every
+    /// frame back to port B; [`Master::handle_frame`] is this on port B).
+    pub fn handle_frame_on(&mut self, port: Port, now: Instant, bytes: &[u8]) {
+        if let Err(r) = self.accept_frame(port, now, bytes) {
             self.counters.rejected.count(r);
         }
     }
@@ -955,13 +1087,19 @@ impl Master {
     /// frames without their bytes): the checks of [`Master::handle_frame`] after the
     /// decoding, with the same effect.
     pub fn handle_pdu(&mut self, now: Instant, pdu: &Pdu) {
+        self.handle_pdu_on(Port::B, now, pdu);
+    }
+
+    /// [`Master::handle_pdu`] for a frame received on `port`.
+    pub fn handle_pdu_on(&mut self, port: Port, now: Instant, pdu: &Pdu) {
         let taken = match (pdu, self.cfg.plan) {
             (Pdu::Lumped(l), PlanKind::P2pLumped) => {
                 let (first, slots) = (usize::from(l.first_slot), &l.slots);
                 let c = &l.common;
                 self.echo_of(c.cycle, c.seq, l.master_time_ns, first, slots.len())
-                    .map(|j| {
-                        self.take_lumped_slots(now, j, first, slots.len(), |k| {
+                    .map(|(j, sent)| {
+                        let back = Back { j, sent, port };
+                        self.take_lumped_slots(now, back, first, slots.len(), |k| {
                             slots.get(k).copied()
                         })
                     })
@@ -975,13 +1113,13 @@ impl Master {
         }
     }
 
-    fn accept_frame(&mut self, now: Instant, bytes: &[u8]) -> Result<(), Reject> {
+    fn accept_frame(&mut self, port: Port, now: Instant, bytes: &[u8]) -> Result<(), Reject> {
         let f = Frame::new_checked(bytes).map_err(|_| Reject::Malformed)?;
         let kind = f.check().map_err(|_| Reject::Malformed)?;
         match (kind, self.cfg.plan) {
             // The proposed plan's lumped frame comes back every cycle: read its slots in
             // place (no allocation).
-            (FrameKind::Lumped, PlanKind::P2pLumped) => self.take_lumped(now, &f),
+            (FrameKind::Lumped, PlanKind::P2pLumped) => self.take_lumped(port, now, &f),
             (FrameKind::Response, PlanKind::P2pLumped) => {
                 let r = ResponseRepr::parse_verified(bytes).map_err(|_| Reject::Malformed)?;
                 self.take_response(now, &r)
@@ -995,9 +1133,9 @@ impl Master {
         }
     }
 
-    /// Which lumped frame of this cycle `frame` echoes (its index), or why it is refused:
-    /// the cycle, sequence number, stamp and first slot must be those it went out with,
-    /// and it must not have come back already.
+    /// Which lumped frame of this cycle `frame` echoes (its index, and the port its copy
+    /// went out on), or why it is refused: the cycle, sequence number, stamp and first slot
+    /// must be those it went out with, and it must not have come back already.
     fn echo_of(
         &self,
         cycle: u32,
@@ -1005,7 +1143,7 @@ impl Master {
         stamp: u64,
         first: usize,
         count: usize,
-    ) -> Result<usize, Reject> {
+    ) -> Result<(usize, Port), Reject> {
         if i64::from(cycle) != self.k & 0xFFFF_FFFF {
             return Err(Reject::WrongCycle);
         }
@@ -1019,14 +1157,19 @@ impl Master {
             start += m;
         }
         let (j, slots) = j.ok_or(Reject::Unsolicited)?;
-        let sent = self.sent_lumped[j];
-        if !sent.sent || sent.seq != seq || sent.stamp != stamp || slots != count {
+        let echoes = |s: &SentLumped| s.sent && s.seq == seq && s.stamp == stamp;
+        let (sent, port) = match (self.sent_lumped.get(j), self.sent_lumped_b.get(j)) {
+            (Some(a), _) if echoes(a) => (a, Port::A),
+            (_, Some(b)) if echoes(b) => (b, Port::B),
+            _ => return Err(Reject::Unsolicited),
+        };
+        if slots != count {
             return Err(Reject::Unsolicited);
         }
         if sent.back {
             return Err(Reject::Duplicate);
         }
-        Ok(j)
+        Ok((j, port))
     }
 
     /// The latest sampling instant a slot may carry when it is read at `now` [ns, the
@@ -1038,12 +1181,12 @@ impl Master {
     }
 
     /// A returned lumped frame (CRC checked): the feedback of every slave that wrote its slot.
-    fn take_lumped(&mut self, now: Instant, f: &Frame<&[u8]>) -> Result<(), Reject> {
+    fn take_lumped(&mut self, port: Port, now: Instant, f: &Frame<&[u8]>) -> Result<(), Reject> {
         let p = LumpedPayload::new_checked(f.payload(), FrameKind::Lumped)
             .map_err(|_| Reject::Malformed)?;
         let first = usize::from(p.first_slot());
         let count = usize::from(p.slot_count());
-        let j = self.echo_of(f.cycle(), f.seq(), p.master_time_ns(), first, count)?;
+        let (j, sent) = self.echo_of(f.cycle(), f.seq(), p.master_time_ns(), first, count)?;
         // Every slot must parse before any is taken: a frame is taken whole or not at all.
         for k in 0..count {
             match p.slot_bytes(k).map(FeedbackSlot::parse) {
@@ -1051,40 +1194,70 @@ impl Master {
                 _ => return Err(Reject::Malformed),
             }
         }
-        self.take_lumped_slots(now, j, first, count, |k| {
+        let back = Back { j, sent, port };
+        self.take_lumped_slots(now, back, first, count, |k| {
             p.slot_bytes(k).and_then(|b| FeedbackSlot::parse(b).ok())
         });
         Ok(())
     }
 
-    /// Lumped frame `j` of this cycle back (checked against what was sent, every slot
+    /// Lumped frame `back.j` of this cycle back (checked against what was sent, every slot
     /// decoded: `slot(k)` for k < `count`, slave `first + k + 1`'s): the feedback of every
-    /// slave that wrote its slot.
+    /// slave that wrote its slot, and what the ports it left and came back on say about the
+    /// ring.
     fn take_lumped_slots(
         &mut self,
         now: Instant,
-        j: usize,
+        back: Back,
         first: usize,
         count: usize,
         slot: impl Fn(usize) -> Option<FeedbackSlot>,
     ) {
-        self.sent_lumped[j].back = true;
+        let record = match back.sent {
+            Port::A => &mut self.sent_lumped,
+            Port::B => &mut self.sent_lumped_b,
+        };
+        if let Some(s) = record.get_mut(back.j) {
+            s.back = true;
+        }
         self.lumped_back += 1;
         self.last_back = Some(self.k);
         let newest = self.newest_sample(now);
+        let n = self.latest.len();
+        // The slots this copy should have had written: all on a whole ring, its own side's
+        // on a broken one (none for a copy that went round a ring the master thought broken).
+        let side_a = self.broken.as_ref().map(|b| b.side_a as usize);
+        let expected = |i: usize| match (side_a, back.sent, back.port) {
+            (None, _, _) => true,
+            (Some(a), Port::A, Port::A) => i < a,
+            (Some(a), Port::B, Port::B) => i >= a,
+            _ => false,
+        };
+        let (mut furthest, mut nearest) = (0, n + 1);
         for k in 0..count {
             let i = first + k;
             let Some(slot) = slot(k) else {
                 continue;
             };
-            if i >= self.latest.len() {
+            if i >= n {
                 break;
             }
-            self.take_sample(i, slot, newest);
+            if slot.written {
+                furthest = furthest.max(i + 1);
+                nearest = nearest.min(i + 1);
+            }
+            if slot.written || expected(i) {
+                self.take_sample(i, slot, newest);
+            }
+        }
+        match (back.sent, back.port) {
+            (Port::A, Port::A) => self.back_a = Some(self.back_a.unwrap_or(0).max(furthest)),
+            (Port::B, Port::B) => self.back_b = Some(self.back_b.unwrap_or(n + 1).min(nearest)),
+            _ => self.round_trip = true,
         }
     }
 
-    /// One written feedback slot of slave i + 1 in an accepted lumped frame.
+    /// One feedback slot of slave i + 1 in an accepted lumped frame.
     fn take_sample(&mut self, i: usize, slot: FeedbackSlot, newest: u64) {
         if !slot.written {
             self.counters.samples_missing += 1;
@@ -1178,7 +1351,7 @@ impl Master {
             first,
             l.slots.len(),
         )
-        .map(|j| self.sent_lumped[j].back = true)?;
+        .map(|(j, _)| self.sent_lumped[j].back = true)?;
         self.lumped_back += 1;
         self.last_back = Some(self.k);
         let newest = self.newest_sample(now);
@@ -1215,6 +1388,139 @@ impl Master {
             self.events.push_back(MasterEvent::Computed { k: self.k });
         }
         Ok(())
+    }
+
+    /// The ring as the master sees it.
+    pub fn ring(&self) -> RingState {
+        self.ring
+    }
+
+    /// The cycle's timing on the broken ring, when the ring is broken.
+    pub fn broken_ring(&self) -> Option<&BrokenRing> {
+        self.broken.as_ref()
+    }
+
+    /// The link of the master's port `port` went down (`up` false) or came up at `now`, as
+    /// its PHY reports. The master acts on it at its next P2P start: with port A down,
+    /// nothing it sends there comes back, so it reaches every slave from port B.
+    pub fn handle_link(&mut self, now: Instant, port: Port, up: bool) {
+        let _ = now;
+        self.port_down[match port {
+            Port::A => 0,
+            Port::B => 1,
+        }] = !up;
+    }
+
+    /// Start of this cycle's P2P phase from the cycle start.
+    fn p2p_start(&self) -> Duration {
+        self.broken
+            .as_ref()
+            .map_or(self.cfg.p2p_start, |b| b.p2p_start)
+    }
+
+    /// The length of a time slice.
+    fn slice(&self) -> Duration {
+        self.broken.as_ref().map_or(self.cfg.slice, |b| b.slice)
+    }
+
+    /// The port that reaches axis `target` (0-based).
+    fn port_of(&self, target: usize) -> Port {
+        match &self.broken {
+            Some(b) if target >= b.side_a as usize => Port::B,
+            _ => Port::A,
+        }
+    }
+
+    /// How many lumped frames should come back this cycle: one per frame on a whole ring,
+    /// one per frame and non-empty side on a broken one.
+    fn expected_back(&self) -> usize {
+        let m = self.cfg.lumped_offsets.len();
+        match &self.broken {
+            None => m,
+            Some(b) => m * (usize::from(b.side_a > 0) + usize::from(b.side_b > 0)),
+        }
+    }
+
+    /// At the P2P start: what came back tells whether the ring broke, healed or split
+    /// (docs/planner.md, "A broken link"). A whole ring whose frame came back to port A
+    /// turned at the last slave it reached; a broken ring whose copy went all the way round
+    /// is whole again; a broken ring whose two copies no longer meet has cut slaves off,
+    /// and the group stops.
+    fn supervise_ring(&mut self, now: Instant) {
+        let Some(model) = self.cfg.ring else {
+            return;
+        };
+        let n = self.cfg.axes();
+        let next = match self.ring {
+            RingState::Whole => match (self.back_a, self.port_down[0]) {
+                (Some(a), _) => Some(RingState::Broken {
+                    link: (a + 1) as u32,
+                }),
+                (None, true) => Some(RingState::Broken { link: 1 }),
+                (None, false) => None,
+            },
+            RingState::Broken { link } => {
+                let a = if self.port_down[0] {
+                    Some(0)
+                } else {
+                    self.back_a
+                };
+                let b = if self.port_down[1] {
+                    Some(n + 1)
+                } else {
+                    self.back_b
+                };
+                match (a, b) {
+                    _ if self.round_trip && !self.port_down.iter().any(|d| *d) => {
+                        Some(RingState::Whole)
+                    }
+                    (Some(a), Some(b)) if a + 1 < b => {
+                        self.pending_stop.get_or_insert(StopReason::RingSplit {
+                            axis: a,
+                            last: b - 2,
+                        });
+                        None
+                    }
+                    (Some(a), Some(b)) if a + 1 == b && b as u32 != link => {
+                        Some(RingState::Broken { link: b as u32 })
+                    }
+                    _ => None,
+                }
+            }
+        };
+        let Some(to) = next else {
+            return;
+        };
+        let from = self.ring;
+        self.ring = to;
+        match to {
+            RingState::Whole => {
+                self.broken = None;
+                self.counters.ring_heals += 1;
+            }
+            RingState::Broken { link } => {
+                self.broken = model.broken(link);
+                self.counters.ring_breaks += 1;
+            }
+        }
+        self.sends.clear();
+        for (j, &o) in self.cfg.lumped_offsets.iter().enumerate() {
+            self.sends.push((o, Port::A, j));
+        }
+        if let Some(b) = &self.broken {
+            for (j, &o) in self.cfg.lumped_offsets.iter().enumerate() {
+                self.sends.push((o + b.b_delay, Port::B, j));
+            }
+            self.sends.sort_by_key(|s| s.0);
+        }
+        // This cycle's lumped frames are out: the new sends start with the next cycle.
+        self.next_lumped = self.sends.len();
+        self.events.push_back(MasterEvent::Ring {
+            at: now,
+            k: self.k,
+            from,
+            to,
+        });
     }
 
     /// Hands back the buffer of a frame the driver is done with (sent, or received and
@@ -1258,11 +1564,18 @@ impl Master {
     /// `decoded`, else as bytes ([`Master::poll_transmit`]).
     #[must_use]
     pub fn poll_frame(&mut self, decoded: bool) -> Option<(Instant, WireFrame)> {
+        self.poll_frame_on(decoded).map(|(at, _, f)| (at, f))
+    }
+
+    /// [`Master::poll_frame`] with the port the frame leaves on (port A on a whole ring).
+    #[must_use]
+    pub fn poll_frame_on(&mut self, decoded: bool) -> Option<(Instant, Port, WireFrame)> {
         if decoded {
-            self.poll_pdu().map(|t| (t.at, WireFrame::Pdu(t.pdu)))
+            self.poll_pdu()
+                .map(|t| (t.at, t.port, WireFrame::Pdu(t.pdu)))
         } else {
             self.poll_transmit()
-                .map(|t| (t.at, WireFrame::Bytes(t.bytes)))
+                .map(|t| (t.at, t.port, WireFrame::Bytes(t.bytes)))
         }
     }
 

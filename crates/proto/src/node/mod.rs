@@ -14,8 +14,8 @@ pub mod testbed;
 
 pub use clock::{ClockFilter, SyncClock};
 pub use master::{
-    Master, MasterConfig, MasterCounters, MasterEvent, MeasuredSchedule, OffReason, StopOrder,
-    StopReason,
+    Master, MasterConfig, MasterCounters, MasterEvent, MeasuredSchedule, OffReason, RingState,
+    StopOrder, StopReason,
 };
 pub use motion::{
     CycleRecord, MonitorKind, MonitorNews, Motion, MotionInput, MotionOutput, Setpoint,
@@ -58,11 +58,34 @@ impl Spares {
     }
 }
 
+/// One of the master's two ends of the ring (docs/planner.md, "A broken link"). A slave
+/// sends every frame on its forward port, which is given as [`Port::A`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub enum Port {
+    /// Toward slave 1: where the master's frames leave on a whole ring.
+    #[default]
+    A,
+    /// Toward slave n: where the master's frames come back on a whole ring.
+    B,
+}
+
+impl Port {
+    /// "A" or "B".
+    pub fn name(self) -> &'static str {
+        match self {
+            Port::A => "A",
+            Port::B => "B",
+        }
+    }
+}
+
 /// A frame to put on the ring port, first bit at `at` on the sender's local clock.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Transmit {
     /// When the first bit leaves [local ns].
     pub at: Instant,
+    /// The master's port it leaves on (a slave's frames: [`Port::A`], its forward port).
+    pub port: Port,
     /// The PDU.
     pub bytes: Vec<u8>,
 }
@@ -75,6 +98,8 @@ pub struct Transmit {
 pub struct TransmitPdu {
     /// When the first bit leaves [local ns].
     pub at: Instant,
+    /// The master's port it leaves on (a slave's frames: [`Port::A`], its forward port).
+    pub port: Port,
     /// The PDU.
     pub pdu: Pdu,
 }
@@ -118,10 +143,16 @@ pub(crate) struct Outbox {
 impl Outbox {
     /// Queues `pdu` to leave at `at`; false (and nothing queued) if it cannot be emitted.
     pub(crate) fn push(&mut self, at: Instant, pdu: Pdu) -> bool {
+        self.push_on(at, Port::A, pdu)
+    }
+
+    /// Queues `pdu` to leave at `at` on `port`; false (and nothing queued) if it cannot be
+    /// emitted.
+    pub(crate) fn push_on(&mut self, at: Instant, port: Port, pdu: Pdu) -> bool {
         if pdu.validate().is_err() {
             return false;
         }
-        self.queue.push_back(TransmitPdu { at, pdu });
+        self.queue.push_back(TransmitPdu { at, port, pdu });
         true
     }
 
@@ -132,11 +163,11 @@ impl Outbox {
 
     /// The next frame as bytes (in a spare buffer), with the PDU it was built from.
     pub(crate) fn pop_bytes(&mut self) -> Option<(Transmit, Pdu)> {
-        let TransmitPdu { at, pdu } = self.queue.pop_front()?;
+        let TransmitPdu { at, port, pdu } = self.queue.pop_front()?;
         let mut bytes = self.spares.take(pdu.buffer_len());
         // Checked when queued: emit cannot fail here.
         let _ = pdu.emit(&mut bytes);
-        Some((Transmit { at, bytes }, pdu))
+        Some((Transmit { at, port, bytes }, pdu))
     }
 
     /// Keeps a buffer for a later send.

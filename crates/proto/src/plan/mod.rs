@@ -17,10 +17,12 @@
 //! own wire time. On the physical ring the response travels on through slaves i+1..n; the
 //! [event-level](EventLevel) figures follow that path frame by frame ([`Timeline`]).
 
+mod broken;
 mod link;
 mod params;
 mod timeline;
 
+pub use broken::{BrokenRing, RingModel};
 pub use link::{Link, parse_bit_rate};
 pub use params::{PlanError, RingParams};
 pub use timeline::{FrameRef, Node, Passage, Phase, PhaseKind, Timeline};
