@@ -86,6 +86,13 @@ pub struct RtArgs {
     /// How long the link stays down (e.g. 8ms).
     #[arg(long, value_parser = duration, requires = "flap_link")]
     flap_for: Option<Duration>,
+    /// Break link I at T, and heal it at T2 with I@T..T2 (repeatable; replaces the
+    /// scenario's faults.break_link). Link I joins node I-1 to node I, 0 and n+1 being the
+    /// master's two ports; the nodes beside it sense it, as a PHY does, and the master
+    /// reaches every slave from both ends (docs/safety.md, "Ring redundancy"). veth: the
+    /// link goes down with `ip`; UDP: the nodes beside it stop sending on it.
+    #[arg(long, value_name = "I@T")]
+    break_link: Vec<String>,
     /// Slaves latch their encoders this long before each cycle start (default: the
     /// scenario's clock.sample_lead, or 100us when that is 0). Software-stamped clocks are
     /// off by tens of µs, and a host stall can hold the loop past the latch; a latch after
@@ -147,6 +154,16 @@ impl RealtimeArgs {
 /// interrupted (its partial results written all the same).
 pub(crate) fn rt(args: &RtArgs) -> Result<Outcome, CliError> {
     let loaded = ringsync::load(&args.scenario)?;
+    let loaded = if args.break_link.is_empty() {
+        loaded
+    } else {
+        let list: Vec<String> = args.break_link.iter().map(|b| format!("{b:?}")).collect();
+        let set = [(
+            "faults.break_link".to_string(),
+            format!("[{}]", list.join(", ")),
+        )];
+        ringsync::with_values(&loaded, &set)?
+    };
     let s = &loaded.scenario;
     if !(args.inject_garbage >= 0.0 && args.inject_garbage <= 100_000.0) {
         return Err(CliError::Usage(format!(

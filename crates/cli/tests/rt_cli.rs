@@ -152,6 +152,14 @@ fn bad_rt_options_give_one_line_and_exit_2() {
             [&base[..], &["--sample-lead", "2ms"]].concat(),
             "clock.sample_lead",
         ),
+        (
+            [&base[..], &["--break-link", "9@1s"]].concat(),
+            "faults.break_link = 9@1s is out of range",
+        ),
+        (
+            [&base[..], &["--break-link", "2@x"]].concat(),
+            "'2@x' is not a link break",
+        ),
     ] {
         let out = ringsync(&args);
         let err = String::from_utf8_lossy(&out.stderr);

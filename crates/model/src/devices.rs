@@ -202,6 +202,19 @@ impl Devices {
         self.drain_master(send)
     }
 
+    /// [`Devices::master_frame`] for bytes that came back to the master's port `port`.
+    pub fn master_frame_port(
+        &mut self,
+        port: Port,
+        now: i64,
+        bytes: &[u8],
+        send: &mut dyn FnMut(usize, i64, WireFrame),
+    ) -> MasterNews {
+        self.master
+            .handle_frame_on(port, Instant::from_ns(now), bytes);
+        self.drain_master(send)
+    }
+
     /// The link of the master's port `port` went down (`up` false) or came up at true time
     /// `now`.
     pub fn master_link(&mut self, now: i64, port: Port, up: bool) {

@@ -166,6 +166,7 @@ pub fn rt_summary(
         "probes_late": t.probes_late,
         "latches_late": t.latches_late,
         "send_errors": t.send_errors,
+        "broken_dropped": t.broken_dropped,
         "receive_errors": t.receive_errors,
         "residual_clock_error_ns": {
             "max": r.run.clock_error_max_ns.iter().copied().fold(0.0, f64::max),

@@ -9,6 +9,7 @@ use std::sync::atomic::{AtomicBool, AtomicI64, AtomicU64, Ordering};
 use std::thread::JoinHandle;
 
 use ringsync_model::rng::Rng;
+use ringsync_model::scenario::LinkBreak;
 use ringsync_proto::Duration;
 use ringsync_wire::{CommandRepr, Common, FeedbackSlot, LumpedRepr};
 
@@ -354,9 +355,36 @@ pub fn spawn_flap(
     t0: Arc<AtomicI64>,
     stop: Arc<AtomicBool>,
 ) -> JoinHandle<Result<Option<i64>, String>> {
+    spawn_link_switch(veth, flap.from, flap.at, Some(flap.down_for), t0, stop)
+}
+
+/// A broken link (`faults.break_link`, `--break-link`) on a veth ring: link `b.link` (from
+/// node `b.link` − 1) goes down at `b.at` and, if it heals, up again at `b.heal`; returns
+/// how long it was down as [`spawn_flap`] does (`None`: it was still down at the end).
+pub fn spawn_break(
+    veth: Arc<VethRing>,
+    b: LinkBreak,
+    t0: Arc<AtomicI64>,
+    stop: Arc<AtomicBool>,
+) -> JoinHandle<Result<Option<i64>, String>> {
+    let from = (b.link as usize).saturating_sub(1);
+    let down_for = b.heal.map(|h| h - b.at);
+    spawn_link_switch(veth, from, b.at, down_for, t0, stop)
+}
+
+/// Takes the link out of node `from` down at `at` from the run's start and, with
+/// `down_for`, up again that much later.
+fn spawn_link_switch(
+    veth: Arc<VethRing>,
+    from: usize,
+    at: Duration,
+    down_for: Option<Duration>,
+    t0: Arc<AtomicI64>,
+    stop: Arc<AtomicBool>,
+) -> JoinHandle<Result<Option<i64>, String>> {
     std::thread::spawn(move || {
         sys::set_normal();
-        let (netns, ifname) = veth.link_end(flap.from);
+        let (netns, ifname) = veth.link_end(from);
         let fail = |what: &str, e: std::io::Error| format!("{what} {ifname} in {netns}: {e}");
         sys::enter_netns(&netns).map_err(|e| fail("entering the namespace of", e))?;
         let ctl = sys::control_socket().map_err(|e| fail("a control socket for", e))?;
@@ -365,14 +393,24 @@ pub fn spawn_flap(
                 return Ok(None);
             }
             let t = t0.load(Ordering::SeqCst);
-            if t > 0 && sys::now_ns() >= t + flap.at.as_ns() {
+            if t > 0 && sys::now_ns() >= t + at.as_ns() {
                 break;
             }
             sys::sleep_until(sys::now_ns() + 200_000);
         }
         let start = sys::now_ns();
         sys::set_interface_up(&ctl, &ifname, false).map_err(|e| fail("taking down", e))?;
-        sys::sleep_until(start + flap.down_for.as_ns());
+        let Some(down_for) = down_for else {
+            return Ok(None);
+        };
+        // Down until the heal, or the run's end (the namespaces go with the run).
+        let up_at = start + down_for.as_ns();
+        while sys::now_ns() < up_at {
+            if stop.load(Ordering::SeqCst) {
+                return Ok(None);
+            }
+            sys::sleep_until((sys::now_ns() + 1_000_000).min(up_at));
+        }
         sys::set_interface_up(&ctl, &ifname, true).map_err(|e| fail("bringing up", e))?;
         Ok(Some(sys::now_ns() - start))
     })

@@ -17,9 +17,10 @@ use ringsync_model::Spec;
 use ringsync_model::devices::Devices;
 use ringsync_model::observer::Observer;
 use ringsync_model::result::{Captured, LinkCounters, RunResult};
+use ringsync_model::scenario::LinkBreak;
 use ringsync_model::stream::CaptureSink;
 use ringsync_proto::Duration;
-use ringsync_proto::node::{ClockFilter, FrameOutcome, WireFrame};
+use ringsync_proto::node::{ClockFilter, FrameOutcome, Port as MasterPort, WireFrame};
 use ringsync_wire::Frame;
 use ringsync_wire::Pdu;
 
@@ -87,8 +88,12 @@ pub(crate) struct Finished {
 /// alone.
 #[derive(Default)]
 struct Outbox {
+    /// The node index of the master's port B (n + 1).
+    port_b: usize,
     /// The master's, to go out now.
     now: Vec<Vec<u8>>,
+    /// The master's on its port B (a broken ring), to go out now.
+    now_b: Vec<Vec<u8>>,
     /// Slave transmissions waiting for their time: (true ns, slave 0-based, bytes).
     pending: Vec<(i64, usize, Vec<u8>)>,
 }
@@ -100,6 +105,8 @@ impl Outbox {
         let bytes = frame.into_bytes();
         if from == 0 {
             self.now.push(bytes);
+        } else if from == self.port_b {
+            self.now_b.push(bytes);
         } else {
             self.pending.push((at, from - 1, bytes));
         }
@@ -118,8 +125,10 @@ pub(crate) struct Ring {
     out: Outbox,
     /// Per node (0 = master): still in the ring.
     alive: Vec<bool>,
-    /// Per port: read again from this time on after a receive error [ns, true time].
+    /// Per port: read again from this time on after a receive error [ns, true time]; and
+    /// the same for frames coming backward (a broken ring).
     rx_paused: Vec<Option<i64>>,
+    back_paused: Vec<Option<i64>>,
     /// The set of ports to wait on changed.
     fds_dirty: bool,
     /// The nodes' ports (index 0 the master); a port taken out is `None`.
@@ -129,6 +138,11 @@ pub(crate) struct Ring {
     rx_frames: Vec<u64>,
     /// A link flap over UDP: frames sent on it in [from, to) [ns] are dropped.
     flap: Option<(usize, i64, i64)>,
+    /// Broken links (`faults.break_link`): the nodes beside one sense it, as a PHY does,
+    /// and turn frames back; and the master's port links' changes still to tell it of
+    /// (true ns, port, up).
+    breaks: Vec<LinkBreak>,
+    port_events: std::collections::VecDeque<(i64, MasterPort, bool)>,
     /// CLOCK_MONOTONIC at true time 0, for the injectors' threads [ns].
     pub t0_shared: Arc<AtomicI64>,
     captured: Option<Vec<Captured>>,
@@ -163,14 +177,21 @@ pub(crate) fn drain(ports: &mut [Option<Box<dyn Port>>]) -> (u64, u64) {
     let mut buf = vec![0u8; MAX_PDU];
     let (mut malformed, mut valid) = (0, 0);
     for p in ports.iter_mut().flatten() {
-        while let Ok(Some(len)) = p.recv(&mut buf) {
-            if buf
-                .get(..len)
-                .is_none_or(|b| len == 0 || Pdu::parse(b).is_err())
-            {
-                malformed += 1;
+        // Both directions: frames a broken ring turned back wait on the other socket.
+        for back in [false, true] {
+            while let Ok(Some(len)) = if back {
+                p.recv_back(&mut buf)
             } else {
-                valid += 1;
+                p.recv(&mut buf)
+            } {
+                if buf
+                    .get(..len)
+                    .is_none_or(|b| len == 0 || Pdu::parse(b).is_err())
+                {
+                    malformed += 1;
+                } else {
+                    valid += 1;
+                }
             }
         }
     }
@@ -279,14 +300,28 @@ impl Ring {
         Ok(Ring {
             dev,
             latch_due,
-            out: Outbox::default(),
+            out: Outbox {
+                port_b: n + 1,
+                ..Outbox::default()
+            },
             alive: vec![true; n + 1],
             rx_paused: vec![None; n + 1],
+            back_paused: vec![None; n + 1],
             fds_dirty: false,
             ports,
             last_rx: vec![None; n + 1],
             rx_frames: vec![0; n + 1],
             flap: None,
+            breaks: match mode {
+                Mode::WarmUp => Vec::new(),
+                Mode::Run { .. } => spec.scenario.faults.break_link.clone(),
+            },
+            port_events: match mode {
+                Mode::WarmUp => Default::default(),
+                Mode::Run { .. } => {
+                    LinkBreak::port_changes(&spec.scenario.faults.break_link, n).into()
+                }
+            },
             t0_shared: Arc::new(AtomicI64::new(0)),
             // Every send: the lumped frame's n + 1 hops and each slice's n + 1 (command and
             // response), so that capturing never reallocates mid-run.
@@ -339,7 +374,28 @@ impl Ring {
         )
     }
 
-    fn send(&mut self, node: usize, t: i64, bytes: &[u8]) {
+    /// Whether link `link` (1..=n+1, from node link − 1 to node link; n + 1 is the master's
+    /// port B) is broken at `t` [ns].
+    fn link_down(&self, link: usize, t: i64) -> bool {
+        self.breaks
+            .iter()
+            .any(|b| b.link as usize == link && b.broken_at(t))
+    }
+
+    /// Node `node` sends a frame on round the ring, as its PHYs let it: forward, or back the
+    /// way it came when its link ahead is broken (a slave turns it; the master's port A
+    /// has nowhere to send it).
+    fn forward(&mut self, node: usize, t: i64, bytes: &[u8]) {
+        if self.breaks.is_empty() || !self.link_down(node + 1, t) {
+            self.send(node, t, bytes, false);
+        } else if node != 0 && !self.link_down(node, t) {
+            self.send(node, t, bytes, true);
+        } else {
+            self.log.timing.broken_dropped += 1;
+        }
+    }
+
+    fn send(&mut self, node: usize, t: i64, bytes: &[u8], back: bool) {
         let frame = || Captured {
             t,
             node,
@@ -359,7 +415,12 @@ impl Ring {
         }
         if let Some(p) = self.ports[node].as_mut()
             && self.alive[node]
-            && p.send(bytes).is_err()
+            && if back {
+                p.send_back(bytes)
+            } else {
+                p.send(bytes)
+            }
+            .is_err()
         {
             self.log.timing.send_errors += 1;
         }
@@ -374,10 +435,65 @@ impl Ring {
             {
                 p.sent(stamp, now);
             }
-            self.send(0, now, &bytes);
+            self.forward(0, now, &bytes);
             self.dev.recycle(0, bytes);
         }
         self.out.now = out;
+        // Port B of a broken ring: the copy's stamp is its send time + Δ, the extra path to
+        // the slaves it reaches (docs/planner.md, "A broken link"); their emulated PHY
+        // stamps take it from there.
+        let mut out_b = std::mem::take(&mut self.out.now_b);
+        let shift = self
+            .dev
+            .master
+            .broken_ring()
+            .map_or(0, |b| b.stamp_shift.as_ns());
+        let port_b = self.out.port_b;
+        for bytes in out_b.drain(..) {
+            if let Some(p) = self.phy.as_mut()
+                && let Some(stamp) = lumped_stamp(&bytes)
+            {
+                p.sent(stamp, now + shift);
+            }
+            if self.link_down(port_b, now) {
+                self.log.timing.broken_dropped += 1;
+            } else {
+                self.send(0, now, &bytes, true);
+            }
+            self.dev.recycle(0, bytes);
+        }
+        self.out.now_b = out_b;
+    }
+
+    /// A frame that came to node `node` backward round the ring: the master takes it on
+    /// its port A; a slave relays it on, or turns it and takes it when the link behind it
+    /// is broken.
+    fn on_back(&mut self, node: usize, now: i64, bytes: &mut [u8]) {
+        if node == 0 {
+            self.last_rx[0] = Some(now as f64 * 1e-9);
+            self.rx_frames[0] += 1;
+            self.log.master_rx(now);
+            let Ring { dev, out, .. } = self;
+            let news = dev.master_frame_port(MasterPort::A, now, bytes, &mut |f, at, b| {
+                out.send(f, at, b)
+            });
+            self.master_news(news, now);
+        } else if self.link_down(node, now) {
+            self.on_frame(node, now, bytes);
+        } else {
+            self.send(node, now, bytes, true);
+        }
+    }
+
+    /// Tells the master of its ports' links that went down or came up by `now`.
+    fn port_news(&mut self, now: i64) {
+        while let Some(&(t, port, up)) = self.port_events.front() {
+            if t > now {
+                return;
+            }
+            self.port_events.pop_front();
+            self.dev.master_link(now, port, up);
+        }
     }
 
     fn on_frame(&mut self, node: usize, now: i64, bytes: &mut [u8]) {
@@ -423,7 +539,7 @@ impl Ring {
             a[i].push(now.rem_euclid(t_cyc));
         }
         if outcome == FrameOutcome::Forward {
-            self.send(node, now, bytes);
+            self.forward(node, now, bytes);
         }
         self.latch_due[i] = self.dev.latch_at(i);
     }
@@ -499,7 +615,7 @@ impl Ring {
             Due::Pending(j) => {
                 let (_, i, bytes) = self.out.pending.swap_remove(j);
                 if self.alive[i + 1] {
-                    self.send(i + 1, now, &bytes);
+                    self.forward(i + 1, now, &bytes);
                 }
                 self.dev.recycle(i + 1, bytes);
             }
@@ -511,29 +627,55 @@ impl Ring {
     fn receive_all(&mut self, buf: &mut [u8]) -> bool {
         let mut got = false;
         for node in 0..self.ports.len() {
-            if let Some(until) = self.rx_paused[node] {
-                if self.clock.last() < until {
-                    continue;
-                }
-                self.rx_paused[node] = None;
-                self.fds_dirty = true;
+            got |= self.receive(node, false, buf);
+            if !self.breaks.is_empty() {
+                got |= self.receive(node, true, buf);
             }
-            while let Some(p) = self.ports[node].as_mut() {
-                let len = match p.recv(buf) {
-                    Ok(Some(len)) => len,
-                    Ok(None) => break,
-                    Err(_) => {
-                        // A link gone down: the socket reports an error (and would keep the
-                        // poll awake). Read it again a little later: a flap shorter than W
-                        // cycles costs those cycles, not the run.
-                        self.log.timing.receive_errors += 1;
-                        self.rx_paused[node] = Some(self.clock.last() + RX_RETRY);
-                        self.fds_dirty = true;
-                        break;
+        }
+        got
+    }
+
+    /// Reads every frame waiting at node `node` from one direction (`back`: frames coming
+    /// backward round the ring). Whether any was read.
+    fn receive(&mut self, node: usize, back: bool, buf: &mut [u8]) -> bool {
+        let paused = if back {
+            &mut self.back_paused[node]
+        } else {
+            &mut self.rx_paused[node]
+        };
+        if let Some(until) = *paused {
+            if self.clock.last() < until {
+                return false;
+            }
+            *paused = None;
+            self.fds_dirty = true;
+        }
+        let mut got = false;
+        while let Some(p) = self.ports[node].as_mut() {
+            let read = if back { p.recv_back(buf) } else { p.recv(buf) };
+            let len = match read {
+                Ok(Some(len)) => len,
+                Ok(None) => break,
+                Err(_) => {
+                    // A link gone down: the socket reports an error (and would keep the
+                    // poll awake). Read it again a little later: a flap shorter than W
+                    // cycles costs those cycles, not the run.
+                    self.log.timing.receive_errors += 1;
+                    let until = Some(self.clock.last() + RX_RETRY);
+                    if back {
+                        self.back_paused[node] = until;
+                    } else {
+                        self.rx_paused[node] = until;
                     }
-                };
-                got = true;
-                let now = self.clock.now();
+                    self.fds_dirty = true;
+                    break;
+                }
+            };
+            got = true;
+            let now = self.clock.now();
+            if back {
+                self.on_back(node, now, &mut buf[..len]);
+            } else {
                 self.on_frame(node, now, &mut buf[..len]);
             }
         }
@@ -568,16 +710,25 @@ impl Ring {
         let spin = opts.realtime.spin.as_ns();
         let end = self.end;
         let mut buf = vec![0u8; MAX_PDU];
-        let fds_of =
-            |ports: &[Option<Box<dyn Port>>], paused: &[Option<i64>]| -> Vec<libc::pollfd> {
-                ports
-                    .iter()
-                    .zip(paused)
-                    .filter(|(_, p)| p.is_none())
-                    .filter_map(|(p, _)| p.as_ref().map(|p| sys::pollfd(p.rx_fd())))
-                    .collect()
-            };
-        let mut fds = fds_of(&self.ports, &self.rx_paused);
+        let both = !self.breaks.is_empty();
+        let fds_of = |ports: &[Option<Box<dyn Port>>],
+                      paused: &[Option<i64>],
+                      back_paused: &[Option<i64>]|
+         -> Vec<libc::pollfd> {
+            ports
+                .iter()
+                .zip(paused.iter().zip(back_paused))
+                .filter_map(|(p, (fwd, back))| {
+                    let p = p.as_ref()?;
+                    let fwd = fwd.is_none().then(|| p.rx_fd());
+                    let back = p.back_fd().filter(|_| both && back.is_none());
+                    Some(fwd.into_iter().chain(back))
+                })
+                .flatten()
+                .map(sys::pollfd)
+                .collect()
+        };
+        let mut fds = fds_of(&self.ports, &self.rx_paused, &self.back_paused);
         let mut cycle_k = 0i64;
         self.probe_k = 0;
         let mut kill = kill;
@@ -603,7 +754,7 @@ impl Ring {
             {
                 kill = None;
                 *killer = Some(self.take_out(k, veth));
-                fds = fds_of(&self.ports, &self.rx_paused);
+                fds = fds_of(&self.ports, &self.rx_paused, &self.back_paused);
                 killed = Some((k.slave, now as f64 * 1e-9));
                 self.kill_cycle = Some(cycle_k);
                 if opts.verbose {
@@ -615,12 +766,14 @@ impl Ring {
                 }
             }
             // 1. Latches, probes and responses that are due: they happen at their instants
-            //    in the devices, before any frame the loop has yet to read.
+            //    in the devices, before any frame the loop has yet to read; and what the
+            //    master's PHYs say of its links.
             self.locals_until(now);
+            self.port_news(now);
             // 2. Every frame waiting anywhere.
             let got = self.receive_all(&mut buf);
             if std::mem::take(&mut self.fds_dirty) {
-                fds = fds_of(&self.ports, &self.rx_paused);
+                fds = fds_of(&self.ports, &self.rx_paused, &self.back_paused);
             }
             // 3. The master, once per pass, so that a late master never runs its next step
             //    before the frames of its last one have gone round.

@@ -328,11 +328,6 @@ pub fn run_streamed(
             k.slave
         )));
     }
-    if let Some(b) = spec.scenario.faults.break_link.first() {
-        return Err(RtError::Config(format!(
-            "faults.break_link = \"{b}\": broken links are simulated only so far (ringsync sim); the runtime breaks a link for a while with --flap-link"
-        )));
-    }
     if spec.scenario.ring.plan == PlanKind::LumpedOnly
         && n > ringsync_wire::lumped::slot_capacity(
             <ringsync_wire::LumpedOnlySlot as ringsync_wire::SlotCodec>::LEN,
@@ -480,6 +475,32 @@ pub fn run_streamed(
             }
         ));
     }
+    let breakers: Vec<_> = match &veth {
+        Some(v) => s
+            .faults
+            .break_link
+            .iter()
+            .map(|b| {
+                inject::spawn_break(v.clone(), *b, ring.t0_shared.clone(), stop_inject.clone())
+            })
+            .collect(),
+        None => Vec::new(),
+    };
+    for b in &s.faults.break_link {
+        say(&format!(
+            "link {} breaks at {:.3} s{}{}",
+            b.link,
+            b.at.as_ns() as f64 * 1e-9,
+            b.heal
+                .map(|h| format!(" and heals at {:.3} s", h.as_ns() as f64 * 1e-9))
+                .unwrap_or_default(),
+            if veth.is_some() {
+                ""
+            } else {
+                " (UDP: the nodes beside it stop sending on it)"
+            }
+        ));
+    }
     let flapper = match (opts.flap, &veth) {
         (Some(f), Some(v)) => Some(inject::spawn_flap(
             v.clone(),
@@ -511,6 +532,11 @@ pub fn run_streamed(
         }
         _ => None,
     };
+    for h in breakers {
+        if let Ok(Err(why)) = h.join() {
+            eprintln!("ringsync rt: warning: a link break did not happen: {why}");
+        }
+    }
     if let Some(h) = killer {
         let _ = h.join();
     }

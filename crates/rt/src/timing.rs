@@ -31,6 +31,9 @@ pub struct Timing {
     pub late_timers: u64,
     /// Sends that failed (a node gone, a link down).
     pub send_errors: u64,
+    /// Frames a node could not send on because both its links were broken, or the
+    /// master's port was (`faults.break_link`: the PHY knows; nothing is sent).
+    pub broken_dropped: u64,
     /// Receives that failed (a link went down); the port is read again
     /// [`RX_RETRY`](crate::ring::RX_RETRY) later.
     pub receive_errors: u64,

@@ -31,6 +31,21 @@ pub trait Port: Send {
     fn udp_addr(&self) -> Option<SocketAddr> {
         None
     }
+    /// Sends one PDU to the previous node, backward round the ring (a frame turned back
+    /// beside a broken link, or the master's port B). Unsupported by default.
+    fn send_back(&mut self, _pdu: &[u8]) -> io::Result<()> {
+        Err(io::Error::from(io::ErrorKind::Unsupported))
+    }
+    /// Takes one PDU that came backward from the next node, as [`Port::recv`]. None by
+    /// default.
+    fn recv_back(&mut self, _buf: &mut [u8]) -> io::Result<Option<usize>> {
+        Ok(None)
+    }
+    /// The descriptor that becomes readable when a frame came backward (None: no such
+    /// direction).
+    fn back_fd(&self) -> Option<RawFd> {
+        None
+    }
 }
 
 /// Which transport.
@@ -91,35 +106,60 @@ pub struct OpenRing {
     pub veth: Option<Arc<VethRing>>,
 }
 
-/// A node's UDP socket and the next node's address.
+/// A node's two UDP sockets (frames moving forward round the ring, and backward) and
+/// where its frames go: the next node's forward socket, the previous node's backward one.
 #[derive(Debug)]
 pub struct UdpPort {
     sock: UdpSocket,
     next: SocketAddr,
+    back: UdpSocket,
+    prev_back: SocketAddr,
 }
 
-/// `nodes` UDP sockets on 127.0.0.1 (ephemeral ports), each sending to the next, the last
-/// to the first.
+/// `nodes` pairs of UDP sockets on 127.0.0.1 (ephemeral ports): each node sends forward to
+/// the next, the last to the first, and backward to the one before.
 pub fn udp_ring(nodes: usize) -> io::Result<Vec<UdpPort>> {
-    let socks = (0..nodes)
-        .map(|_| {
-            let s = UdpSocket::bind("127.0.0.1:0")?;
-            s.set_nonblocking(true)?;
-            Ok(s)
-        })
-        .collect::<io::Result<Vec<_>>>()?;
-    let addrs = socks
-        .iter()
-        .map(|s| s.local_addr())
-        .collect::<io::Result<Vec<_>>>()?;
+    let open = || {
+        (0..nodes)
+            .map(|_| {
+                let s = UdpSocket::bind("127.0.0.1:0")?;
+                s.set_nonblocking(true)?;
+                Ok(s)
+            })
+            .collect::<io::Result<Vec<_>>>()
+    };
+    let (socks, backs) = (open()?, open()?);
+    let addrs_of = |v: &[UdpSocket]| {
+        v.iter()
+            .map(|s| s.local_addr())
+            .collect::<io::Result<Vec<_>>>()
+    };
+    let (addrs, back_addrs) = (addrs_of(&socks)?, addrs_of(&backs)?);
     Ok(socks
         .into_iter()
+        .zip(backs)
         .enumerate()
-        .map(|(i, sock)| UdpPort {
+        .map(|(i, (sock, back))| UdpPort {
             sock,
             next: addrs[(i + 1) % nodes],
+            back,
+            prev_back: back_addrs[(i + nodes - 1) % nodes],
         })
         .collect())
+}
+
+/// One datagram from `sock` if one is waiting (see [`UdpPort`]'s `recv`).
+fn udp_recv(sock: &UdpSocket, buf: &mut [u8]) -> io::Result<Option<usize>> {
+    loop {
+        match sock.recv_from(buf) {
+            Ok((len, _)) => return Ok(Some(len)),
+            Err(e) if e.kind() == io::ErrorKind::WouldBlock => return Ok(None),
+            // A send to a closed port (a killed node) reports ECONNREFUSED on a later
+            // call of the sender's socket: not a received frame.
+            Err(e) if e.kind() == io::ErrorKind::ConnectionRefused => continue,
+            Err(e) => return Err(e),
+        }
+    }
 }
 
 impl UdpPort {
@@ -134,22 +174,22 @@ impl Port for UdpPort {
         self.sock.send_to(pdu, self.next).map(|_| ())
     }
     fn recv(&mut self, buf: &mut [u8]) -> io::Result<Option<usize>> {
-        loop {
-            match self.sock.recv_from(buf) {
-                Ok((len, _)) => return Ok(Some(len)),
-                Err(e) if e.kind() == io::ErrorKind::WouldBlock => return Ok(None),
-                // A send to a closed port (a killed node) reports ECONNREFUSED on a later
-                // call of the sender's socket: not a received frame.
-                Err(e) if e.kind() == io::ErrorKind::ConnectionRefused => continue,
-                Err(e) => return Err(e),
-            }
-        }
+        udp_recv(&self.sock, buf)
     }
     fn rx_fd(&self) -> RawFd {
         self.sock.as_raw_fd()
     }
     fn udp_addr(&self) -> Option<SocketAddr> {
         self.sock.local_addr().ok()
+    }
+    fn send_back(&mut self, pdu: &[u8]) -> io::Result<()> {
+        self.back.send_to(pdu, self.prev_back).map(|_| ())
+    }
+    fn recv_back(&mut self, buf: &mut [u8]) -> io::Result<Option<usize>> {
+        udp_recv(&self.back, buf)
+    }
+    fn back_fd(&self) -> Option<RawFd> {
+        Some(self.back.as_raw_fd())
     }
 }
 
@@ -284,13 +324,10 @@ pub fn ethernet_frame(frame: &mut [u8], src: [u8; 6], pdu: &[u8]) -> io::Result<
     Ok(len)
 }
 
-impl Port for VethPort {
-    fn send(&mut self, pdu: &[u8]) -> io::Result<()> {
-        let len = ethernet_frame(&mut self.frame, self.src, pdu)?;
-        sys::send(self.tx.as_raw_fd(), &self.frame[..len]).map(|_| ())
-    }
-    fn recv(&mut self, buf: &mut [u8]) -> io::Result<Option<usize>> {
-        let Some(len) = sys::recv(self.rx.as_raw_fd(), &mut self.frame)? else {
+impl VethPort {
+    /// One ringsync PDU read from `fd` into `buf` if one is waiting (0: not ringsync's).
+    fn read(&mut self, fd: RawFd, buf: &mut [u8]) -> io::Result<Option<usize>> {
+        let Some(len) = sys::recv(fd, &mut self.frame)? else {
             return Ok(None);
         };
         let Ok(eth) = EthernetFrame::new_checked(&self.frame[..len]) else {
@@ -310,7 +347,29 @@ impl Port for VethPort {
         buf[..n].copy_from_slice(&payload[..n]);
         Ok(Some(n))
     }
+}
+
+impl Port for VethPort {
+    fn send(&mut self, pdu: &[u8]) -> io::Result<()> {
+        let len = ethernet_frame(&mut self.frame, self.src, pdu)?;
+        sys::send(self.tx.as_raw_fd(), &self.frame[..len]).map(|_| ())
+    }
+    fn recv(&mut self, buf: &mut [u8]) -> io::Result<Option<usize>> {
+        self.read(self.rx.as_raw_fd(), buf)
+    }
     fn rx_fd(&self) -> RawFd {
         self.rx.as_raw_fd()
+    }
+    /// On the link from the previous node, the other way.
+    fn send_back(&mut self, pdu: &[u8]) -> io::Result<()> {
+        let len = ethernet_frame(&mut self.frame, self.src, pdu)?;
+        sys::send(self.rx.as_raw_fd(), &self.frame[..len]).map(|_| ())
+    }
+    /// From the link to the next node, the other way.
+    fn recv_back(&mut self, buf: &mut [u8]) -> io::Result<Option<usize>> {
+        self.read(self.tx.as_raw_fd(), buf)
+    }
+    fn back_fd(&self) -> Option<RawFd> {
+        Some(self.tx.as_raw_fd())
     }
 }

@@ -145,23 +145,9 @@ impl Link {
             .any(|b| b.link as usize == link && b.broken_at(t))
     }
 
-    /// The links of the master's ports (port A: link 1, port B: link n + 1) and the times
-    /// their state changes: (true time [ns], port, up).
+    /// The changes of the master's own links (see [`LinkBreak::port_changes`]).
     pub fn port_changes(&self) -> Vec<(i64, Port, bool)> {
-        let mut v = Vec::new();
-        for b in &self.breaks {
-            let port = match b.link as usize {
-                1 => Port::A,
-                l if l == self.n + 1 => Port::B,
-                _ => continue,
-            };
-            v.push((b.at.as_ns(), port, false));
-            if let Some(h) = b.heal {
-                v.push((h.as_ns(), port, true));
-            }
-        }
-        v.sort_by_key(|c| c.0);
-        v
+        LinkBreak::port_changes(&self.breaks, self.n)
     }
 
     /// The path of a frame sent at `t` on a ring with broken links (docs/planner.md, "A

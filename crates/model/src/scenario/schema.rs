@@ -8,7 +8,7 @@ use std::fmt;
 use std::str::FromStr;
 
 use ringsync_control::EstimatorKind;
-use ringsync_proto::node::SafeState;
+use ringsync_proto::node::{Port, SafeState};
 use ringsync_proto::plan::parse_bit_rate;
 use ringsync_proto::{Duration, PlanKind, RingParams};
 use serde::{Deserialize, Deserializer};
@@ -57,6 +57,26 @@ impl LinkBreak {
     /// Whether the link is broken at true time `t` [ns].
     pub fn broken_at(&self, t: i64) -> bool {
         t >= self.at.as_ns() && self.heal.is_none_or(|h| t < h.as_ns())
+    }
+
+    /// When the master's own links go down and come up on a ring of `n` slaves with
+    /// `breaks` (link 1 at port A, link n + 1 at port B), as its PHYs would tell it:
+    /// (true time [ns], port, up), in time order.
+    pub fn port_changes(breaks: &[LinkBreak], n: usize) -> Vec<(i64, Port, bool)> {
+        let mut v = Vec::new();
+        for b in breaks {
+            let port = match b.link as usize {
+                1 => Port::A,
+                l if l == n + 1 => Port::B,
+                _ => continue,
+            };
+            v.push((b.at.as_ns(), port, false));
+            if let Some(h) = b.heal {
+                v.push((h.as_ns(), port, true));
+            }
+        }
+        v.sort_by_key(|c| c.0);
+        v
     }
 }
 

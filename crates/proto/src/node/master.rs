@@ -83,6 +83,11 @@ pub struct MasterConfig {
     /// ring (ring redundancy, docs/planner.md "A broken link"); `None`: the master uses
     /// port A alone and a broken ring is a broken ring (the lumped-only plan).
     pub ring: Option<RingModel>,
+    /// The P2P schedule was measured on real links ([`MasterConfig::with_measured`]): on a
+    /// broken ring the master stretches the measured slice and P2P start by the longer
+    /// path's hops over the whole ring's, at least to the model's, and keeps the measured
+    /// command arrivals (the model's wire figures are not the real links').
+    pub measured: bool,
 }
 
 /// The ring as the master sees it (ring redundancy, docs/planner.md "A broken link").
@@ -182,6 +187,7 @@ impl MasterConfig {
             plan: PlanKind::P2pLumped,
             timestamp_tolerance: Duration::from_us(50),
             ring: Some(RingModel::of(plan)),
+            measured: false,
         }
     }
 
@@ -191,6 +197,7 @@ impl MasterConfig {
     /// i's command leaves after the earlier slices' typical round trips (each followed by
     /// the turnaround) and takes its slave's measured transit.
     pub fn with_measured(mut self, m: &MeasuredSchedule) -> Self {
+        self.measured = true;
         self.p2p_start = m.p2p_start;
         self.slice = m.slice;
         self.guard = m.guard;
@@ -556,6 +563,8 @@ pub struct Master {
     back_a: Option<usize>,
     back_b: Option<usize>,
     round_trip: bool,
+    /// Consecutive law runs whose two copies did not meet (slaves cut off from both ports).
+    split_runs: u32,
     seq: u16,
     out: Outbox,
     events: VecDeque<MasterEvent>,
@@ -608,6 +617,7 @@ impl Master {
             back_a: None,
             back_b: None,
             round_trip: false,
+            split_runs: 0,
             seq: 0,
             out: Outbox::default(),
             events: VecDeque::new(),
@@ -1441,11 +1451,27 @@ impl Master {
         }
     }
 
+    /// The broken ring's timing on the links this master measured (see
+    /// [`MasterConfig::measured`]); the model's as it is otherwise.
+    fn on_real_links(&self, mut b: BrokenRing) -> BrokenRing {
+        if !self.cfg.measured {
+            return b;
+        }
+        let whole = self.cfg.axes() as i64 + 1;
+        let broken = 2 * i64::from(b.side_a.max(b.side_b));
+        let stretch =
+            |d: Duration| Duration::from_ns(d.as_ns().saturating_mul(broken.max(whole)) / whole);
+        b.slice = b.slice.max(stretch(self.cfg.slice));
+        b.p2p_start = b.p2p_start.max(stretch(self.cfg.p2p_start));
+        b.command_arrival = self.cfg.command_arrival.clone();
+        b
+    }
+
     /// At the P2P start: what came back tells whether the ring broke, healed or split
     /// (docs/planner.md, "A broken link"). A whole ring whose frame came back to port A
     /// turned at the last slave it reached; a broken ring whose copy went all the way round
-    /// is whole again; a broken ring whose two copies no longer meet has cut slaves off,
-    /// and the group stops.
+    /// is whole again; a broken ring whose two copies have not met for W law runs has cut
+    /// slaves off, and the group stops.
     fn supervise_ring(&mut self, now: Instant) {
         let Some(model) = self.cfg.ring else {
             return;
@@ -1474,15 +1500,25 @@ impl Master {
                     _ if self.round_trip && !self.port_down.iter().any(|d| *d) => {
                         Some(RingState::Whole)
                     }
+                    // A slave that refused a late frame's sync leaves its slot unwritten:
+                    // the copies must fail to meet for W law runs in a row.
                     (Some(a), Some(b)) if a + 1 < b => {
-                        self.pending_stop.get_or_insert(StopReason::RingSplit {
-                            axis: a,
-                            last: b - 2,
-                        });
+                        self.split_runs += 1;
+                        if self.split_runs >= self.cfg.watchdog_cycles {
+                            self.pending_stop.get_or_insert(StopReason::RingSplit {
+                                axis: a,
+                                last: b - 2,
+                            });
+                        }
                         None
                     }
                     (Some(a), Some(b)) if a + 1 == b && b as u32 != link => {
+                        self.split_runs = 0;
                         Some(RingState::Broken { link: b as u32 })
+                    }
+                    (Some(_), Some(_)) => {
+                        self.split_runs = 0;
+                        None
                     }
                     _ => None,
                 }
@@ -1499,7 +1535,7 @@ impl Master {
                 self.counters.ring_heals += 1;
             }
             RingState::Broken { link } => {
-                self.broken = model.broken(link);
+                self.broken = model.broken(link).map(|b| self.on_real_links(b));
                 self.counters.ring_breaks += 1;
             }
         }
