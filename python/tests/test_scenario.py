@@ -138,3 +138,21 @@ def test_a_rust_panic_is_an_exception_and_python_goes_on() -> None:
         _ringsync._panic("boom")
     assert isinstance(ringsync.RunError("x"), RuntimeError)
     assert ringsync.simulate("paper-2015", duration="0.1s").time.shape == (100,)
+
+
+def test_a_broken_link_reshapes_the_ring_and_a_second_splits_it() -> None:
+    # One break: the run goes on, the summary names the link and what it cost.
+    r = ringsync.simulate("paper-2015", duration="1s", **{"faults.break_link": "2@500ms"})
+    ring = r.summary["ring"]
+    assert r.summary["faults"]["group_stop"] is None
+    assert [(c["event"], c["broken_link"], c["cycle"]) for c in ring["changes"]] == [("broken", 2, 500)]
+    assert ring["at_end"] == "link 2 broken"
+    whole = ringsync.simulate("paper-2015", duration="1s")
+    assert "ring" not in whole.summary
+    assert abs(r.metrics["sync_rmse"] / whole.metrics["sync_rmse"] - 1) < 0.2
+    # Two breaks cut slaves 2 and 3 off both of the master's ports: the group stops.
+    split = ringsync.simulate("paper-2015", duration="1s", **{"faults.break_link": ["2@300ms", "4@600ms"]})
+    stop = split.summary["faults"]["group_stop"]
+    assert stop["reason"] == "ring-split" and stop["isolated_slaves"] == [2, 3]
+    with pytest.raises(ringsync.ScenarioError, match="faults.break_link"):
+        ringsync.simulate("paper-2015", **{"faults.break_link": "7@1s"})

@@ -65,6 +65,9 @@ fn chromium_sees_a_replay_arrive_and_the_plots_update() {
             "monitor.sync_warn=0.02",
             "--set",
             "monitor.sync_trip=0.03",
+            // Link 2 breaks before the trip: the ring drawing marks it.
+            "--set",
+            "faults.break_link=\"2@300ms\"",
             "--scope",
             "127.0.0.1:0",
             "--speed",
@@ -168,6 +171,9 @@ fn chromium_sees_a_replay_arrive_and_the_plots_update() {
     // The ring drawing has the master and 4 slaves; the monitor table a row per axis.
     assert_eq!(dom.matches("data-node=").count(), 5, "ring drawing");
     assert_eq!(dom.matches("data-axis=").count(), 4, "monitor table");
+    // The broken link, drawn dashed, and its event.
+    assert_eq!(dom.matches("data-broken=").count(), 1, "the broken link");
+    assert!(dom.contains("ring: whole → link 2 broken"), "the ring's event");
     // uPlot drew its canvases.
     assert!(dom.matches("class=\"uplot").count() >= 5, "uPlot charts");
     let png = std::fs::read(&shot).expect("the screenshot");

@@ -35,7 +35,7 @@ use crate::monitor::MonitorEvent;
 use crate::observer::Observer;
 use crate::oscillator::Oscillator;
 use crate::record::{AxisProbe, FaultEvent, FaultStep, Recorder};
-use crate::result::{Captured, LinkCounters, PassageLog, RunResult};
+use crate::result::{Captured, LinkCounters, PassageLog, RingChange, RunResult};
 use crate::scenario::ScenarioError;
 use crate::spec::Spec;
 
@@ -268,7 +268,14 @@ impl Devices {
                     FaultStep::Ordered(order, why),
                 ),
                 MasterEvent::Ring { at, k, from, to } => {
-                    self.rec.ring_change(at.as_ns() as f64 * 1e-9, k, from, to);
+                    let change = RingChange {
+                        t: at.as_ns() as f64 * 1e-9,
+                        k,
+                        from,
+                        to,
+                        cycles_lost: 0,
+                    };
+                    self.each(|o| o.ring(&change));
                 }
                 MasterEvent::Monitor { at, news } => {
                     let ev = MonitorEvent {

@@ -8,6 +8,7 @@ use ringsync_proto::node::{CycleRecord, Master, Slave};
 
 use crate::monitor::MonitorEvent;
 use crate::record::{AxisProbe, FaultEvent};
+use crate::result::RingChange;
 
 /// What a run tells those who watch it. Every method has an empty default: implement what
 /// you need. Times are true (master) time; axes are 0-based in the calls (1-based in
@@ -33,6 +34,11 @@ pub trait Observer: Send {
     /// A sync-error or following-error monitor raised or cleared a warning, or tripped.
     fn monitor(&mut self, event: &MonitorEvent) {
         let _ = event;
+    }
+    /// The master found the ring changed: a link broke, healed, or the break moved
+    /// (`cycles_lost` is 0 here: it is counted afterwards, in the run's result).
+    fn ring(&mut self, change: &RingChange) {
+        let _ = change;
     }
     /// After the cycle start `k` (right after [`Observer::cycle`]): the nodes themselves,
     /// for their counters and states (the recorder does not need this; a live scope does).

@@ -6,8 +6,8 @@
 use ringsync_control::{Coupling, Metrics};
 use ringsync_proto::Duration;
 use ringsync_proto::node::{
-    CycleRecord, MasterCounters, OffReason, RingState, SafeState, SlaveCounters, StopOrder,
-    StopReason, TorqueOffCause,
+    CycleRecord, MasterCounters, OffReason, SafeState, SlaveCounters, StopOrder, StopReason,
+    TorqueOffCause,
 };
 
 use crate::locate::RingBreak;
@@ -238,19 +238,6 @@ impl Recorder {
         self.ring_break.get_or_insert(b);
     }
 
-    /// The master found the ring changed at `t` [s], in its cycle `k`: the law runs from
-    /// then on without every axis's fresh sample count as its lost cycles.
-    pub fn ring_change(&mut self, t: f64, k: i64, from: RingState, to: RingState) {
-        self.counting = Some(self.ring_changes.len());
-        self.ring_changes.push(RingChange {
-            t,
-            k,
-            from,
-            to,
-            cycles_lost: 0,
-        });
-    }
-
     /// The first group stop, if any.
     pub fn group_stop_seen(&self) -> Option<(f64, StopReason)> {
         self.group_stop
@@ -319,6 +306,16 @@ impl Observer for Recorder {
         if let Some(c) = &self.coupling {
             let _ = c.sync_errors(&self.e, &mut self.eps);
         }
+    }
+
+    /// The master found the ring changed: the law runs from then on without every axis's
+    /// fresh sample count as the change's lost cycles.
+    fn ring(&mut self, change: &RingChange) {
+        self.counting = Some(self.ring_changes.len());
+        self.ring_changes.push(RingChange {
+            cycles_lost: 0,
+            ..*change
+        });
     }
 
     fn computed(&mut self, k: i64, r: &CycleRecord) {

@@ -9,6 +9,8 @@
   const HIST_EDGES = [0, 1, 2, 5, 10, 20, 50, 100, 200, 500, 1000, 2000, 5000, Infinity];
   const body = document.body;
   let hello = null, data = [], nodes = [], events = [], plots = {}, paused = false, follow = true;
+  // The ring's broken link as the master last reported it (link j joins node j-1 to node j).
+  let brokenLink = null;
   let lastSeq = -1, nextFirst = -1, lastDrops = 0, hist = new Array(HIST_EDGES.length - 1).fill(0);
   let histMax = 0, lastDraw = 0, drawTimer = null, ws = null;
   const counter = (k, v) => { body.dataset[k] = String(v); };
@@ -133,7 +135,9 @@
     for (let i = 0; i < names.length; i++) {
       const [x1, y1] = pos[i], [x2, y2] = pos[(i + 1) % names.length];
       const dx = x2 - x1, dy = y2 - y1, L = Math.hypot(dx, dy), k = 22 / L;
-      s += `<line x1="${x1 + dx * k}" y1="${y1 + dy * k}" x2="${x2 - dx * k}" y2="${y2 - dy * k}" stroke="#888" stroke-width="2" marker-end="url(#arr)"/>`;
+      // Line i is link i + 1; marked only when every node is shown.
+      const broken = brokenLink === i + 1 && n === hello.axes;
+      s += `<line x1="${x1 + dx * k}" y1="${y1 + dy * k}" x2="${x2 - dx * k}" y2="${y2 - dy * k}" stroke="${broken ? "#d22" : "#888"}" stroke-width="2"${broken ? ' stroke-dasharray="4 4" data-broken="1"' : ""} marker-end="url(#arr)"/>`;
     }
     names.forEach((nm, i) => {
       const st = nodes[i] ? nodes[i][4] : 0, [x, y] = pos[i];
@@ -190,10 +194,16 @@
       events.push(m); bump("events");
       const div = document.createElement("div");
       const trip = (m.kind === "monitor" && m.level === "trip") || m.step === "group_stop";
-      div.className = trip ? "trip" : m.kind === "monitor" && m.change === "raised" ? "warn" : "";
-      div.textContent = m.time_s.toFixed(4) + " s  axis " + m.axis + "  " + (m.kind === "monitor"
-        ? m.monitor + " " + m.level + " " + m.change + " (" + m.value_rad.toFixed(5) + " rad)"
-        : m.step + ": " + m.detail);
+      div.className = trip ? "trip" : (m.kind === "monitor" && m.change === "raised") || m.kind === "ring" ? "warn" : "";
+      if (m.kind === "ring") {
+        brokenLink = m.broken_link;
+        div.textContent = m.time_s.toFixed(4) + " s  ring: " + m.from + " → " + m.to + " (cycle " + m.cycle + ")";
+        drawRing();
+      } else {
+        div.textContent = m.time_s.toFixed(4) + " s  axis " + m.axis + "  " + (m.kind === "monitor"
+          ? m.monitor + " " + m.level + " " + m.change + " (" + m.value_rad.toFixed(5) + " rad)"
+          : m.step + ": " + m.detail);
+      }
       $("events").prepend(div);
     } else if (m.type === "end") {
       events.push(m); counter("ended", 1);

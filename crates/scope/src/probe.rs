@@ -11,6 +11,7 @@ use std::sync::mpsc::{Receiver, SyncSender, TrySendError, sync_channel};
 use std::time::Instant;
 
 use ringsync::layers::model::monitor::MonitorEvent;
+use ringsync::layers::model::result::RingChange;
 use ringsync::layers::proto::node::{Master, MonitorKind, Slave};
 use ringsync::layers::wire::Status;
 use ringsync::{AxisProbe, FaultEvent, FaultStep, Observer};
@@ -106,6 +107,8 @@ pub enum Event {
     Monitor(MonitorEvent),
     /// A step of a fault reaction.
     Fault(FaultEvent),
+    /// The master found the ring changed (a link broke, healed, or the break moved).
+    Ring(RingChange),
 }
 
 /// The receiving end, for the server's pump.
@@ -373,6 +376,10 @@ impl Observer for ScopeObserver {
         if !matches!(ev.step, FaultStep::Relocked(_)) || ev.t > 0.0 {
             self.event(Event::Fault(*ev));
         }
+    }
+
+    fn ring(&mut self, change: &RingChange) {
+        self.event(Event::Ring(*change));
     }
 }
 

@@ -258,6 +258,14 @@ fn event_json(e: &Event) -> String {
             "type": "event", "kind": "fault", "time_s": f.t, "axis": f.axis,
             "step": f.step.name(), "detail": f.step.detail(),
         }),
+        Event::Ring(c) => json!({
+            "type": "event", "kind": "ring", "time_s": c.t, "cycle": c.k,
+            "from": c.from.describe(), "to": c.to.describe(),
+            "broken_link": match c.to {
+                ringsync::layers::proto::node::RingState::Broken { link } => Some(link),
+                ringsync::layers::proto::node::RingState::Whole => None,
+            },
+        }),
     }
     .to_string()
 }

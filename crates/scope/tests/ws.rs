@@ -98,6 +98,8 @@ fn a_replay_streams_every_cycle_in_sequence() {
     let _one = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
     let mut s = Scenario::default();
     s.duration.0 = Duration::from_ms(600);
+    // Link 2 broken for 200 ms: the ring's changes are events on the page.
+    s.faults.break_link = vec!["2@200ms..400ms".parse().expect("a link break")];
     let (scope, observer) = Scope::start(
         "127.0.0.1:0".parse().expect("addr"),
         &s,
@@ -181,6 +183,18 @@ fn a_replay_streams_every_cycle_in_sequence() {
         .expect("an end");
     assert_eq!(end["track_rmse"].as_f64(), Some(r.summary.track_rmse));
     assert_eq!(end["drops"], 0);
+    let ring: Vec<(i64, Value)> = read
+        .texts
+        .iter()
+        .filter(|v| v["kind"] == "ring")
+        .map(|v| (v["cycle"].as_i64().unwrap_or(-1), v["broken_link"].clone()))
+        .collect();
+    assert_eq!(
+        ring,
+        [(200, serde_json::json!(2)), (400, Value::Null)],
+        "{:?}",
+        read.texts
+    );
 }
 
 /// A real-time run over UDP (2 s) with two clients: one reads everything, the other stops
