@@ -173,7 +173,10 @@ fn chromium_sees_a_replay_arrive_and_the_plots_update() {
     assert_eq!(dom.matches("data-axis=").count(), 4, "monitor table");
     // The broken link, drawn dashed, and its event.
     assert_eq!(dom.matches("data-broken=").count(), 1, "the broken link");
-    assert!(dom.contains("ring: whole → link 2 broken"), "the ring's event");
+    assert!(
+        dom.contains("ring: whole → link 2 broken"),
+        "the ring's event"
+    );
     // uPlot drew its canvases.
     assert!(dom.matches("class=\"uplot").count() >= 5, "uPlot charts");
     let png = std::fs::read(&shot).expect("the screenshot");

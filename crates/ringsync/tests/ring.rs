@@ -696,3 +696,40 @@ fn a_broken_link_costs_cycles_not_the_run_and_its_heal_is_found() {
         }
     }
 }
+
+/// Two links broken (2 at 1 s, 4 at 1.5 s): slaves 2 and 3 are cut off from both of the
+/// master's ports, and after W law runs in which the two copies did not meet the group
+/// stops with `ring-split`, naming them.
+#[test]
+fn a_second_broken_link_stops_the_group_and_names_the_slaves_cut_off() {
+    use ringsync::layers::proto::node::StopReason;
+    let mut s = Scenario::default();
+    s.duration.0 = Duration::from_ms(2500);
+    s.faults.break_link = vec![
+        "2@1s".parse().expect("a link break"),
+        "4@1.5s".parse().expect("a link break"),
+    ];
+    for transport in [TransportKind::Veth, TransportKind::Udp] {
+        let opts = RtOptions {
+            transport,
+            watchdog_cycles: Some(FAULT_W),
+            ..RtOptions::default()
+        };
+        let r = run_uncut_on(&s, opts, |r| cut_around(r, 1.5));
+        let name = transport.name();
+        let (t, reason) = r.run.group_stop.expect("the group stops");
+        assert_eq!(
+            reason,
+            StopReason::RingSplit { axis: 1, last: 2 },
+            "{name}: stopped at {t} s"
+        );
+        // After the second break, by the W-th law run from it (a sample the host made
+        // late before the break can make an isolated axis blind a few runs sooner), a host
+        // stall's worth later at most.
+        let w = f64::from(FAULT_W) * r.scenario.ring.cycle.secs();
+        assert!(
+            (1.5..1.5 + w + 0.1).contains(&t),
+            "{name}: stopped at {t} s"
+        );
+    }
+}

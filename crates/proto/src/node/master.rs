@@ -563,8 +563,10 @@ pub struct Master {
     back_a: Option<usize>,
     back_b: Option<usize>,
     round_trip: bool,
-    /// Consecutive law runs whose two copies did not meet (slaves cut off from both ports).
+    /// Consecutive law runs whose two copies did not meet (slaves cut off from both ports),
+    /// and the slaves (0-based, inclusive) they last left between them.
     split_runs: u32,
+    split: Option<(usize, usize)>,
     seq: u16,
     out: Outbox,
     events: VecDeque<MasterEvent>,
@@ -618,6 +620,7 @@ impl Master {
             back_b: None,
             round_trip: false,
             split_runs: 0,
+            split: None,
             seq: 0,
             out: Outbox::default(),
             events: VecDeque::new(),
@@ -956,8 +959,8 @@ impl Master {
         if self.lumped_back < expected {
             self.counters.lumped_lost += (expected - self.lumped_back) as u64;
         }
-        self.supervise_ring(now);
         self.feedback_watchdog();
+        self.supervise_ring(now);
         let input = MotionInput {
             k: self.k,
             now,
@@ -1501,29 +1504,38 @@ impl Master {
                         Some(RingState::Whole)
                     }
                     // A slave that refused a late frame's sync leaves its slot unwritten:
-                    // the copies must fail to meet for W law runs in a row.
+                    // the copies must fail to meet for W law runs in a row, or until an
+                    // axis between them has had no fresh sample for W runs (a copy the
+                    // host made late leaves a run without the evidence).
                     (Some(a), Some(b)) if a + 1 < b => {
                         self.split_runs += 1;
-                        if self.split_runs >= self.cfg.watchdog_cycles {
-                            self.pending_stop.get_or_insert(StopReason::RingSplit {
-                                axis: a,
-                                last: b - 2,
-                            });
-                        }
+                        self.split = Some((a, b - 2));
                         None
                     }
                     (Some(a), Some(b)) if a + 1 == b && b as u32 != link => {
                         self.split_runs = 0;
+                        self.split = None;
                         Some(RingState::Broken { link: b as u32 })
                     }
                     (Some(_), Some(_)) => {
                         self.split_runs = 0;
+                        self.split = None;
                         None
                     }
                     _ => None,
                 }
             }
         };
+        if let Some((first, last)) = self.split
+            && (self.split_runs >= self.cfg.watchdog_cycles
+                || self
+                    .blind
+                    .get(first..=last)
+                    .is_some_and(|b| b.iter().any(|x| *x)))
+        {
+            self.pending_stop
+                .get_or_insert(StopReason::RingSplit { axis: first, last });
+        }
         let Some(to) = next else {
             return;
         };
