@@ -388,11 +388,19 @@ impl Ring {
     fn forward(&mut self, node: usize, t: i64, bytes: &[u8]) {
         if self.breaks.is_empty() || !self.link_down(node + 1, t) {
             self.send(node, t, bytes, false);
-        } else if node != 0 && !self.link_down(node, t) {
+        } else if node != 0 && !self.cut_off(node, t) {
             self.send(node, t, bytes, true);
         } else {
             self.log.timing.broken_dropped += 1;
         }
+    }
+
+    /// Whether slave `node` is cut off from both of the master's ports at `t` (a link
+    /// broken on either side of it): what it would turn back could only go round between
+    /// the breaks for ever, so it is dropped instead (as the simulator's walk gives up).
+    fn cut_off(&self, node: usize, t: i64) -> bool {
+        let n1 = self.ports.len();
+        (1..=node).any(|l| self.link_down(l, t)) && (node + 1..=n1).any(|l| self.link_down(l, t))
     }
 
     fn send(&mut self, node: usize, t: i64, bytes: &[u8], back: bool) {
@@ -479,8 +487,15 @@ impl Ring {
             });
             self.master_news(news, now);
         } else if self.link_down(node, now) {
-            self.on_frame(node, now, bytes);
+            if self.cut_off(node, now) {
+                self.log.timing.broken_dropped += 1;
+            } else {
+                self.on_frame(node, now, bytes);
+            }
         } else {
+            // A relay: the node read it (its counters, as the locator reads them).
+            self.last_rx[node] = Some(now as f64 * 1e-9);
+            self.rx_frames[node] += 1;
             self.send(node, now, bytes, true);
         }
     }

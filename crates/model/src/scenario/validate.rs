@@ -146,6 +146,22 @@ impl Scenario {
         })?;
         plan.check_fits_for(self.ring.plan)
             .map_err(|e| out_of_range("ring.cycle", self.ring.cycle, e.to_string()))?;
+        // Each link the scenario breaks: the broken ring's cycle must fit too, or the master
+        // would drop the last slices and stop the group for the want of a response.
+        for b in &self.faults.break_link {
+            if let Some(br) = plan.broken(b.link)
+                && br.t_idle.is_negative()
+            {
+                return Err(out_of_range(
+                    "faults.break_link",
+                    b,
+                    format!(
+                        "a break whose cycle fits: with link {} broken the ring needs {} (docs/planner.md, \"A broken link\"), ring.cycle is {}",
+                        b.link, br.min_t_cyc, self.ring.cycle.0
+                    ),
+                ));
+            }
+        }
         if ns(self.ring.jitter) < 0 || self.ring.jitter.0 > self.ring.cycle.0 {
             return Err(out_of_range(
                 "ring.jitter",

@@ -84,9 +84,9 @@ pub struct MasterConfig {
     /// port A alone and a broken ring is a broken ring (the lumped-only plan).
     pub ring: Option<RingModel>,
     /// The P2P schedule was measured on real links ([`MasterConfig::with_measured`]): on a
-    /// broken ring the master stretches the measured slice and P2P start by the longer
-    /// path's hops over the whole ring's, at least to the model's, and keeps the measured
-    /// command arrivals (the model's wire figures are not the real links').
+    /// broken ring the master stretches the measured slice, P2P start and command arrivals
+    /// (from the P2P start) by the longer path's hops over the whole ring's, at least to the
+    /// model's (the model's wire figures are not the real links').
     pub measured: bool,
 }
 
@@ -439,6 +439,14 @@ pub struct MasterCounters {
     pub ring_heals: u64,
 }
 
+/// 0 for port A, 1 for port B.
+fn port_ix(p: Port) -> usize {
+    match p {
+        Port::A => 0,
+        Port::B => 1,
+    }
+}
+
 /// A lumped frame back at the master: frame `j` of the cycle, the port its copy left on
 /// and the port it came back to.
 #[derive(Debug, Clone, Copy)]
@@ -454,7 +462,9 @@ struct SentLumped {
     seq: u16,
     stamp: u64,
     sent: bool,
-    back: bool,
+    /// Whether it came back to port A, to port B (a copy reflected to one port must not
+    /// keep the genuine one from being taken at the other).
+    back: [bool; 2],
 }
 
 /// The master of the ring: it sends the lumped frame at each cycle start (clock sync and
@@ -819,11 +829,11 @@ impl Master {
             let s = self.next_slot;
             self.next_slot += 1;
             let slice = self.slice();
-            if now + slice + self.cfg.guard > next_cycle {
+            if now + slice + self.guard() > next_cycle {
                 break;
             }
             if self.open_slice(s, now) {
-                self.deadline = Some(now + slice + self.cfg.guard);
+                self.deadline = Some(now + slice + self.guard());
                 return;
             }
         }
@@ -912,7 +922,7 @@ impl Master {
             seq: repr.common.seq,
             stamp: repr.master_time_ns,
             sent: true,
-            back: false,
+            back: [false; 2],
         };
         if self.out.push_on(now, port, repr.into()) {
             self.counters.frames_sent += 1;
@@ -955,10 +965,9 @@ impl Master {
     }
 
     fn compute(&mut self, now: Instant) {
+        // (A copy reflected to the wrong port may come back as well as the genuine one.)
         let expected = self.expected_back();
-        if self.lumped_back < expected {
-            self.counters.lumped_lost += (expected - self.lumped_back) as u64;
-        }
+        self.counters.lumped_lost += expected.saturating_sub(self.lumped_back) as u64;
         self.feedback_watchdog();
         self.supervise_ring(now);
         let input = MotionInput {
@@ -1109,7 +1118,7 @@ impl Master {
             (Pdu::Lumped(l), PlanKind::P2pLumped) => {
                 let (first, slots) = (usize::from(l.first_slot), &l.slots);
                 let c = &l.common;
-                self.echo_of(c.cycle, c.seq, l.master_time_ns, first, slots.len())
+                self.echo_of(port, c.cycle, c.seq, l.master_time_ns, first, slots.len())
                     .map(|(j, sent)| {
                         let back = Back { j, sent, port };
                         self.take_lumped_slots(now, back, first, slots.len(), |k| {
@@ -1151,6 +1160,7 @@ impl Master {
     /// must be those it went out with, and it must not have come back already.
     fn echo_of(
         &self,
+        arrived: Port,
         cycle: u32,
         seq: u16,
         stamp: u64,
@@ -1179,7 +1189,7 @@ impl Master {
         if slots != count {
             return Err(Reject::Unsolicited);
         }
-        if sent.back {
+        if sent.back[port_ix(arrived)] {
             return Err(Reject::Duplicate);
         }
         Ok((j, port))
@@ -1199,7 +1209,7 @@ impl Master {
             .map_err(|_| Reject::Malformed)?;
         let first = usize::from(p.first_slot());
         let count = usize::from(p.slot_count());
-        let (j, sent) = self.echo_of(f.cycle(), f.seq(), p.master_time_ns(), first, count)?;
+        let (j, sent) = self.echo_of(port, f.cycle(), f.seq(), p.master_time_ns(), first, count)?;
         // Every slot must parse before any is taken: a frame is taken whole or not at all.
         for k in 0..count {
             match p.slot_bytes(k).map(FeedbackSlot::parse) {
@@ -1231,7 +1241,7 @@ impl Master {
             Port::B => &mut self.sent_lumped_b,
         };
         if let Some(s) = record.get_mut(back.j) {
-            s.back = true;
+            s.back[port_ix(back.port)] = true;
         }
         self.lumped_back += 1;
         self.last_back = Some(self.k);
@@ -1358,13 +1368,14 @@ impl Master {
     ) -> Result<(), Reject> {
         let first = usize::from(l.first_slot);
         self.echo_of(
+            Port::B,
             l.common.cycle,
             l.common.seq,
             l.master_time_ns,
             first,
             l.slots.len(),
         )
-        .map(|(j, _)| self.sent_lumped[j].back = true)?;
+        .map(|(j, _)| self.sent_lumped[j].back[port_ix(Port::B)] = true)?;
         self.lumped_back += 1;
         self.last_back = Some(self.k);
         let newest = self.newest_sample(now);
@@ -1418,10 +1429,7 @@ impl Master {
     /// nothing it sends there comes back, so it reaches every slave from port B.
     pub fn handle_link(&mut self, now: Instant, port: Port, up: bool) {
         let _ = now;
-        self.port_down[match port {
-            Port::A => 0,
-            Port::B => 1,
-        }] = !up;
+        self.port_down[port_ix(port)] = !up;
     }
 
     /// Start of this cycle's P2P phase from the cycle start.
@@ -1434,6 +1442,24 @@ impl Master {
     /// The length of a time slice.
     fn slice(&self) -> Duration {
         self.broken.as_ref().map_or(self.cfg.slice, |b| b.slice)
+    }
+
+    /// How long the master waits beyond a slice: the configured guard (the jitter of the
+    /// ring's n + 1 hops and the clocks' tolerance), stretched on a broken ring to its
+    /// longer path of 2·max(a, b) hops.
+    fn guard(&self) -> Duration {
+        match &self.broken {
+            Some(b) => self.stretch(self.cfg.guard, b),
+            None => self.cfg.guard,
+        }
+    }
+
+    /// `d` × (the broken ring's longer round trip in hops over the whole ring's), at least
+    /// `d`.
+    fn stretch(&self, d: Duration, b: &BrokenRing) -> Duration {
+        let whole = self.cfg.axes() as i64 + 1;
+        let broken = 2 * i64::from(b.side_a.max(b.side_b));
+        Duration::from_ns(d.as_ns().saturating_mul(broken.max(whole)) / whole)
     }
 
     /// The port that reaches axis `target` (0-based).
@@ -1460,13 +1486,18 @@ impl Master {
         if !self.cfg.measured {
             return b;
         }
-        let whole = self.cfg.axes() as i64 + 1;
-        let broken = 2 * i64::from(b.side_a.max(b.side_b));
-        let stretch =
-            |d: Duration| Duration::from_ns(d.as_ns().saturating_mul(broken.max(whole)) / whole);
-        b.slice = b.slice.max(stretch(self.cfg.slice));
-        b.p2p_start = b.p2p_start.max(stretch(self.cfg.p2p_start));
-        b.command_arrival = self.cfg.command_arrival.clone();
+        let slice = self.stretch(self.cfg.slice, &b);
+        let p2p = self.stretch(self.cfg.p2p_start, &b);
+        b.slice = b.slice.max(slice);
+        b.p2p_start = b.p2p_start.max(p2p);
+        // The measured arrivals, moved with the P2P start and stretched with the slices.
+        let (cfg_p2p, new_p2p) = (self.cfg.p2p_start, b.p2p_start);
+        b.command_arrival = self
+            .cfg
+            .command_arrival
+            .iter()
+            .map(|&a| new_p2p + self.stretch(a - cfg_p2p, &b))
+            .collect();
         b
     }
 
@@ -1481,12 +1512,16 @@ impl Master {
         };
         let n = self.cfg.axes();
         let next = match self.ring {
+            // A copy back at port A names the break by the furthest slave that wrote its
+            // slot; one with none written names nothing (nothing comes back to port A over
+            // a dead link 1: the PHY tells that), nor does one in a cycle whose frame also
+            // went round to port B (a reflection, not a break).
             RingState::Whole => match (self.back_a, self.port_down[0]) {
-                (Some(a), _) => Some(RingState::Broken {
+                (_, true) => Some(RingState::Broken { link: 1 }),
+                (Some(a), false) if a >= 1 && !self.round_trip => Some(RingState::Broken {
                     link: (a + 1) as u32,
                 }),
-                (None, true) => Some(RingState::Broken { link: 1 }),
-                (None, false) => None,
+                _ => None,
             },
             RingState::Broken { link } => {
                 let a = if self.port_down[0] {
@@ -1541,6 +1576,8 @@ impl Master {
         };
         let from = self.ring;
         self.ring = to;
+        self.split = None;
+        self.split_runs = 0;
         match to {
             RingState::Whole => {
                 self.broken = None;

@@ -176,3 +176,48 @@ fn a_master_late_by_a_stall_settles_only_the_cycles_sent_a_cycle_ago() {
     // A cycle time later they have.
     assert_eq!(m.settled_cycle(Instant::from_ns(late + T_CYC)), Some(12));
 }
+
+/// A lumped frame reflected back to port A (a PHY in loopback, a replay) on a whole ring:
+/// its echo is refused nowhere else, the genuine one still comes round to port B and is
+/// taken, and the master does not take the reflection for a break (it wrote no slot, and
+/// the frame also went round).
+#[test]
+fn a_frame_reflected_to_port_a_breaks_nothing() {
+    let (mut m, mut slaves) = ring(2, Duration::ZERO);
+    for cycle in 0..3 {
+        let t0 = cycle * T_CYC;
+        for s in slaves.iter_mut() {
+            latch(s, t0, 100);
+        }
+        // (The last cycle ends at this one's start, then the lumped frame goes.)
+        let now = m.poll_timeout();
+        assert_eq!(now.as_ns(), t0, "the cycle starts with the lumped frame");
+        m.handle_timeout(now);
+        let mut tx = match m.poll_transmit() {
+            Some(tx) => tx,
+            None => {
+                m.handle_timeout(m.poll_timeout());
+                m.poll_transmit().expect("the lumped frame")
+            }
+        };
+        assert_eq!(tx.port, Port::A);
+        // The reflection, unwritten, back at port A first.
+        m.handle_frame_on(Port::A, now, &tx.bytes);
+        for s in slaves.iter_mut() {
+            assert_eq!(
+                s.handle_frame(now, now, &mut tx.bytes),
+                FrameOutcome::Forward
+            );
+        }
+        m.handle_frame_on(Port::B, now, &tx.bytes);
+        assert_eq!(m.counters().rejected.total(), 0, "cycle {cycle}");
+        // The P2P start: the law runs on the genuine echo's samples.
+        let p2p = m.poll_timeout();
+        m.handle_timeout(p2p);
+        while m.poll_transmit().is_some() {}
+        assert_eq!(m.ring(), RingState::Whole, "cycle {cycle}");
+        master_until(&mut m, &mut slaves, t0 + T_CYC - 1);
+    }
+    assert_eq!(m.counters().ring_breaks, 0);
+    assert!(m.record().fresh.iter().all(|f| *f), "{:?}", m.record());
+}

@@ -145,6 +145,20 @@ fn link_breaks_are_checked_when_the_scenario_loads() {
     assert!(err("[faults]\nbreak_link = \"2@1s..500ms\"\n").contains("heals before it breaks"));
     assert!(err("[faults]\nbreak_link = \"two@1s\"\n").contains("not a whole number"));
     assert!(err("[faults]\nbreak_link = 3\n").contains("I@T"));
+    // A break next to the master needs 252.2 µs on the reference ring: a 240 µs cycle
+    // holds the whole ring (224.7 µs) but not that break.
+    let e = err("[ring]\ncycle = \"240us\"\n[faults]\nbreak_link = \"1@1s\"\n");
+    assert!(
+        e.contains("with link 1 broken the ring needs 252.200 µs"),
+        "{e}"
+    );
+    assert!(
+        Scenario::from_toml(
+            "[ring]\ncycle = \"240us\"\n[faults]\nbreak_link = \"3@1s\"\n",
+            "t"
+        )
+        .is_ok()
+    );
     let s = scenario("[faults]\nbreak_link = [\"2@1.5s..2s\", \"5@0s\"]\n");
     let text: Vec<String> = s.faults.break_link.iter().map(|b| b.to_string()).collect();
     assert_eq!(text, ["2@1.5s..2s", "5@0s"]);
