@@ -636,6 +636,16 @@ fn a_broken_link_is_reported_in_the_summary() {
     assert!(ring["changes"][0]["cycles_lost"].as_u64().expect("count") <= 1);
     assert_eq!(ring["changes"][1]["event"], "healed");
     assert_eq!(ring["at_end"], "whole");
+    // And in the run's lines.
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        text.contains("  ring: link 2 broken at 0.500 s (cycle 500"),
+        "{text}"
+    );
+    assert!(
+        text.contains("  ring: whole again at 0.800 s (cycle 800)"),
+        "{text}"
+    );
     let d = dir("split");
     let o = ringsync(&[
         "sim",

@@ -61,6 +61,26 @@ pub fn stop_reason_text(r: &StopReason) -> String {
     }
 }
 
+/// A line per change of the ring the master found, for the run's text: when, in which
+/// cycle, what the ring became and the cycles it cost.
+pub fn ring_lines(r: &RunResult) -> Vec<String> {
+    r.ring_changes
+        .iter()
+        .map(|c| {
+            let what = match c.to {
+                ringsync_proto::node::RingState::Whole => "whole again".to_string(),
+                to => to.describe(),
+            };
+            let lost = match c.cycles_lost {
+                1 => ", 1 cycle lost".to_string(),
+                0 => String::new(),
+                k => format!(", {k} cycles lost"),
+            };
+            format!("{what} at {:.3} s (cycle {}{lost})", c.t, c.k)
+        })
+        .collect()
+}
+
 /// The `ring` key of summary.json: every change of the ring the master found (a link
 /// broke, healed, or the break moved), with the cycles each cost; `None` (no key) on a
 /// ring that never changed and had no break scheduled.

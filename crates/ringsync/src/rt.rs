@@ -301,6 +301,7 @@ pub fn rt_text(r: &RtResult, prediction: Option<SimPrediction>) -> String {
     }
     text.push('\n');
     text += &crate::simulate::monitor_text(&r.scenario, &r.run);
+    text += &crate::simulate::ring_text(&r.run);
     text
 }
 

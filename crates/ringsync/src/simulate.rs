@@ -244,7 +244,17 @@ pub fn sim_text(s: &Scenario, r: &RunResult) -> String {
         },
     );
     text += &monitor_text(s, r);
+    text += &ring_text(r);
     text
+}
+
+/// The ring's changes (a link broken, healed, the break moved), a line each; empty on a
+/// ring that never changed.
+pub fn ring_text(r: &RunResult) -> String {
+    ringsync_report::sim::ring_lines(r)
+        .iter()
+        .map(|l| format!("  ring: {l}\n"))
+        .collect()
 }
 
 /// The monitors' warnings and trips, a line each (empty when no monitor is set; at most
