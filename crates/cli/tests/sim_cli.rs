@@ -606,28 +606,36 @@ fn outputs_selects_the_files_written() {
     assert!(err.contains("parquet"), "the names it lists: {err}");
 }
 
-/// A broken link in `sim --set`: the run goes on (exit 0), and summary.json names the link,
-/// when the master found it and the cycles it cost; two breaks stop the group (exit 3)
-/// and name the slaves cut off.
-#[test]
-fn a_broken_link_is_reported_in_the_summary() {
-    let d = dir("broken");
+/// `ringsync sim paper-2015` for 1 s with `faults.break_link = value`, summary only: the
+/// process's output and its summary.json.
+fn sim_broken(name: &str, value: &str) -> (std::process::Output, serde_json::Value) {
+    let d = dir(name);
+    let set = format!("faults.break_link={value}");
     let o = ringsync(&[
         "sim",
         "paper-2015",
         "--set",
         "duration=\"1s\"",
         "--set",
-        "faults.break_link=\"2@500ms..800ms\"",
+        &set,
         "--outputs",
         "summary",
         "--out",
         d.to_str().expect("utf-8"),
     ]);
+    let v = serde_json::from_slice(&std::fs::read(d.join("summary.json")).expect("summary"))
+        .expect("JSON");
+    let _ = std::fs::remove_dir_all(&d);
+    (o, v)
+}
+
+/// A broken link in `sim --set`: the run goes on (exit 0), and summary.json names the link,
+/// when the master found it and the cycles it cost; two breaks stop the group (exit 3)
+/// and name the slaves cut off.
+#[test]
+fn a_broken_link_is_reported_in_the_summary() {
+    let (o, v) = sim_broken("broken", "\"2@500ms..800ms\"");
     assert_eq!(o.status.code(), Some(0), "{o:?}");
-    let v: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(d.join("summary.json")).expect("summary"))
-            .expect("JSON");
     let ring = &v["ring"];
     assert_eq!(ring["scheduled"][0], "2@0.5s..0.8s");
     assert_eq!(ring["changes"][0]["event"], "broken");
@@ -646,25 +654,9 @@ fn a_broken_link_is_reported_in_the_summary() {
         text.contains("  ring: whole again at 0.800 s (cycle 800)"),
         "{text}"
     );
-    let d = dir("split");
-    let o = ringsync(&[
-        "sim",
-        "paper-2015",
-        "--set",
-        "duration=\"1s\"",
-        "--set",
-        "faults.break_link=[\"2@300ms\",\"4@600ms\"]",
-        "--outputs",
-        "summary",
-        "--out",
-        d.to_str().expect("utf-8"),
-    ]);
+    let (o, v) = sim_broken("split", "[\"2@300ms\",\"4@600ms\"]");
     assert_eq!(o.status.code(), Some(3), "{o:?}");
-    let v: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(d.join("summary.json")).expect("summary"))
-            .expect("JSON");
     let stop = &v["faults"]["group_stop"];
     assert_eq!(stop["reason"], "ring-split");
     assert_eq!(stop["isolated_slaves"], serde_json::json!([2, 3]));
-    let _ = std::fs::remove_dir_all(&d);
 }

@@ -46,6 +46,23 @@ pub(crate) fn cycle_route(frame: &WireFrame) -> Option<(u32, Option<Route>)> {
     }
 }
 
+/// The slots a lumped frame of either plan carries: (first slot, count).
+fn slots_of(route: Option<Route>) -> Option<(usize, usize)> {
+    match route {
+        Some(
+            Route::Lumped {
+                first_slot,
+                slot_count,
+            }
+            | Route::LumpedOnly {
+                first_slot,
+                slot_count,
+            },
+        ) => Some((usize::from(first_slot), usize::from(slot_count))),
+        _ => None,
+    }
+}
+
 /// What became of a frame sent.
 pub(crate) enum Delivery {
     /// Its last bit reaches `node` (0 = the master, on `port`) at true time `at` [ns], its
@@ -127,6 +144,16 @@ impl Link {
         }
     }
 
+    /// Wire time of a frame going `route` [ns].
+    fn wire_ns(&self, route: Option<Route>) -> i64 {
+        self.frame_ns[match route {
+            Some(Route::Lumped { .. }) => 0,
+            Some(Route::Command { .. }) => 1,
+            Some(Route::LumpedOnly { .. }) => 3,
+            _ => 2,
+        }]
+    }
+
     /// Slave residence time T_t: first bit in to first bit out [ns].
     pub fn residence(&self) -> i64 {
         self.residence
@@ -164,23 +191,11 @@ impl Link {
         t: i64,
     ) -> Option<(usize, i64, Vec<usize>, Port)> {
         let ring = self.n + 1;
-        let takes = |pos: usize| match route {
-            Some(Route::Command { target }) => {
+        let takes = |pos: usize| match (route, slots_of(route)) {
+            (Some(Route::Command { target }), _) => {
                 (from == 0 || from == ring) && usize::from(target) == pos
             }
-            Some(
-                Route::Lumped {
-                    first_slot,
-                    slot_count,
-                }
-                | Route::LumpedOnly {
-                    first_slot,
-                    slot_count,
-                },
-            ) => {
-                let (f, c) = (usize::from(first_slot), usize::from(slot_count));
-                pos > f && pos <= f + c
-            }
+            (_, Some((f, c))) => pos > f && pos <= f + c,
             _ => false,
         };
         let (mut pos, mut dir): (usize, i64) = if from == ring { (ring, -1) } else { (from, 1) };
@@ -248,20 +263,10 @@ impl Link {
             return self.send_broken(from, t_tx, route, frame, record);
         }
         // The node (0 = master) that processes the frame next.
-        let stop = match route {
-            Some(Route::Command { target }) if from == 0 => usize::from(target).min(self.n),
-            Some(
-                Route::Lumped {
-                    first_slot,
-                    slot_count,
-                }
-                | Route::LumpedOnly {
-                    first_slot,
-                    slot_count,
-                },
-            ) => {
+        let stop = match (route, slots_of(route)) {
+            (Some(Route::Command { target }), _) if from == 0 => usize::from(target).min(self.n),
+            (_, Some((first, count))) => {
                 // Slots f..f+m belong to slaves f+1..=f+m.
-                let (first, count) = (usize::from(first_slot), usize::from(slot_count));
                 let next = from + 1;
                 if next <= first {
                     (first + 1).min(ring) % ring
@@ -273,12 +278,7 @@ impl Link {
             }
             _ => 0,
         };
-        let dur = self.frame_ns[match route {
-            Some(Route::Lumped { .. }) => 0,
-            Some(Route::Command { .. }) => 1,
-            Some(Route::LumpedOnly { .. }) => 3,
-            _ => 2,
-        }];
+        let dur = self.wire_ns(route);
         let stop = if stop == 0 && from == 0 { ring } else { stop };
         let hops = ((stop + ring - from) % ring).max(1) as i64;
         let stop = stop % ring;
@@ -382,12 +382,7 @@ impl Link {
         record: Option<Vec<u8>>,
     ) -> Delivery {
         let capturing = self.captured.is_some();
-        let dur = self.frame_ns[match route {
-            Some(Route::Lumped { .. }) => 0,
-            Some(Route::Command { .. }) => 1,
-            Some(Route::LumpedOnly { .. }) => 3,
-            _ => 2,
-        }];
+        let dur = self.wire_ns(route);
         let walked = self.walk(from, route, t_tx);
         let gone = walked.is_none();
         let (stop, hops, relays, port) = walked.unwrap_or((0, 0, Vec::new(), Port::A));
