@@ -672,6 +672,9 @@ impl Harness {
             }
             Pdu::Command(c) => self.command(&c),
             Pdu::Response(r) => panic!("the master sent a response: {r:?}"),
+            // Delay frames belong to the start-up phase (`node::calibrate`), which this
+            // target's master, running from its first cycle, does not have.
+            Pdu::Delay(d) => panic!("the master sent a delay frame: {:?}", d.common),
         }
     }
 

@@ -666,6 +666,11 @@ impl Harness {
                     relocked[i - 1] = Some(t);
                     d.relocked_at = Some(t);
                 }
+                // The testbed's slaves start running (`Slave::new`): they have no start-up
+                // phase to end, whatever delay frame the wire forges.
+                SlaveEvent::Calibrated { .. } => {
+                    panic!("slave {i}: {ev:?} at {t} ns without a start-up phase")
+                }
             }
         }
         drop(shared);

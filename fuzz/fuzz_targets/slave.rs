@@ -35,8 +35,8 @@
 //!   the slave's address, echoes the command's cycle and retry, carries the slave's status
 //!   and its command now (finite, within ±u_max), and leaves `response_delay` after the
 //!   command's last bit. Nothing else is sent.
-//! - A frame the slave does not take (no sync, re-lock, command or retry counted, not
-//!   consumed) changes nothing observable: no event, no transmission, the same status,
+//! - A frame the slave does not take (no sync, re-lock, command, retry or delay frame
+//!   counted, not consumed) changes nothing observable: no event, no transmission, the same status,
 //!   command, `poll_timeout`, latch count and last lumped cycle, and a forwarded frame
 //!   leaves byte for byte as it came. A dropped frame is counted once in `rejected`. A taken
 //!   lumped frame leaves with a valid CRC. A frame whose timestamp (lumped stamp, command
@@ -378,6 +378,9 @@ impl Harness {
                 self.last_applied = None;
                 self.last_taken = None;
             }
+            // The slave starts running (`Slave::new`): no delay frame, forged or not, ends a
+            // start-up phase it never had.
+            SlaveEvent::Calibrated { .. } => panic!("{ev:?} without a start-up phase"),
         }
     }
 
@@ -474,6 +477,7 @@ impl Harness {
             || a.relocks != b.relocks
             || a.commands != b.commands
             || a.duplicates != b.duplicates
+            || a.delay_frames != b.delay_frames
             || outcome == FrameOutcome::Consumed;
         let mut tx = Vec::new();
         while let Some(t) = self.s.poll_transmit() {

@@ -2,7 +2,8 @@
 --
 -- The byte-level specification is docs/wire.md; the layouts below mirror the `field` modules
 -- of crates/wire (header::field, lumped::field, lumped::feedback::field,
--- lumped::lumped_only::field, command::field, response::field), and the suite's tshark test
+-- lumped::lumped_only::field, lumped::delay::field, command::field, response::field), and the
+-- suite's tshark test
 -- (crates/cli/tests/wireshark.rs) checks every field this file shows against the wire crate.
 --
 -- Install: copy this file into Wireshark's personal Lua plugins folder (Help > About
@@ -82,6 +83,24 @@ local LUMPED_ONLY = {
 }
 local LUMPED_ONLY_SLOT_LEN = 32
 
+-- The delay slot (kind 5): residence [ns, slave's own clock], path delay [ns], the probe seq
+-- the residence belongs to, marker (0 not written, 1 written, 2 written with a residence).
+local DELAY = {
+    residence = { 0, 4 },
+    path_delay = { 4, 4 },
+    residence_of = { 8, 2 },
+    marker = { 10, 1 },
+    reserved = { 11, 1 },
+}
+local DELAY_SLOT_LEN = 12
+local DELAY_MARKER_MAX = 2
+-- The markers' meanings (DelayMarker in crates/wire).
+local DELAY_MARKER_NAME = {
+    [0] = "not written",
+    [1] = "written",
+    [2] = "written with a residence",
+}
+
 local COMMAND = {
     target = { 0, 2 },
     reserved = { 2, 2 },
@@ -101,7 +120,7 @@ local RESPONSE = {
 }
 local RESPONSE_PAYLOAD_LEN = 28
 
-local KIND_LUMPED, KIND_COMMAND, KIND_RESPONSE, KIND_LUMPED_ONLY = 1, 2, 3, 4
+local KIND_LUMPED, KIND_COMMAND, KIND_RESPONSE, KIND_LUMPED_ONLY, KIND_DELAY = 1, 2, 3, 4, 5
 
 -- The kinds' names in the text form (FrameKind::name).
 local KIND_NAME = {
@@ -109,12 +128,23 @@ local KIND_NAME = {
     [KIND_COMMAND] = "command",
     [KIND_RESPONSE] = "response",
     [KIND_LUMPED_ONLY] = "lumped-only",
+    [KIND_DELAY] = "delay",
 }
 
--- Slot length of a lumped kind.
-local SLOT_LEN = { [KIND_LUMPED] = FEEDBACK_SLOT_LEN, [KIND_LUMPED_ONLY] = LUMPED_ONLY_SLOT_LEN }
+-- Slot length of a lumped kind (the kinds with the lumped layout: 1, 4 and 5).
+local SLOT_LEN = {
+    [KIND_LUMPED] = FEEDBACK_SLOT_LEN,
+    [KIND_LUMPED_ONLY] = LUMPED_ONLY_SLOT_LEN,
+    [KIND_DELAY] = DELAY_SLOT_LEN,
+}
 
--- Most slots of `slot_len` bytes one lumped frame carries within the Ethernet MTU (73, 46).
+-- Whether `kind` has the lumped layout (payload prefix, then slots).
+local function is_lumped(kind)
+    return SLOT_LEN[kind] ~= nil
+end
+
+-- Most slots of `slot_len` bytes one lumped frame carries within the Ethernet MTU (73, 46,
+-- 122).
 local function slot_capacity(slot_len)
     return math.floor((MTU - HEADER_LEN - CRC_LEN - LUMPED_PREFIX_LEN) / slot_len)
 end
@@ -267,11 +297,38 @@ local function check_lumped_prefix(s, kind, at, len)
     return nil
 end
 
--- FeedbackSlotView::check (and LumpedOnlySlotView::check) of the slot at `at`.
+-- The texts of a bad slot marker and of a delay slot's reserved byte (Error::BadMarker,
+-- Error::Reserved: crates/wire prints the same marker text for every lumped kind).
+local function bad_marker_text(marker)
+    return string.format("bad written-this-cycle marker %d: expected 0 or 1", marker)
+end
+
+local function delay_reserved_text(reserved)
+    return string.format("reserved field delay slot byte 11 is %d, expected 0", reserved)
+end
+
+-- DelaySlotView::check of the delay slot at `at`: the marker, then the reserved byte.
+local function check_delay_slot(s, at)
+    local marker = u8(s, at + DELAY.marker[1])
+    if marker > DELAY_MARKER_MAX then
+        return bad_marker_text(marker)
+    end
+    local reserved = u8(s, at + DELAY.reserved[1])
+    if reserved ~= 0 then
+        return delay_reserved_text(reserved)
+    end
+    return nil
+end
+
+-- FeedbackSlotView::check (and LumpedOnlySlotView::check, DelaySlotView::check) of the slot
+-- at `at`.
 local function check_slot(s, kind, at)
+    if kind == KIND_DELAY then
+        return check_delay_slot(s, at)
+    end
     local marker = u8(s, at + FEEDBACK.written[1])
     if marker > 1 then
-        return string.format("bad written-this-cycle marker %d: expected 0 or 1", marker)
+        return bad_marker_text(marker)
     end
     local reserved = u8(s, at + FEEDBACK.reserved[1])
     if reserved ~= 0 then
@@ -290,7 +347,7 @@ end
 -- The payload's own checks, once the header and CRC are good.
 local function check_payload(s, kind, len)
     local at = HEADER_LEN
-    if kind == KIND_LUMPED or kind == KIND_LUMPED_ONLY then
+    if is_lumped(kind) then
         local e = check_lumped_prefix(s, kind, at, len)
         if e then return e end
         local count = u16(s, at + LUMPED.slot_count[1])
@@ -343,7 +400,8 @@ local function validate(s, n)
     local kind = u8(s, HEADER.kind[1])
     if not KIND_NAME[kind] then
         return string.format(
-            "bad frame kind %d: expected 1 (lumped), 2 (command), 3 (response) or 4 (lumped-only)", kind)
+            "bad frame kind %d: expected 1 (lumped), 2 (command), 3 (response), 4 (lumped-only) or 5 (delay)",
+            kind)
     end
     local flags = u8(s, HEADER.flags[1])
     if band(flags, 0xFF - FLAGS_DEFINED) ~= 0 then
@@ -366,7 +424,7 @@ local function looks_like_pdu(s, n, bad_crc_ok)
     local kind = u8(s, HEADER.kind[1])
     if not KIND_NAME[kind] then return false end
     local len = u16(s, HEADER.length[1])
-    if kind == KIND_LUMPED or kind == KIND_LUMPED_ONLY then
+    if is_lumped(kind) then
         if check_lumped_prefix(s, kind, HEADER_LEN, len) then return false end
     elseif kind == KIND_COMMAND then
         if len ~= COMMAND_PAYLOAD_LEN then return false end
@@ -393,7 +451,8 @@ local hf = {
         [KIND_COMMAND] = "command frame",
         [KIND_RESPONSE] = "response frame",
         [KIND_LUMPED_ONLY] = "lumped-only frame",
-    }, nil, "Frame kind: 1 sync lumped, 2 command, 3 response, 4 lumped-only"),
+        [KIND_DELAY] = "delay frame",
+    }, nil, "Frame kind: 1 sync lumped, 2 command, 3 response, 4 lumped-only, 5 delay"),
     flags = ProtoField.uint8("ringsync.flags", "Flags", base.HEX, nil, nil, "Header flags"),
     flags_reserved = ProtoField.uint8("ringsync.flags.reserved", "Reserved flag bits", base.HEX, nil,
         0xFF - FLAGS_DEFINED, "Bits 3-7, reserved (0)"),
@@ -417,9 +476,9 @@ local hf = {
     slave = ProtoField.uint16("ringsync.slave", "Slave", base.DEC, nil, nil,
         "The slave a command goes to, a response comes from, or a slot belongs to"),
 
-    -- Lumped frames (kinds 1 and 4)
+    -- Lumped frames (kinds 1, 4 and 5)
     master_time = ProtoField.uint64("ringsync.master_time", "Master send timestamp", base.UNIT_STRING,
-        units("ns"), nil, "Send time of the lumped frame on the master's clock [ns]"),
+        units("ns"), nil, "Send time of the lumped or delay frame on the master's clock [ns]"),
     first_slot = ProtoField.uint16("ringsync.first_slot", "First slot index", base.DEC, nil, nil,
         "Slot k of this frame belongs to slave first slot + k + 1"),
     slot_count = ProtoField.uint16("ringsync.slot_count", "Slot count", base.DEC, nil, nil,
@@ -444,6 +503,19 @@ local hf = {
         base.UNIT_STRING, units("counts/s"), nil, "Written by the master [counts/s]"),
     slot_command = ProtoField.float("ringsync.slot.command", "Command",
         "Written by the slave: the command it applied [V]"),
+
+    -- Delay slots (kind 5)
+    slot_residence = ProtoField.uint32("ringsync.slot.residence", "Residence", base.UNIT_STRING,
+        units("ns"), nil, "How long the slave held probe 'residence of', first bit in to first bit out "
+            .. "[ns, slave's own clock]"),
+    slot_path_delay = ProtoField.uint32("ringsync.slot.path_delay", "Path delay", base.UNIT_STRING,
+        units("ns"), nil, "Master send to the slave's first bit in [ns]; written by the master in a "
+            .. "closing frame, 0 in a probe"),
+    slot_residence_of = ProtoField.uint16("ringsync.slot.residence_of", "Residence of probe", base.DEC, nil,
+        nil, "Header sequence number of the probe whose residence the slot reports"),
+    slot_marker = ProtoField.uint8("ringsync.slot.marker", "Marker", base.DEC, DELAY_MARKER_NAME, nil,
+        "0: not written; 1: written (no residence to report, or a closing frame's path delay taken); "
+            .. "2: written with a residence"),
 
     -- Command frames (kind 2)
     command_target = ProtoField.uint16("ringsync.command.target", "Target slave", base.DEC, nil, nil,
@@ -510,6 +582,8 @@ local ei = {
         expert.group.PROTOCOL, expert.severity.ERROR),
     marker = ProtoExpert.new("ringsync.slot.written.bad", "Written marker other than 0 or 1",
         expert.group.PROTOCOL, expert.severity.ERROR),
+    delay_marker = ProtoExpert.new("ringsync.slot.marker.bad", "Delay-slot marker other than 0, 1 or 2",
+        expert.group.PROTOCOL, expert.severity.ERROR),
     nonfinite = ProtoExpert.new("ringsync.nonfinite", "Not a finite number", expert.group.PROTOCOL,
         expert.severity.ERROR),
     internal = ProtoExpert.new("ringsync.internal", "Dissector error (please report)", expert.group.MALFORMED,
@@ -523,7 +597,7 @@ local ei = {
 }
 ringsync.experts = {
     ei.crc_bad, ei.truncated, ei.version, ei.kind, ei.length, ei.slots, ei.reserved, ei.address,
-    ei.marker, ei.nonfinite, ei.internal, ei.order, ei.retry, ei.alarm,
+    ei.marker, ei.delay_marker, ei.nonfinite, ei.internal, ei.order, ei.retry, ei.alarm,
 }
 
 ringsync.prefs.claim_bad_crc = Pref.bool("Claim EtherType 0x88B5 frames with a bad CRC-32", false,
@@ -575,6 +649,35 @@ local function fmt_v(range)
     return string.format("%.3f", range:le_float())
 end
 
+-- The fields of one delay slot (kind 5) at tvb offset `at` into the slot's subtree `st`.
+local function dissect_delay_slot(tvb, st, at, index, slave)
+    local residence = tvb(at + DELAY.residence[1], 4):le_uint()
+    local path_delay = tvb(at + DELAY.path_delay[1], 4):le_uint()
+    local residence_of = tvb(at + DELAY.residence_of[1], 2):le_uint()
+    local marker = tvb(at + DELAY.marker[1], 1):uint()
+    add(st, hf.slot_residence, tvb, at, DELAY.residence)
+    add(st, hf.slot_path_delay, tvb, at, DELAY.path_delay)
+    add(st, hf.slot_residence_of, tvb, at, DELAY.residence_of)
+    local m = add(st, hf.slot_marker, tvb, at, DELAY.marker)
+    if marker > DELAY_MARKER_MAX then
+        m:add_proto_expert_info(ei.delay_marker, bad_marker_text(marker))
+    end
+    local r = add(st, hf.slot_reserved, tvb, at, DELAY.reserved)
+    local reserved = tvb(at + DELAY.reserved[1], 1):uint()
+    if reserved ~= 0 then
+        r:add_proto_expert_info(ei.reserved, delay_reserved_text(reserved))
+    end
+    local text = string.format("Slot %d, slave %d: %s", index, slave,
+        DELAY_MARKER_NAME[marker] or string.format("bad marker %d", marker))
+    if marker == 2 then
+        text = text .. string.format(", residence %d ns of probe %d", residence, residence_of)
+    end
+    if path_delay ~= 0 then
+        text = text .. string.format(", path delay %d ns", path_delay)
+    end
+    st:set_text(text)
+end
+
 -- One slot of a lumped frame at tvb offset `at`: a subtree.
 local function dissect_slot(tvb, tree, kind, at, index)
     local slot_len = SLOT_LEN[kind]
@@ -582,6 +685,10 @@ local function dissect_slot(tvb, tree, kind, at, index)
     local st = tree:add(hf.slot, tvb(at, slot_len))
     st:add(hf.slot_index, tvb(at, slot_len), index):set_generated()
     st:add(hf.slave, tvb(at, slot_len), slave):set_generated()
+    if kind == KIND_DELAY then
+        dissect_delay_slot(tvb, st, at, index, slave)
+        return
+    end
     local pos = tvb(at + FEEDBACK.position[1], 4):le_int()
     local written = tvb(at + FEEDBACK.written[1], 1):uint()
     add(st, hf.slot_position, tvb, at, FEEDBACK.position)
@@ -611,7 +718,7 @@ local function dissect_slot(tvb, tree, kind, at, index)
     st:set_text(text)
 end
 
--- The payload of a lumped frame (kind 1 or 4) at tvb offset `at`, `len` bytes declared, of
+-- The payload of a lumped frame (kind 1, 4 or 5) at tvb offset `at`, `len` bytes declared, of
 -- which `avail` are in the buffer. Returns the summary for the text form.
 local function dissect_lumped(tvb, tree, kind, at, len, avail)
     if avail < LUMPED_PREFIX_LEN then
@@ -714,7 +821,8 @@ local function dissect_pdu(tvb, pinfo, tree)
     local ki = add(root, hf.kind, tvb, 0, HEADER.kind)
     if not KIND_NAME[kind] then
         ki:add_proto_expert_info(ei.kind, string.format(
-            "bad frame kind %d: expected 1 (lumped), 2 (command), 3 (response) or 4 (lumped-only)", kind))
+            "bad frame kind %d: expected 1 (lumped), 2 (command), 3 (response), 4 (lumped-only) or 5 (delay)",
+            kind))
     end
     local fi = add(root, hf.flags, tvb, 0, HEADER.flags)
     fi:append_text(" (" .. bit_names(flags, FLAGS) .. ")")
@@ -762,14 +870,14 @@ local function dissect_pdu(tvb, pinfo, tree)
             li:add_proto_expert_info(ei.length, payload_length_error(kind, expected, len))
         end
         if fits and n >= pdu_len then
-            if kind == KIND_LUMPED or kind == KIND_LUMPED_ONLY then
+            if is_lumped(kind) then
                 summary = dissect_lumped(tvb, root, kind, HEADER_LEN, len, avail)
             elseif kind == KIND_COMMAND then
                 summary = dissect_command(tvb, root, HEADER_LEN)
             else
                 summary = dissect_response(tvb, root, HEADER_LEN)
             end
-        elseif kind == KIND_LUMPED or kind == KIND_LUMPED_ONLY then
+        elseif is_lumped(kind) then
             -- Show the slots that are there.
             dissect_lumped(tvb, root, kind, HEADER_LEN, len, avail)
         elseif avail > 0 then

@@ -18,8 +18,8 @@ use common::ringsync;
 use ringsync::layers::model::result::Captured;
 use ringsync::layers::report::pcap;
 use ringsync::layers::wire::{
-    CommandRepr, Common, FeedbackSlot, Flags, Frame, FrameKind, LumpedOnlySlot, LumpedRepr, Pdu,
-    ResponseRepr, Status, crc32,
+    CommandRepr, Common, DelayMarker, DelaySlot, FeedbackSlot, Flags, Frame, FrameKind,
+    LumpedOnlySlot, LumpedRepr, Pdu, ResponseRepr, Status, crc32,
 };
 use serde_json::Value;
 
@@ -84,7 +84,7 @@ const FLOAT_FIELDS: [&str; 3] = [
 ];
 
 /// Every field the dissector shows for a valid frame, compared frame by frame.
-const FIELDS: [&str; 33] = [
+const FIELDS: [&str; 37] = [
     "ringsync.version",
     "ringsync.kind",
     "ringsync.flags",
@@ -107,6 +107,10 @@ const FIELDS: [&str; 33] = [
     "ringsync.slot.desired_position",
     "ringsync.slot.desired_velocity",
     "ringsync.slot.command",
+    "ringsync.slot.residence",
+    "ringsync.slot.path_delay",
+    "ringsync.slot.residence_of",
+    "ringsync.slot.marker",
     "ringsync.command.target",
     "ringsync.command.value",
     "ringsync.command.sample_time",
@@ -179,6 +183,27 @@ fn expected(buf: &[u8]) -> Fields {
     put("ringsync.crc", format!("0x{:08x}", f.crc()));
     put("ringsync.crc.status", "1".into());
     match f.kind().expect("kind") {
+        FrameKind::Delay => {
+            let p = f.lumped().expect("delay");
+            put("ringsync.master_time", p.master_time_ns().to_string());
+            put("ringsync.first_slot", p.first_slot().to_string());
+            put("ringsync.slot_count", p.slot_count().to_string());
+            for k in 0..usize::from(p.slot_count()) {
+                let index = usize::from(p.first_slot()) + k;
+                put("ringsync.slot.index", index.to_string());
+                put("ringsync.slave", (index + 1).to_string());
+                let s = p.delay_slot(k).expect("delay slot");
+                put("ringsync.slot.residence", s.residence_ns().to_string());
+                put("ringsync.slot.path_delay", s.path_delay_ns().to_string());
+                put("ringsync.slot.residence_of", s.residence_of().to_string());
+                let marker = match s.marker().expect("marker") {
+                    DelayMarker::Empty => 0,
+                    DelayMarker::Written => 1,
+                    DelayMarker::Residence => 2,
+                };
+                put("ringsync.slot.marker", marker.to_string());
+            }
+        }
         kind @ (FrameKind::Lumped | FrameKind::LumpedOnly) => {
             let p = f.lumped().expect("lumped");
             put("ringsync.master_time", p.master_time_ns().to_string());
@@ -567,6 +592,48 @@ fn known_frames() -> Vec<(&'static str, Vec<u8>)> {
         b[at..at + v.len()].copy_from_slice(v);
         b
     };
+    // A probe (slave 2 reports its residence of probe 40, slave 3 has none to report yet,
+    // slave 4 did not see it) and a closing frame (path delays; slave 5 has taken its own).
+    let probe = emit(Pdu::Delay(LumpedRepr {
+        common: common(0, 41),
+        master_time_ns: 1_500_000,
+        first_slot: 1,
+        slots: vec![
+            DelaySlot {
+                residence_ns: 1012,
+                path_delay_ns: 0,
+                residence_of: 40,
+                marker: DelayMarker::Residence,
+            },
+            DelaySlot {
+                marker: DelayMarker::Written,
+                ..DelaySlot::default()
+            },
+            DelaySlot::default(),
+        ],
+    }));
+    let closing = emit(Pdu::Delay(LumpedRepr {
+        common: Common {
+            flags: Flags::STOP,
+            retry: 1,
+            ..common(1, 42)
+        },
+        master_time_ns: 2_000_000,
+        first_slot: 3,
+        slots: vec![
+            DelaySlot {
+                path_delay_ns: 4_240,
+                marker: DelayMarker::Written,
+                ..DelaySlot::default()
+            },
+            DelaySlot {
+                residence_ns: u32::MAX,
+                path_delay_ns: u32::MAX,
+                residence_of: u16::MAX,
+                marker: DelayMarker::Empty,
+            },
+        ],
+    }));
     let mut bad_crc = command.clone();
     bad_crc[20] ^= 0x10;
     vec![
@@ -589,6 +656,16 @@ fn known_frames() -> Vec<(&'static str, Vec<u8>)> {
         ("over capacity", resealed(edit(&lumped, 22, &[100, 0]))),
         ("marker 2", resealed(edit(&lumped, 12 + 12 + 18, &[2]))),
         ("reserved status", resealed(edit(&response, 14, &[0, 1]))),
+        ("delay probe", probe.clone()),
+        ("delay closing", closing),
+        (
+            "delay marker 3",
+            resealed(edit(&probe, 12 + 12 + 12 + 10, &[3])),
+        ),
+        ("delay reserved", resealed(edit(&probe, 12 + 12 + 11, &[1]))),
+        ("delay short payload", resealed(edit(&probe, 22, &[4, 0]))),
+        ("delay over capacity", resealed(edit(&probe, 22, &[123, 0]))),
+        ("kind 6", resealed(edit(&probe, 1, &[6]))),
     ]
 }
 
@@ -600,7 +677,7 @@ fn claimed(buf: &[u8], bad_crc_ok: bool) -> bool {
         return false;
     };
     let fits = match f.kind() {
-        Ok(FrameKind::Lumped | FrameKind::LumpedOnly) => f.lumped().is_ok(),
+        Ok(FrameKind::Lumped | FrameKind::LumpedOnly | FrameKind::Delay) => f.lumped().is_ok(),
         Ok(FrameKind::Command) => f.command().is_ok(),
         Ok(FrameKind::Response) => f.response().is_ok(),
         Err(_) => false,
@@ -711,6 +788,38 @@ fn known_frames_on_ethernet_claimed_checked_or_decoded_as() {
     assert_eq!(response["ringsync.response.position"], ["-2147483000"]);
     assert_eq!(response["ringsync.response.status"], ["0x0022"]);
     assert_eq!(response["ringsync.response.applied"], ["9.75"]);
+    let at = |name: &str| {
+        let i = frames.iter().position(|(n, _)| *n == name).expect(name);
+        &decoded[i]
+    };
+    let probe = at("delay probe");
+    assert_eq!(probe["ringsync.kind"], ["5"]);
+    assert_eq!(probe["ringsync.slave"], ["2", "3", "4"]);
+    assert_eq!(probe["ringsync.slot.residence"], ["1012", "0", "0"]);
+    assert_eq!(probe["ringsync.slot.residence_of"], ["40", "0", "0"]);
+    assert_eq!(probe["ringsync.slot.path_delay"], ["0", "0", "0"]);
+    assert_eq!(probe["ringsync.slot.marker"], ["2", "1", "0"]);
+    assert!(probe.get("ringsync.slot.position").is_none(), "{probe:?}");
+    assert_eq!(
+        one(probe, "_ws.col.Info"),
+        "delay cycle 0 seq 41, slots 1..4, sent at 1500000 ns"
+    );
+    let closing = at("delay closing");
+    assert_eq!(closing["ringsync.slot.path_delay"], ["4240", "4294967295"]);
+    assert_eq!(closing["ringsync.slot.residence_of"], ["0", "65535"]);
+    assert_eq!(closing["ringsync.slot.marker"], ["1", "0"]);
+    assert_eq!(
+        one(closing, "_ws.col.Info"),
+        "delay cycle 1 seq 42 retry 1 flags STOP, slots 3..5, sent at 2000000 ns"
+    );
+    // A delay frame with a bad marker passes the claim (its CRC and length are right) and
+    // says what is wrong with it.
+    let bad = at("delay marker 3");
+    assert_eq!(
+        one(bad, "_ws.col.Info"),
+        "bad frame (bad written-this-cycle marker 3: expected 0 or 1)"
+    );
+    assert_eq!(bad["ringsync.slot.marker"], ["2", "3", "0"]);
     // The frame with a flipped bit is not claimed, until the preference says so: then it
     // shows its bad CRC.
     assert_eq!(one(&decoded[4], "frame.protocols"), "eth:ethertype:data");
@@ -841,7 +950,20 @@ fn known_frames_on_udp_found_by_the_heuristic_or_decoded_as() {
 #[test]
 fn mutated_frames_never_break_the_dissector() {
     let d = dir("mutated");
-    let valid: Vec<Vec<u8>> = known_frames().into_iter().take(4).map(|(_, b)| b).collect();
+    let valid: Vec<Vec<u8>> = known_frames()
+        .into_iter()
+        .map(|(_, b)| b)
+        .filter(|b| {
+            Frame::new_checked(&b[..])
+                .and_then(|f| f.validate())
+                .is_ok()
+        })
+        .collect();
+    assert_eq!(
+        valid.len(),
+        6,
+        "the valid known frames, both delay frames among them"
+    );
     let mut state = 0x2545_F491_4F6C_DD1Du64;
     let mut next = |m: usize| {
         state ^= state << 13;

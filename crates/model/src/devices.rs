@@ -389,6 +389,8 @@ impl Devices {
                     self.fault(ts, i + 1, FaultStep::TorqueOff(cause));
                 }
                 SlaveEvent::Relocked { step } => self.fault(ts, i + 1, FaultStep::Relocked(step)),
+                // The start-up phase runs before the run (`ringsync_sim::calibrate`).
+                SlaveEvent::Calibrated { .. } => {}
                 SlaveEvent::Braking { ordered } => {
                     self.fault(ts, i + 1, FaultStep::Braking { ordered })
                 }

@@ -274,6 +274,7 @@ impl Recorder {
             trace: self.trace,
             passages,
             captured,
+            start_up: None,
         }
     }
 }

@@ -28,14 +28,41 @@ pub const ARM_ASSUMPTIONS: &[&str] = &[
     "each joint's drive is an ideal torque source, τ_i = K_a,i·sat(u_i) with K_a,i from plant.torque_constant and ±u_max of the joint's [[axis]] table (no current-loop lag); both joints advance together by RK4 (steps of at most 0.1 ms) with both commands held between events",
 ];
 
-/// The assumptions behind a run of scenario `s`: [`ASSUMPTIONS`], and [`ARM_ASSUMPTIONS`]
-/// when its plant is the two-link arm.
+/// The assumption behind path delays the nodes measured (`clock.path_delays =
+/// "measured"`), added to [`ASSUMPTIONS`] in the outputs of such a run.
+pub const MEASURED_DELAY_ASSUMPTION: &str = "clock.path_delays = \"measured\": the slaves' path delays come from the nodes' start-up phase, which takes every link of the ring to have the same delay (a one-directional ring gives the master the sum of its links and the slaves their residences, not each link alone)";
+
+/// The assumptions behind a run of scenario `s`: [`ASSUMPTIONS`], [`ARM_ASSUMPTIONS`] when
+/// its plant is the two-link arm, and [`MEASURED_DELAY_ASSUMPTION`] when its path delays are
+/// measured.
 pub fn assumptions(s: &crate::Scenario) -> Vec<&'static str> {
     let mut v = ASSUMPTIONS.to_vec();
     if s.plant.arm().is_some() {
         v.extend_from_slice(ARM_ASSUMPTIONS);
     }
+    if s.clock.path_delays == crate::scenario::PathDelays::Measured {
+        v.push(MEASURED_DELAY_ASSUMPTION);
+    }
     v
+}
+
+/// What the nodes' start-up phase measured (`clock.path_delays = "measured"`), beside the
+/// planner's figures.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StartUp {
+    /// The master's figures.
+    pub measured: ringsync_proto::node::DelayMeasurement,
+    /// The path delay each slave took (`None`: it never got one).
+    pub taken: Vec<Option<ringsync_proto::Duration>>,
+    /// The planner's event-level path delays D_i (master send to first bit in), for
+    /// comparison (the runtime's links are not the plan's: there they differ).
+    pub planned: Vec<ringsync_proto::Duration>,
+    /// Timestamp resolution of the slaves' clocks.
+    pub resolution: ringsync_proto::Duration,
+    /// Frames the slaves refused during the phase.
+    pub slaves_rejected: u64,
+    /// How long the phase took on the master's clock.
+    pub took: ringsync_proto::Duration,
 }
 
 /// One frame passage at a node, recorded for tests and traces (true time).
@@ -269,4 +296,6 @@ pub struct RunResult {
     pub passages: Vec<PassageLog>,
     /// Frames sent (when the driver was asked to capture them).
     pub captured: Vec<Captured>,
+    /// The nodes' start-up phase, when the path delays were measured.
+    pub start_up: Option<StartUp>,
 }

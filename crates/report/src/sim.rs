@@ -225,7 +225,74 @@ pub fn summary_json(s: &Scenario, hash: u64, r: &RunResult) -> Value {
     if let (Some(m), Value::Object(o)) = (ring_json(s, r), &mut v) {
         o.insert("ring".into(), m);
     }
+    if let (Some(m), Value::Object(o)) = (start_up_json(r), &mut v) {
+        o.insert("start_up".into(), m);
+    }
     v
+}
+
+/// The `start_up` key of summary.json: what the nodes' start-up phase measured (one link,
+/// each residence and path delay, the round trips), the delay each slave took, and the
+/// planner's path delays beside them; `None` (no key) when the path delays were the plan's.
+pub fn start_up_json(r: &RunResult) -> Option<Value> {
+    let c = r.start_up.as_ref()?;
+    let m = &c.measured;
+    let ns = |v: &[ringsync_proto::Duration]| v.iter().map(|d| d.as_ns()).collect::<Vec<_>>();
+    let mut rtt = ns(&m.round_trips);
+    rtt.sort_unstable();
+    let at = |q: f64| {
+        let i = ((rtt.len().saturating_sub(1)) as f64 * q).round() as usize;
+        rtt.get(i).copied()
+    };
+    Some(json!({
+        "path_delays": "measured",
+        "probes": m.probes,
+        "probes_back": m.probes_back,
+        "probes_complete": m.complete,
+        "closing_frames": m.closing_sent,
+        "link_ns": m.link.as_ns(),
+        "residence_ns": ns(&m.residence),
+        "path_delay_ns": ns(&m.path),
+        "taken_by_slaves_ns": c.taken.iter().map(|d| d.map(|d| d.as_ns())).collect::<Vec<_>>(),
+        "planned_path_delay_ns": ns(&c.planned),
+        "measured_minus_planned_ns": m.path.iter().zip(&c.planned).map(|(a, b)| a.as_ns() - b.as_ns()).collect::<Vec<_>>(),
+        "timestamp_resolution_ns": c.resolution.as_ns(),
+        "round_trip_ns": {"min": at(0.0), "p50": at(0.5), "p99": at(0.99), "max": at(1.0)},
+        "rejected_by_slaves": c.slaves_rejected,
+        "took_ms": c.took.as_ns() as f64 * 1e-6,
+        "assumption": "every link of the ring has the same delay",
+    }))
+}
+
+/// The start-up phase's line for the run's text; `None` when the path delays were the
+/// plan's.
+pub fn start_up_line(r: &RunResult) -> Option<String> {
+    let c = r.start_up.as_ref()?;
+    let m = &c.measured;
+    let us = |v: &[ringsync_proto::Duration]| {
+        v.iter()
+            .map(|d| format!("{:.3}", d.as_us_f64()))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    let worst = m
+        .path
+        .iter()
+        .zip(&c.planned)
+        .map(|(a, b)| (a.as_ns() - b.as_ns()).abs())
+        .max()
+        .unwrap_or(0);
+    let against = if worst <= c.resolution.as_ns() {
+        format!("the planner's within {worst} ns")
+    } else {
+        format!("the planner's wire figures {} µs", us(&c.planned))
+    };
+    Some(format!(
+        "path delays measured by the nodes ({} of {} probes back, every link taken equal): {} µs; {against}",
+        m.probes_back,
+        m.probes,
+        us(&m.path)
+    ))
 }
 
 /// The `monitor` key of summary.json: the limits and every warning and trip (axes

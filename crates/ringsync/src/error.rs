@@ -67,6 +67,10 @@ impl From<ringsync_sim::run::RunError> for Error {
         match e {
             ringsync_sim::run::RunError::Scenario(e) => Error::Scenario(e),
             ringsync_sim::run::RunError::Unsupported(m) => Error::Input(m),
+            // The simulated ring is the scenario's: a start-up phase that fails there fails
+            // on what the scenario asks (more slaves than a delay frame holds, a slave
+            // silent from the start).
+            e @ ringsync_sim::run::RunError::StartUp(_) => Error::Input(e.to_string()),
         }
     }
 }

@@ -300,6 +300,9 @@ pub fn rt_text(r: &RtResult, prediction: Option<SimPrediction>) -> String {
         );
     }
     text.push('\n');
+    if let Some(l) = ringsync_report::sim::start_up_line(&r.run) {
+        text += &format!("  start-up: {l}\n");
+    }
     text += &crate::simulate::monitor_text(&r.scenario, &r.run);
     text += &crate::simulate::ring_text(&r.run);
     text

@@ -243,6 +243,9 @@ pub fn sim_text(s: &Scenario, r: &RunResult) -> String {
             None => "no group stop".to_string(),
         },
     );
+    if let Some(l) = ringsync_report::sim::start_up_line(r) {
+        text += &format!("  start-up: {l}\n");
+    }
     text += &monitor_text(s, r);
     text += &ring_text(r);
     text

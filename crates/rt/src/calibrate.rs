@@ -1,59 +1,84 @@
-//! Start-up calibration of the ring's real delays. The paper's slaves synchronise from the
-//! master's send time and a path delay "measured once at configuration" (docs/system.md,
-//! "The cycle plan"); in software the delays are not the planner's wire figures, so the runtime measures
-//! them before the run: lumped frames round the ring (delay from the master's send to each
-//! slave, round trip) and one command/response exchange per slave (its time slice).
+//! The start-up phase on a real ring: the nodes measure the ring's delays before the run
+//! (docs/planner.md, "Delays measured by the nodes"). The master's [`Calibrator`] sends its
+//! delay probes round the ring; every slave is the real sans-IO node in its start-up phase
+//! ([`Slave::calibrating`]), reading each probe at the loop's reading time on its own clock
+//! and reporting how long it held it; the master sends each slave the path delay it
+//! computed, and the slave takes it. The runtime carries the frames and nothing else: it
+//! computes no node's answer.
+//!
+//! From the same probes the master has its round trip, from which the runtime plans its
+//! P2P phase: a command to slave i and its response cross the ring once, as a probe does,
+//! less slave i's residence, plus the response delay T_ti.
 
 use std::io;
 
-use ringsync_wire::{
-    CommandRepr, Common, FeedbackSlot, Frame, FrameKind, LumpedRepr, ResponseRepr, Status,
+use ringsync_model::Spec;
+use ringsync_model::oscillator::Oscillator;
+use ringsync_model::result::StartUp;
+use ringsync_proto::node::{
+    CalibrationConfig, CalibrationError, CalibrationState, Calibrator, FrameOutcome, Slave,
 };
+use ringsync_proto::{Duration, Instant};
 
 use crate::stats::Percentiles;
 use crate::sys::now_ns;
 use crate::timing::STALL;
 use crate::transport::{MAX_PDU, Port};
 
-/// The measured delays [ns].
+/// What the start-up phase measured [ns].
 #[derive(Debug, Clone)]
 pub struct Calibration {
-    /// Rounds measured per figure.
+    /// Probes sent.
     pub rounds: usize,
-    /// Rounds measured again because the host held the loop off its CPU during them
-    /// (a stall of [`STALL`] or more between two clock readings).
+    /// Probes not counted because the host held the loop off its CPU while they went round
+    /// (a stall of [`STALL`] or more between two clock readings): they measure the host.
     pub repeated: usize,
-    /// Median delay from the master's send to each slave's read of the lumped frame.
+    /// Each slave's path delay as the nodes measured it and the slave took it: master send
+    /// to the slave's reading of a frame.
     pub path: Vec<i64>,
-    /// Lumped frame round trip.
+    /// Probe round trip, master send to its reading of the probe back.
     pub round_trip: Percentiles,
-    /// Median delay from the master's send to slave i's read of its command.
+    /// Master send to slave i's reading of its command: its path delay (a command is relayed
+    /// like a probe).
     pub command: Vec<i64>,
-    /// Time slice per slave: command sent to response read at the master.
+    /// Time slice per slave, command sent to response read at the master, less T_ti: the
+    /// round trip less slave i's residence.
     pub slice: Vec<Percentiles>,
+    /// The nodes' figures (one link, each residence, the path delays) and what each slave
+    /// took.
+    pub start_up: StartUp,
 }
 
-/// One pass of a frame round the ring: the read time at each node [ns from the send], and
-/// whether the host held the loop off its CPU meanwhile (then the times measure the host).
+/// What befell a frame at a node, for the driver of [`pass`]'s caller.
+enum Hop<'a> {
+    /// Node `node` read the frame at true time `t` [ns]; `bytes` may be changed in place.
+    /// Returns whether the node sends it on.
+    Read {
+        node: usize,
+        t: i64,
+        bytes: &'a mut Vec<u8>,
+    },
+    /// Node `node` sent the frame on, the send done at true time `t` [ns].
+    Sent { node: usize, t: i64 },
+}
+
+/// One pass of a frame round the ring: whether the host held the loop off its CPU
+/// meanwhile (then the times measure the host).
 struct Pass {
-    seen: Vec<Option<i64>>,
     stalled: bool,
 }
 
-/// Sends `first` from node `from` and lets the ring carry it: `visit(node, bytes)` is called
-/// at every node that reads a frame and returns whether that node sends it on (changed or
-/// not) or the frame ends there.
+/// Sends `first` from node `from` (its send done at true time `origin` + returned reading)
+/// and lets the ring carry it: `on` is told of every node that reads the frame (and says
+/// whether it goes on) and of every send. True time is the monotonic clock less `origin`.
 fn pass(
     ports: &mut [Box<dyn Port>],
     from: usize,
     first: &[u8],
-    visit: &mut dyn FnMut(usize, &mut Vec<u8>) -> bool,
+    origin: i64,
+    on: &mut dyn FnMut(Hop<'_>) -> bool,
 ) -> io::Result<Pass> {
-    let nodes = ports.len();
-    let mut out = Pass {
-        seen: vec![None; nodes],
-        stalled: false,
-    };
+    let mut out = Pass { stalled: false };
     let mut buf = vec![0u8; MAX_PDU];
     // Every clock reading is checked against the one before, from the send on: a send or
     // a read is where the kernel most often hands the CPU to another task, and a gap there
@@ -75,12 +100,22 @@ fn pass(
         for (node, port) in ports.iter_mut().enumerate() {
             if let Some(len) = port.recv(&mut buf)? {
                 got = true;
-                out.seen[node] = Some(tick(&mut out.stalled) - t0);
+                let t = tick(&mut out.stalled);
                 let mut bytes = buf[..len].to_vec();
-                if !visit(node, &mut bytes) {
+                let read = Hop::Read {
+                    node,
+                    t: t - origin,
+                    bytes: &mut bytes,
+                };
+                if !on(read) {
                     return Ok(out);
                 }
                 port.send(&bytes)?;
+                let t = tick(&mut out.stalled);
+                on(Hop::Sent {
+                    node,
+                    t: t - origin,
+                });
             }
         }
         // The loop reads the clock at least once per sweep of the ports, a few µs apart.
@@ -91,131 +126,110 @@ fn pass(
     }
 }
 
-/// Repeats `one` until it gives a pass the host did not stall, at most `tries` times; the
-/// last pass otherwise. Counts the passes thrown away.
-fn unstalled(
-    tries: usize,
-    repeated: &mut usize,
-    mut one: impl FnMut() -> io::Result<Pass>,
-) -> io::Result<Pass> {
-    let mut p = one()?;
-    for _ in 1..tries {
-        if !p.stalled {
-            break;
-        }
-        *repeated += 1;
-        p = one()?;
-    }
-    Ok(p)
-}
-
-/// A pass the host stalled is measured again at most this many times.
-const TRIES: usize = 5;
-
-/// Measures the ring of `ports` (node 0 the master) over `rounds` rounds each.
-pub fn calibrate(ports: &mut [Box<dyn Port>], rounds: usize) -> io::Result<Calibration> {
+/// Runs the nodes' start-up phase on the ring of `ports` (node 0 the master) with `rounds`
+/// probes: the master and `spec`'s slaves, each slave on its own oscillator (the same as
+/// the run's). A probe the host stalled is not handed back to the master (the master counts
+/// it lost).
+pub fn calibrate(
+    ports: &mut [Box<dyn Port>],
+    spec: &Spec,
+    rounds: usize,
+) -> io::Result<Calibration> {
     let n = ports.len() - 1;
-    let mut path: Vec<Vec<i64>> = vec![Vec::new(); n];
-    let mut rtt = Vec::new();
-    let lumped = LumpedRepr {
-        common: Common::default(),
-        master_time_ns: 0,
-        first_slot: 0,
-        slots: vec![FeedbackSlot::default(); n],
-    };
-    let mut lbuf = vec![0u8; lumped.buffer_len()];
-    lumped
-        .emit(&mut lbuf)
-        .map_err(|e| io::Error::other(e.to_string()))?;
+    let cycle = spec.scenario.ring.cycle.0;
+    let probes = u32::try_from(rounds).unwrap_or(u32::MAX).max(2);
+    // The ring waits for each frame to come back (or 20 ms), so the probes need no spacing
+    // of their own: one per pass.
+    let mut cfg = CalibrationConfig::new(n, cycle, probes);
+    cfg.interval = Duration::from_ns(1);
+    let mut cal = Calibrator::new(cfg, Instant::ZERO);
+    let mut slaves: Vec<Slave> = spec
+        .slaves
+        .iter()
+        .cloned()
+        .map(Slave::calibrating)
+        .collect();
+    let osc = Oscillator::for_scenario(&spec.scenario);
+    let origin = now_ns();
     let mut repeated = 0;
-    for _ in 0..rounds {
-        // Each slave checks the CRC and seals the frame again, as it does when it writes
-        // its slot.
-        let seen = unstalled(TRIES, &mut repeated, || {
-            pass(ports, 0, &lbuf, &mut |node, bytes| {
-                if node == 0 {
-                    return false;
+    let mut buf = vec![0u8; MAX_PDU];
+    while let Some(at) = cal.poll_timeout() {
+        let now = Instant::from_ns(now_ns() - origin).max(at);
+        cal.handle_timeout(now);
+        while let Some(tx) = cal.poll_transmit() {
+            let len = tx.bytes.len();
+            buf[..len].copy_from_slice(&tx.bytes);
+            let mut back: Option<(i64, Vec<u8>)> = None;
+            let p = pass(ports, 0, &buf[..len], origin, &mut |hop| match hop {
+                Hop::Read { node: 0, t, bytes } => {
+                    back = Some((t, std::mem::take(bytes)));
+                    false
                 }
-                if let Ok(mut f) = Frame::new_checked(&mut bytes[..])
-                    && f.check().is_ok()
-                {
-                    f.fill_crc();
+                Hop::Read { node, t, bytes } => {
+                    let local = osc[node - 1].local(t);
+                    slaves[node - 1].handle_frame(local, local, bytes) == FrameOutcome::Forward
                 }
-                true
-            })
-        })?
-        .seen;
-        for (i, p) in path.iter_mut().enumerate() {
-            if let Some(t) = seen[i + 1] {
-                p.push(t);
-            }
-        }
-        if let Some(t) = seen[0] {
-            rtt.push(t);
-        }
-    }
-    let mut command: Vec<Vec<i64>> = vec![Vec::new(); n];
-    let mut slice: Vec<Vec<i64>> = vec![Vec::new(); n];
-    for target in 1..=n {
-        let cmd = CommandRepr {
-            common: Common::default(),
-            target: target as u16,
-            command_v: 0.0,
-            sample_time_ns: 0,
-        };
-        let mut cbuf = vec![0u8; cmd.buffer_len()];
-        cmd.emit(&mut cbuf)
-            .map_err(|e| io::Error::other(e.to_string()))?;
-        let resp = ResponseRepr {
-            common: Common::default(),
-            source: target as u16,
-            status: Status::empty(),
-            echo_cycle: 0,
-            position: 0,
-            velocity: 0,
-            sample_time_ns: 0,
-            applied_v: 0.0,
-        };
-        let mut rbuf = vec![0u8; resp.buffer_len()];
-        resp.emit(&mut rbuf)
-            .map_err(|e| io::Error::other(e.to_string()))?;
-        for _ in 0..rounds {
-            let seen = unstalled(TRIES, &mut repeated, || {
-                pass(ports, 0, &cbuf, &mut |node, bytes| {
-                    if node == 0 {
-                        return false;
-                    }
-                    let kind = Frame::new_checked(&bytes[..])
-                        .ok()
-                        .and_then(|f| f.check().ok());
-                    if node == target && kind == Some(FrameKind::Command) {
-                        bytes.clone_from(&rbuf);
+                Hop::Sent { node, t } => {
+                    if node > 0 {
+                        slaves[node - 1].handle_forwarded(osc[node - 1].local(t));
                     }
                     true
-                })
-            })?
-            .seen;
-            if let (Some(c), Some(s)) = (seen[target], seen[0]) {
-                command[target - 1].push(c);
-                slice[target - 1].push(s);
+                }
+            })?;
+            if p.stalled {
+                repeated += 1;
+            } else if let Some((t, bytes)) = back {
+                cal.handle_frame(Instant::from_ns(t), &bytes);
             }
         }
     }
-    let incomplete = path.iter().chain(&command).any(|v| v.is_empty()) || rtt.is_empty();
-    if incomplete {
-        return Err(io::Error::new(
-            io::ErrorKind::TimedOut,
-            "calibration frames did not make it round the ring (a node does not forward)",
-        ));
-    }
+    let m = match (cal.state(), cal.measurement()) {
+        (CalibrationState::Done, Some(m)) => m.clone(),
+        (CalibrationState::Failed(e), _) => return Err(failed(e)),
+        _ => {
+            return Err(failed(&CalibrationError::NotAcknowledged {
+                slaves: vec![],
+            }));
+        }
+    };
+    let taken: Vec<Option<Duration>> = slaves.iter().map(Slave::path_delay).collect();
+    let path: Vec<i64> = taken
+        .iter()
+        .zip(&m.path)
+        .map(|(t, p)| t.unwrap_or(*p).as_ns())
+        .collect();
+    let rtt: Vec<i64> = m.round_trips.iter().map(|d| d.as_ns()).collect();
+    let slice = m
+        .residence
+        .iter()
+        .map(|r| {
+            let v: Vec<i64> = rtt.iter().map(|t| t - r.as_ns()).collect();
+            Percentiles::of(&v)
+        })
+        .collect();
     Ok(Calibration {
-        rounds,
+        rounds: m.probes as usize,
         repeated,
-        path: path.iter().map(|v| Percentiles::of(v).p50).collect(),
+        command: path.clone(),
+        path,
         round_trip: Percentiles::of(&rtt),
-        command: command.iter().map(|v| Percentiles::of(v).p50).collect(),
-        slice: slice.iter().map(|v| Percentiles::of(v)).collect(),
+        slice,
+        start_up: StartUp {
+            taken,
+            planned: spec.plan.d_c.clone(),
+            resolution: spec.scenario.clock.timestamp_resolution.0,
+            slaves_rejected: slaves.iter().map(|s| s.counters().rejected.total()).sum(),
+            took: Duration::from_ns(now_ns() - origin),
+            measured: m,
+        },
     })
+}
+
+fn failed(e: &CalibrationError) -> io::Error {
+    io::Error::new(
+        io::ErrorKind::TimedOut,
+        format!("the start-up phase failed: {e}"),
+    )
 }
 
 #[cfg(test)]
@@ -284,8 +298,18 @@ mod tests {
         }
     }
 
-    fn round(ports: &mut [Box<dyn Port>]) -> Pass {
-        pass(ports, 0, &[1, 2, 3], &mut |node, _| node != 0).expect("pass")
+    /// A pass of a 3-byte frame round the ring: the pass, and how many nodes read it.
+    fn round(ports: &mut [Box<dyn Port>]) -> (Pass, usize) {
+        let mut read = 0;
+        let p = pass(ports, 0, &[1, 2, 3], 0, &mut |hop| match hop {
+            Hop::Read { node, .. } => {
+                read += 1;
+                node != 0
+            }
+            Hop::Sent { .. } => true,
+        })
+        .expect("pass");
+        (p, read)
     }
 
     #[test]
@@ -293,42 +317,36 @@ mod tests {
         // At the master's send (before the loop's first reading), at a slave's forwarding,
         // at the master's final read (the sweep that ends the pass).
         for slow in [(0, true), (2, true), (0, false)] {
-            let p = round(&mut MemPort::ring(5, Some(slow)));
-            assert!(p.seen.iter().all(Option::is_some), "{slow:?}");
+            let (p, read) = round(&mut MemPort::ring(5, Some(slow)));
+            assert_eq!(read, 5, "{slow:?}");
             assert!(p.stalled, "a 200 µs stall at {slow:?} went unseen");
         }
         // Without one, most passes are clean (this test's own thread may be preempted now
         // and then on a busy machine).
         let clean = (0..20)
-            .filter(|_| !round(&mut MemPort::ring(5, None)).stalled)
+            .filter(|_| !round(&mut MemPort::ring(5, None)).0.stalled)
             .count();
         assert!(clean > 0);
     }
 
-    fn passes(stalled: &'static [bool]) -> impl FnMut() -> io::Result<Pass> {
-        let mut k = 0;
-        move || {
-            let p = Pass {
-                seen: vec![Some(k as i64)],
-                stalled: stalled[k.min(stalled.len() - 1)],
-            };
-            k += 1;
-            Ok(p)
-        }
-    }
-
     #[test]
-    fn a_stalled_pass_is_measured_again() {
-        let mut repeated = 0;
-        let p = unstalled(TRIES, &mut repeated, passes(&[true, true, false])).expect("pass");
-        assert_eq!((p.seen[0], p.stalled, repeated), (Some(2), false, 2));
-        // A clean first pass is kept as it is.
-        let p = unstalled(TRIES, &mut repeated, passes(&[false])).expect("pass");
-        assert_eq!((p.seen[0], repeated), (Some(0), 2));
-        // A host that stalls every pass: the last of TRIES is taken.
-        let mut repeated = 0;
-        let p = unstalled(TRIES, &mut repeated, passes(&[true])).expect("pass");
-        assert_eq!((p.seen[0], p.stalled), (Some(TRIES as i64 - 1), true));
-        assert_eq!(repeated, TRIES - 1);
+    fn the_real_nodes_measure_the_ring_and_every_slave_takes_its_delay() {
+        let s = ringsync_model::Scenario::from_toml("", "test").expect("scenario");
+        let spec = s.build().expect("spec");
+        let mut ports = MemPort::ring(spec.axes() + 1, None);
+        let c = calibrate(&mut ports, &spec, 50).expect("calibrated");
+        assert_eq!(c.rounds, 50);
+        let m = &c.start_up.measured;
+        assert!(m.complete >= 1 && m.complete as usize + c.repeated <= 50);
+        // Each slave took what the master measured, and the path grows round the ring by
+        // a link and a residence per slave.
+        for (i, t) in c.start_up.taken.iter().enumerate() {
+            assert_eq!(*t, Some(m.path[i]));
+            assert_eq!(c.path[i], m.path[i].as_ns());
+        }
+        for w in m.path.windows(2) {
+            assert!(w[1] > w[0], "{:?}", m.path);
+        }
+        assert_eq!(c.start_up.slaves_rejected, 0);
     }
 }

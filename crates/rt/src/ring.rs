@@ -56,8 +56,8 @@ const RT_CLOCK_FILTER: ClockFilter = ClockFilter {
 /// What a loop is for.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) enum Mode {
-    /// The warm-up: the real nodes on the real loop, measuring each slave's path delay as
-    /// the running loop sees it; nothing recorded.
+    /// The warm-up: the real nodes on the real loop, measuring when each axis's commands
+    /// take effect; nothing recorded.
     WarmUp,
     /// The run: recorded, with the trace and the frames sent when asked.
     Run {
@@ -153,9 +153,6 @@ pub(crate) struct Ring {
     end: i64,
     t_cyc: i64,
     log: TimingLog,
-    /// With `Some`, the delay from the master's send to each slave's read of every lumped
-    /// frame [ns] (the warm-up's measurement).
-    delays: Option<Vec<Vec<i64>>>,
     /// Warm-up: when each axis's commands took effect, from their cycle's start [ns].
     arrivals: Option<Vec<Vec<i64>>>,
     /// Cycles started at the removal of a slave, and at the group stop.
@@ -333,27 +330,12 @@ impl Ring {
             t_cyc: spec.scenario.ring.cycle.0.as_ns(),
             end: cycles * spec.scenario.ring.cycle.0.as_ns(),
             log: TimingLog::new(cycles),
-            delays: (mode == Mode::WarmUp).then(|| vec![Vec::new(); n]),
             arrivals: (mode == Mode::WarmUp).then(|| vec![Vec::new(); n]),
             phy,
             probe_k: 0,
             kill_cycle: None,
             stop_cycle: None,
         })
-    }
-
-    /// The slaves' path delays as the warm-up measured them [ns]: per slave the median for
-    /// software stamps, the shortest for emulated PHY stamps (so that a stamp is seldom
-    /// later than the loop's reading of the frame; see [`PhyStamps::received`]).
-    pub fn measured_path_delays(&self, stamps: Stamps) -> Vec<Option<i64>> {
-        self.delays
-            .iter()
-            .flatten()
-            .map(|v| match stamps {
-                Stamps::Software => (!v.is_empty()).then(|| crate::stats::Percentiles::of(v).p50),
-                Stamps::Phy => v.iter().copied().min(),
-            })
-            .collect()
     }
 
     /// When each axis's commands took effect in the warm-up, from the cycle start (median
@@ -522,14 +504,6 @@ impl Ring {
             return;
         }
         let i = node - 1;
-        // (Only delays a frame of the ring can have: the stamp is the frame's own.)
-        if let Some(d) = self.delays.as_mut()
-            && let Some(sent) = lumped_stamp(bytes).and_then(|t| i64::try_from(t).ok())
-            && let delay = now.saturating_sub(sent)
-            && (0..self.t_cyc).contains(&delay)
-        {
-            d[i].push(delay);
-        }
         // Everything due before the frame first: a command it carries advances the axis to
         // `now`, and a cycle probe or latch due earlier would then read a later state (a
         // host stall between the loop's timers and its reads made a probe read axis 4

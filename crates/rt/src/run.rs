@@ -33,7 +33,7 @@ use crate::transport::{OpenRing, TransportKind};
 pub const ASSUMPTIONS: &[&str] = &[
     "one process and one event-loop thread serve every node's sockets; every hop is a real send and receive through the kernel",
     "slaves forward frames at once, in software",
-    "path delays and time slices are measured at start-up (a warm-up of the running loop for the path delays, calibration rounds for the slices) in place of the wire figures of the plan",
+    "path delays are measured by the nodes at start-up in place of the wire figures of the plan (delay probes round the ring: the master's round trip and each slave's residence, every link taken to have the same delay), and each slave takes its own; the P2P slices are planned from the same probes' round trips",
     "slave encoders latch at their synchronised sampling instants exactly (as hardware latches); commands take effect when the loop reads them, and the master's law times its feed-forward for the arrivals the warm-up measured",
     "slaves latch their encoders a lead before each cycle start (--sample-lead, 100 µs unless the scenario or the option sets one) where the paper latches at the cycle start: software-stamped clocks are off by tens of µs and a host stall can hold the loop past the latch, and a latch that falls after the lumped frame has passed sends last cycle's sample again; the simulator's prediction uses the same lead",
     "the axes are simulated in the runtime's process, advanced exactly between events with the command held",
@@ -362,20 +362,24 @@ pub fn run_streamed(
     for r in &realtime {
         say(r);
     }
-    let cal = calibrate(&mut ports, opts.calibration_rounds.max(1))
-        .map_err(io_err("calibrating the ring"))?;
+    let cal = calibrate(&mut ports, &spec, opts.calibration_rounds.max(1))
+        .map_err(io_err("the nodes' start-up phase"))?;
     say(&format!(
-        "ring calibrated over {} rounds ({} measured again after a host stall): lumped round trip p50 {:.1} µs, p99 {:.1} µs; slice to slave {n} p99 {:.1} µs",
+        "start-up phase: {} probes ({} not counted after a host stall): round trip p50 {:.1} µs, p99 {:.1} µs; one link {:.1} µs; path delays taken by the slaves {} µs",
         cal.rounds,
         cal.repeated,
         cal.round_trip.p50 as f64 * 1e-3,
         cal.round_trip.p99 as f64 * 1e-3,
-        cal.slice[n - 1].p99 as f64 * 1e-3
+        cal.start_up.measured.link.as_ns() as f64 * 1e-3,
+        cal.path
+            .iter()
+            .map(|d| format!("{:.1}", *d as f64 * 1e-3))
+            .collect::<Vec<_>>()
+            .join(", ")
     ));
     let sched = schedule::apply(&mut spec, &cal, opts.response_timeout)?;
-    // Warm-up: the real nodes on the real loop for a few hundred cycles, to measure each
-    // slave's path delay as the running loop sees it (the calibration's frames skip the
-    // nodes' processing and the loop's timers).
+    // Warm-up: the real nodes on the real loop for a few hundred cycles, to measure when
+    // each axis's commands take effect (the slaves keep the path delays they took).
     let t_cyc = spec.scenario.ring.cycle.0.as_ns();
     let warm = (300_000_000 / t_cyc).max(100);
     let ports = ports.into_iter().map(Some).collect();
@@ -388,15 +392,6 @@ pub fn run_streamed(
         Sinks::default(),
     )?;
     ring.run_loop(opts, stop, None, &None, &mut None)?;
-    for (c, d) in spec
-        .slaves
-        .iter_mut()
-        .zip(ring.measured_path_delays(opts.stamps))
-    {
-        if let Some(d) = d {
-            c.path_delay = Duration::from_ns(d);
-        }
-    }
     // The law times its feed-forward for each command's arrival: the arrivals the running
     // loop gave, not the calibration's estimate (a few µs apart per axis, and at an error of
     // one encoder count that decides the synchronisation error).
@@ -417,14 +412,7 @@ pub fn run_streamed(
     // them, then read them all away, so that the run's fresh nodes never see one.
     sys::sleep_until(sys::now_ns() + 2_000_000);
     let _ = drain(&mut ports);
-    say(&format!(
-        "warm-up of {warm} cycles: path delays {} µs",
-        spec.slaves
-            .iter()
-            .map(|c| format!("{:.1}", c.path_delay.as_ns() as f64 * 1e-3))
-            .collect::<Vec<_>>()
-            .join(", ")
-    ));
+    say(&format!("warm-up of {warm} cycles"));
     let s = &spec.scenario;
     let cycles = s.duration.0.as_ns() / t_cyc;
     let mode = Mode::Run {
@@ -542,7 +530,7 @@ pub fn run_streamed(
     }
     let (
         Finished {
-            run,
+            mut run,
             mut timing,
             nodes_rx,
             detection_cycles,
@@ -559,6 +547,7 @@ pub fn run_streamed(
     drop(ports);
     drop(veth);
     timing.flap_down_ns = flap_down_ns;
+    run.start_up = Some(cal.start_up.clone());
     let counted = run.master.rejected.get(Reject::Malformed)
         + run
             .slaves

@@ -2,6 +2,7 @@
 //! from a scenario by `ringsync-model`, driven by an event queue (`kernel`) on modelled
 //! links (`link`) and oscillators. Same scenario and seed: identical results.
 
+pub mod calibrate;
 mod kernel;
 mod link;
 pub mod predict;

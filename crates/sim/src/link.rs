@@ -57,6 +57,10 @@ fn slots_of(route: Option<Route>) -> Option<(usize, usize)> {
             | Route::LumpedOnly {
                 first_slot,
                 slot_count,
+            }
+            | Route::Delay {
+                first_slot,
+                slot_count,
             },
         ) => Some((usize::from(first_slot), usize::from(slot_count))),
         _ => None,
@@ -86,8 +90,8 @@ pub(crate) struct Link {
     hop: i64,
     residence: i64,
     jitter: i64,
-    /// Wire time of a lumped, command, response and lumped-only frame [ns].
-    frame_ns: [i64; 4],
+    /// Wire time of a lumped, command, response, lumped-only and delay frame [ns].
+    frame_ns: [i64; 5],
     hop_loss: f64,
     hop_corruption: f64,
     /// Loss and corruption probabilities over h hops (index h, 0 ..= n + 1).
@@ -124,6 +128,12 @@ impl Link {
                 plan.t_cmf.as_ns(),
                 plan.t_rmf.as_ns(),
                 plan.lumped_only.lumped.frame_time[0].as_ns(),
+                plan.link
+                    .frame_time(ringsync_wire::lumped::lumped_pdu_len(
+                        n,
+                        <ringsync_wire::DelaySlot as ringsync_wire::SlotCodec>::LEN,
+                    ))
+                    .as_ns(),
             ],
             hop_loss,
             hop_corruption,
@@ -150,6 +160,7 @@ impl Link {
             Some(Route::Lumped { .. }) => 0,
             Some(Route::Command { .. }) => 1,
             Some(Route::LumpedOnly { .. }) => 3,
+            Some(Route::Delay { .. }) => 4,
             _ => 2,
         }]
     }

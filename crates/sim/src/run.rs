@@ -21,7 +21,7 @@ use ringsync_wire::{Route, SlotCodec};
 use ringsync_model::devices::Devices;
 use ringsync_model::observer::Observer;
 use ringsync_model::result::{PassageLog, RunResult};
-use ringsync_model::scenario::{Scenario, ScenarioError};
+use ringsync_model::scenario::{PathDelays, Scenario, ScenarioError};
 use ringsync_model::spec::Spec;
 
 use crate::kernel::{Next, Queue};
@@ -55,6 +55,9 @@ pub enum RunError {
     /// A plan the simulator does not run yet.
     #[error("{0}")]
     Unsupported(String),
+    /// The nodes' start-up phase failed (`clock.path_delays = "measured"`).
+    #[error("the start-up phase failed: {0}")]
+    StartUp(#[from] ringsync_proto::node::CalibrationError),
 }
 
 #[derive(Debug)]
@@ -175,12 +178,37 @@ pub fn simulate(
             spec.axes()
         )));
     }
+    // The start-up phase, when the nodes measure their path delays: before the run, each
+    // slave then runs with the delay it took.
+    let start_up = match s.clock.path_delays {
+        PathDelays::Plan => None,
+        PathDelays::Measured => Some(crate::calibrate::calibrate(
+            spec,
+            crate::calibrate::DEFAULT_PROBES,
+        )?),
+    };
+    let measured_spec;
+    let spec = match &start_up {
+        None => spec,
+        Some(c) => {
+            let mut m = spec.clone();
+            for (cfg, d) in m.slaves.iter_mut().zip(&c.taken) {
+                if let Some(d) = d {
+                    cfg.path_delay = *d;
+                }
+            }
+            measured_spec = m;
+            &measured_spec
+        }
+    };
     let mut sim = Sim::new(spec, opts)?;
     for o in observers {
         sim.dev.observe(o);
     }
     sim.run(progress);
-    Ok(sim.finish(&s.name))
+    let mut r = sim.finish(&s.name);
+    r.start_up = start_up;
+    Ok(r)
 }
 
 impl Sim {

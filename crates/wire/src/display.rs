@@ -42,7 +42,8 @@ fn bit_names<'a>(f: &mut fmt::Formatter<'_>, set: impl Iterator<Item = &'a str>)
 }
 
 impl fmt::Display for FrameKind {
-    /// The kind's [`name`](FrameKind::name): `lumped`, `command`, `response`, `lumped-only`.
+    /// The kind's [`name`](FrameKind::name): `lumped`, `command`, `response`, `lumped-only`,
+    /// `delay`.
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.write_str(self.name())
     }
@@ -94,6 +95,13 @@ impl Summary {
                 slot_count: l.slots.len(),
                 master_time_ns: l.master_time_ns,
             },
+            Pdu::Delay(l) => Summary::Lumped {
+                kind: FrameKind::Delay,
+                common: l.common,
+                first_slot: l.first_slot,
+                slot_count: l.slots.len(),
+                master_time_ns: l.master_time_ns,
+            },
             Pdu::Command(c) => Summary::Command(*c),
             Pdu::Response(r) => Summary::Response(*r),
         }
@@ -102,7 +110,7 @@ impl Summary {
     /// Validates the frame as [`Pdu::parse`] does, without allocating.
     fn of_frame<T: AsRef<[u8]>>(frame: &Frame<T>) -> crate::Result<Self> {
         Ok(match frame.validate()? {
-            kind @ (FrameKind::Lumped | FrameKind::LumpedOnly) => {
+            kind @ (FrameKind::Lumped | FrameKind::LumpedOnly | FrameKind::Delay) => {
                 let p = frame.lumped()?;
                 Summary::Lumped {
                     kind,

@@ -99,7 +99,7 @@ impl fmt::Display for Error {
             ),
             Error::BadKind(k) => write!(
                 f,
-                "bad frame kind {k}: expected 1 (lumped), 2 (command), 3 (response) or 4 (lumped-only)"
+                "bad frame kind {k}: expected 1 (lumped), 2 (command), 3 (response), 4 (lumped-only) or 5 (delay)"
             ),
             Error::WrongKind { expected, got } => {
                 write!(f, "wrong frame kind: expected {expected}, got {got}")

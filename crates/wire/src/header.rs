@@ -74,6 +74,10 @@ pub enum FrameKind {
     /// Lumped frame of the lumped-only plan of ref. [3]: feedback plus desired states and
     /// commands (docs/system.md, "The lumped-only plan").
     LumpedOnly = 4,
+    /// Delay frame of the start-up phase: a probe round the ring in which every slave
+    /// reports its residence, or the master's closing frame with each slave's path delay
+    /// (docs/wire.md, "Kind 5").
+    Delay = 5,
 }
 
 impl FrameKind {
@@ -84,6 +88,7 @@ impl FrameKind {
             2 => Ok(FrameKind::Command),
             3 => Ok(FrameKind::Response),
             4 => Ok(FrameKind::LumpedOnly),
+            5 => Ok(FrameKind::Delay),
             other => Err(Error::BadKind(other)),
         }
     }
@@ -95,6 +100,7 @@ impl FrameKind {
             FrameKind::Command => "command",
             FrameKind::Response => "response",
             FrameKind::LumpedOnly => "lumped-only",
+            FrameKind::Delay => "delay",
         }
     }
 }
@@ -230,6 +236,13 @@ pub enum Route {
         /// Number of slots.
         slot_count: u16,
     },
+    /// Delay frame (kind 5), for the slaves of its slots, then back to the master.
+    Delay {
+        /// Index of the first slot.
+        first_slot: u16,
+        /// Number of slots.
+        slot_count: u16,
+    },
     /// Command frame (kind 2), for one slave.
     Command {
         /// Target slave address (1..=65535 when valid).
@@ -248,6 +261,7 @@ impl Route {
         match self {
             Route::Lumped { .. } => FrameKind::Lumped,
             Route::LumpedOnly { .. } => FrameKind::LumpedOnly,
+            Route::Delay { .. } => FrameKind::Delay,
             Route::Command { .. } => FrameKind::Command,
             Route::Response { .. } => FrameKind::Response,
         }
@@ -278,7 +292,7 @@ view! {
 
 fields!(Frame {
     version: u8 = field::VERSION, "Protocol version byte (1 in this version of the format).";
-    kind_byte: u8 = field::KIND, "Raw kind byte (1 lumped, 2 command, 3 response, 4 lumped-only); [`Frame::kind`] decodes it.";
+    kind_byte: u8 = field::KIND, "Raw kind byte (1 lumped, 2 command, 3 response, 4 lumped-only, 5 delay); [`Frame::kind`] decodes it.";
     flags_byte: u8 = field::FLAGS, "Raw flags byte, reserved bits included; [`Frame::flags`] decodes it.";
     retry, set_retry: u8 = field::RETRY, "Retry count: 0 for the first attempt, k for the k-th retry.";
     cycle, set_cycle: u32 = field::CYCLE, "Cycle counter of the sender (wraps) [cycles].";
@@ -309,7 +323,9 @@ impl<T: AsRef<[u8]>> Frame<T> {
     pub fn validate(&self) -> Result<FrameKind> {
         let kind = self.check()?;
         match kind {
-            FrameKind::Lumped | FrameKind::LumpedOnly => self.lumped()?.check_slots()?,
+            FrameKind::Lumped | FrameKind::LumpedOnly | FrameKind::Delay => {
+                self.lumped()?.check_slots()?
+            }
             FrameKind::Command => self.command()?.check()?,
             FrameKind::Response => self.response()?.check()?,
         }
@@ -350,19 +366,22 @@ impl<T: AsRef<[u8]>> Frame<T> {
             Ok(get(p, f))
         };
         Ok(match kind {
-            FrameKind::Lumped | FrameKind::LumpedOnly => {
+            FrameKind::Lumped | FrameKind::LumpedOnly | FrameKind::Delay => {
                 let slot_count = word(lumped_field::SLOT_COUNT)?;
                 let first_slot = word(lumped_field::FIRST_SLOT)?;
-                if kind == FrameKind::Lumped {
-                    Route::Lumped {
+                match kind {
+                    FrameKind::Lumped => Route::Lumped {
                         first_slot,
                         slot_count,
-                    }
-                } else {
-                    Route::LumpedOnly {
+                    },
+                    FrameKind::LumpedOnly => Route::LumpedOnly {
                         first_slot,
                         slot_count,
-                    }
+                    },
+                    _ => Route::Delay {
+                        first_slot,
+                        slot_count,
+                    },
                 }
             }
             FrameKind::Command => Route::Command {

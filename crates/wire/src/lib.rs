@@ -3,21 +3,23 @@
 //! Three frames make one cycle of the proposed plan (docs/system.md, "The cycle plan"): the sync
 //! [lumped frame](lumped) (kind 1), a [command frame](command) per slave (kind 2) and its
 //! [response frame](response) (kind 3). The lumped-only plan of ref. [3] uses its own lumped
-//! kind (4) with larger slots. Every PDU is a 12-byte [header](header), a payload and a
-//! CRC-32; the same bytes travel as the payload of an Ethernet II frame with EtherType
-//! 0x88B5 or as a UDP datagram.
+//! kind (4) with larger slots. Before the cycles start, both plans measure the ring's delays
+//! with [delay frames](lumped::delay) (kind 5), which have the lumped layout too. Every PDU
+//! is a 12-byte [header](header), a payload and a CRC-32; the same bytes travel as the
+//! payload of an Ethernet II frame with EtherType 0x88B5 or as a UDP datagram.
 //!
 //! In the style of smoltcp's `wire` module each layout has
 //!
 //! - a `field` module of byte ranges ([`header::field`], [`lumped::field`],
-//!   [`lumped::feedback::field`], [`lumped::lumped_only::field`], [`command::field`],
-//!   [`response::field`], [`ethernet::field`]); a test checks them against the tables of
-//!   docs/wire.md;
+//!   [`lumped::feedback::field`], [`lumped::lumped_only::field`], [`lumped::delay::field`],
+//!   [`command::field`], [`response::field`], [`ethernet::field`]); a test checks them
+//!   against the tables of docs/wire.md;
 //! - a zero-copy view over a byte buffer ([`Frame`], [`LumpedPayload`],
-//!   [`FeedbackSlotView`], [`LumpedOnlySlotView`], [`CommandPayload`], [`ResponsePayload`],
-//!   [`EthernetFrame`]): `new_checked` checks the length, after which no getter can panic.
-//!   Getters return the raw wire values (typed bit sets drop reserved bits); each view's
-//!   `check` applies the field rules (reserved zero, finite floats, addresses);
+//!   [`FeedbackSlotView`], [`LumpedOnlySlotView`], [`DelaySlotView`], [`CommandPayload`],
+//!   [`ResponsePayload`], [`EthernetFrame`]): `new_checked` checks the length, after which
+//!   no getter can panic. Getters return the raw wire values (typed bit sets drop reserved
+//!   bits); each view's `check` applies the field rules (reserved zero, finite floats,
+//!   addresses);
 //! - an owned representation with `parse`, `emit` and `buffer_len`, which reads and writes
 //!   through the view.
 //!
@@ -63,8 +65,9 @@ pub use error::{Error, Result};
 pub use ethernet::{ETHERTYPE, EthernetFrame};
 pub use header::{CRC_LEN, Common, Flags, Frame, FrameKind, HEADER_LEN, Route, Status, VERSION};
 pub use lumped::{
-    FeedbackSlot, FeedbackSlotView, LumpedFrameRepr, LumpedOnlyFrameRepr, LumpedOnlySlot,
-    LumpedOnlySlotView, LumpedPayload, LumpedRepr, SlotCodec,
+    DelayFrameRepr, DelayMarker, DelaySlot, DelaySlotView, FeedbackSlot, FeedbackSlotView,
+    LumpedFrameRepr, LumpedOnlyFrameRepr, LumpedOnlySlot, LumpedOnlySlotView, LumpedPayload,
+    LumpedRepr, SlotCodec,
 };
 pub use response::{RESPONSE_PDU_LEN, ResponsePayload, ResponseRepr};
 
@@ -85,6 +88,8 @@ pub enum Pdu {
     Response(ResponseRepr),
     /// Lumped frame of the lumped-only plan (kind 4).
     LumpedOnly(LumpedOnlyFrameRepr),
+    /// Delay frame of the start-up phase (kind 5).
+    Delay(DelayFrameRepr),
 }
 
 impl From<LumpedFrameRepr> for Pdu {
@@ -110,6 +115,7 @@ impl Pdu {
             FrameKind::Command => CommandRepr::parse_verified(buf).map(Pdu::Command),
             FrameKind::Response => ResponseRepr::parse_verified(buf).map(Pdu::Response),
             FrameKind::LumpedOnly => LumpedRepr::parse_verified(buf).map(Pdu::LumpedOnly),
+            FrameKind::Delay => LumpedRepr::parse_verified(buf).map(Pdu::Delay),
         }
     }
 
@@ -120,6 +126,7 @@ impl Pdu {
             Pdu::Command(_) => FrameKind::Command,
             Pdu::Response(_) => FrameKind::Response,
             Pdu::LumpedOnly(_) => FrameKind::LumpedOnly,
+            Pdu::Delay(_) => FrameKind::Delay,
         }
     }
 
@@ -130,6 +137,7 @@ impl Pdu {
             Pdu::Command(r) => r.buffer_len(),
             Pdu::Response(r) => r.buffer_len(),
             Pdu::LumpedOnly(r) => r.buffer_len(),
+            Pdu::Delay(r) => r.buffer_len(),
         }
     }
 
@@ -140,6 +148,7 @@ impl Pdu {
             Pdu::Command(r) => r.emit(buf),
             Pdu::Response(r) => r.emit(buf),
             Pdu::LumpedOnly(r) => r.emit(buf),
+            Pdu::Delay(r) => r.emit(buf),
         }
     }
 
@@ -151,6 +160,7 @@ impl Pdu {
             Pdu::Command(r) => r.validate(),
             Pdu::Response(r) => r.validate(),
             Pdu::LumpedOnly(r) => r.validate().map(drop),
+            Pdu::Delay(r) => r.validate().map(drop),
         }
     }
 
@@ -175,6 +185,7 @@ impl Pdu {
             Pdu::Command(r) => &r.common,
             Pdu::Response(r) => &r.common,
             Pdu::LumpedOnly(r) => &r.common,
+            Pdu::Delay(r) => &r.common,
         }
     }
 
@@ -188,6 +199,10 @@ impl Pdu {
                 slot_count: count(r.slots.len()),
             },
             Pdu::LumpedOnly(r) => Route::LumpedOnly {
+                first_slot: r.first_slot,
+                slot_count: count(r.slots.len()),
+            },
+            Pdu::Delay(r) => Route::Delay {
                 first_slot: r.first_slot,
                 slot_count: count(r.slots.len()),
             },

@@ -3,11 +3,14 @@
 //! against the length constants, and the examples of the text form against `Display`.
 
 use ringsync_wire::ethernet::{self, frame_len, wire_len};
-use ringsync_wire::lumped::{self, LUMPED_PREFIX_LEN, feedback, lumped_only, lumped_pdu_len};
+use ringsync_wire::lumped::{
+    self, LUMPED_PREFIX_LEN, delay, feedback, lumped_only, lumped_pdu_len,
+};
 use ringsync_wire::{
-    COMMAND_PDU_LEN, CRC_LEN, CommandRepr, Common, FeedbackSlot, Field, Flags, Frame, FrameKind,
-    HEADER_LEN, LumpedFrameRepr, LumpedOnlyFrameRepr, LumpedOnlySlot, Pdu, RESPONSE_PDU_LEN,
-    ResponseRepr, SlotCodec, Status, command, header, response,
+    COMMAND_PDU_LEN, CRC_LEN, CommandRepr, Common, DelayFrameRepr, DelayMarker, DelaySlot,
+    FeedbackSlot, Field, Flags, Frame, FrameKind, HEADER_LEN, LumpedFrameRepr, LumpedOnlyFrameRepr,
+    LumpedOnlySlot, Pdu, RESPONSE_PDU_LEN, ResponseRepr, SlotCodec, Status, command, header,
+    response,
 };
 
 const DOC: &str = include_str!("../../../docs/wire.md");
@@ -96,6 +99,7 @@ struct Layout {
 }
 
 fn layouts() -> Vec<Layout> {
+    use delay::field as dl;
     use ethernet::field as eth;
     use feedback::field as fb;
     use header::field as h;
@@ -180,6 +184,17 @@ fn layouts() -> Vec<Layout> {
                 fixed("command", lo::COMMAND),
             ],
             len: LumpedOnlySlot::LEN,
+        },
+        Layout {
+            heading: "Kind 5: delay frame",
+            rows: vec![
+                fixed("residence", dl::RESIDENCE),
+                fixed("path delay", dl::PATH_DELAY),
+                fixed("residence of", dl::RESIDENCE_OF),
+                fixed("marker", dl::MARKER),
+                fixed("reserved", dl::RESERVED),
+            ],
+            len: DelaySlot::LEN,
         },
         Layout {
             heading: "Ethernet II header (14 B)",
@@ -275,6 +290,7 @@ fn frame_kind_table_matches_the_payload_lengths() {
             response::RESPONSE_PAYLOAD_LEN.to_string(),
         ),
         (FrameKind::LumpedOnly, lumped(LumpedOnlySlot::LEN)),
+        (FrameKind::Delay, lumped(DelaySlot::LEN)),
     ];
     assert_eq!(kinds.rows.len(), expect.len());
     for (row, (kind, len)) in kinds.rows.iter().zip(expect) {
@@ -298,6 +314,7 @@ fn size_table_matches_the_lengths() {
         ("command", COMMAND_PDU_LEN),
         ("response", RESPONSE_PDU_LEN),
         ("lumped-only, n = 4", lumped_pdu_len(4, LumpedOnlySlot::LEN)),
+        ("delay, n = 4", lumped_pdu_len(4, DelaySlot::LEN)),
     ];
     assert_eq!(sizes.rows.len(), pdus.len());
     let lead = |s: &str| s.split(' ').next().unwrap_or_default().to_string();
@@ -377,6 +394,21 @@ fn text_form_examples_are_what_display_prints() {
         first_slot: 4,
         slots: vec![LumpedOnlySlot::default()],
     };
+    let delay = DelayFrameRepr {
+        common: Common {
+            seq: 4,
+            ..Common::default()
+        },
+        master_time_ns: 250_000,
+        first_slot: 0,
+        slots: vec![
+            DelaySlot {
+                marker: DelayMarker::Written,
+                ..DelaySlot::default()
+            };
+            4
+        ],
+    };
     // The command above with its CRC's lowest bit flipped.
     let mut bad = [0u8; COMMAND_PDU_LEN];
     command.emit(&mut bad).expect("emit");
@@ -384,6 +416,7 @@ fn text_form_examples_are_what_display_prints() {
     let mut printed: Vec<String> = [
         Pdu::Lumped(lumped),
         Pdu::LumpedOnly(lumped_only),
+        Pdu::Delay(delay),
         Pdu::Command(command),
         Pdu::Response(response),
     ]

@@ -3,9 +3,10 @@
 //! `zlib.crc32` over the same bytes.
 
 use ringsync_wire::{
-    CommandPayload, CommandRepr, Common, Error, FeedbackSlot, FeedbackSlotView, Flags, Frame,
-    FrameKind, LumpedFrameRepr, LumpedOnlyFrameRepr, LumpedOnlySlot, LumpedOnlySlotView,
-    LumpedPayload, Pdu, ResponsePayload, ResponseRepr, Route, SlotCodec, Status, ethernet,
+    CommandPayload, CommandRepr, Common, DelayFrameRepr, DelayMarker, DelaySlot, DelaySlotView,
+    Error, FeedbackSlot, FeedbackSlotView, Flags, Frame, FrameKind, LumpedFrameRepr,
+    LumpedOnlyFrameRepr, LumpedOnlySlot, LumpedOnlySlotView, LumpedPayload, Pdu, ResponsePayload,
+    ResponseRepr, Route, SlotCodec, Status, ethernet,
 };
 
 #[rustfmt::skip]
@@ -160,6 +161,109 @@ fn lumped_only_repr() -> LumpedOnlyFrameRepr {
     }
 }
 
+#[rustfmt::skip]
+const DELAY: [u8; 64] = [
+    0x01, 0x05, 0x00, 0x00,             // version 1, kind 5 (delay): a probe
+    3, 0, 0, 0,                         // cycle 3
+    12, 0,                              // seq 12
+    48, 0,                              // payload length 12 + 3 * 12
+    0xE8, 0x03, 0, 0, 0, 0, 0, 0,       // master time 1000 ns
+    0, 0,                               // first slot 0
+    3, 0,                               // 3 slots
+    // slot of slave 1
+    0x36, 0x01, 0x00, 0x00,             // residence 310 ns
+    0, 0, 0, 0,                         // path delay 0 (a probe)
+    11, 0,                              // residence of probe seq 11
+    2, 0,                               // marker 2 (written with a residence), reserved
+    // slot of slave 2
+    0, 0, 0, 0, 0, 0, 0, 0, 0, 0,
+    1, 0,                               // marker 1 (written, no residence yet), reserved
+    // slot of slave 3
+    0, 0, 0, 0, 0, 0, 0, 0, 0, 0,
+    0, 0,                               // marker 0 (not written), reserved
+    0x83, 0x14, 0xFB, 0xDE,             // CRC-32 0xdefb1483
+];
+
+fn delay_repr() -> DelayFrameRepr {
+    DelayFrameRepr {
+        common: Common {
+            cycle: 3,
+            seq: 12,
+            ..Common::default()
+        },
+        master_time_ns: 1000,
+        first_slot: 0,
+        slots: vec![
+            DelaySlot {
+                residence_ns: 310,
+                path_delay_ns: 0,
+                residence_of: 11,
+                marker: DelayMarker::Residence,
+            },
+            DelaySlot {
+                marker: DelayMarker::Written,
+                ..DelaySlot::default()
+            },
+            DelaySlot::default(),
+        ],
+    }
+}
+
+#[rustfmt::skip]
+const DELAY_CLOSING: [u8; 52] = [
+    0x01, 0x05, 0x00, 0x00,             // version 1, kind 5 (delay): a closing frame
+    4, 0, 0, 0,                         // cycle 4
+    13, 0,                              // seq 13
+    36, 0,                              // payload length 12 + 2 * 12
+    0x90, 0xD0, 0x03, 0, 0, 0, 0, 0,    // master time 250 000 ns
+    1, 0,                               // first slot 1: slot 0 is slave 2's
+    2, 0,                               // 2 slots
+    // slot of slave 2
+    0, 0, 0, 0,                         // residence 0
+    0x54, 0x06, 0x00, 0x00,             // path delay 1620 ns
+    0, 0,                               // residence of 0
+    1, 0,                               // marker 1 (delay taken), reserved
+    // slot of slave 3
+    0, 0, 0, 0,                         // residence 0
+    0x72, 0x0B, 0x00, 0x00,             // path delay 2930 ns
+    0, 0,                               // residence of 0
+    0, 0,                               // marker 0 (not taken yet), reserved
+    0xF3, 0x4C, 0xC1, 0xAF,             // CRC-32 0xafc14cf3
+];
+
+fn delay_closing_repr() -> DelayFrameRepr {
+    DelayFrameRepr {
+        common: Common {
+            cycle: 4,
+            seq: 13,
+            ..Common::default()
+        },
+        master_time_ns: 250_000,
+        first_slot: 1,
+        slots: vec![
+            DelaySlot {
+                path_delay_ns: 1620,
+                marker: DelayMarker::Written,
+                ..DelaySlot::default()
+            },
+            DelaySlot {
+                path_delay_ns: 2930,
+                ..DelaySlot::default()
+            },
+        ],
+    }
+}
+
+/// Every fixture of this file.
+const FIXTURES: [&[u8]; 6] = [
+    &COMMAND,
+    &RESPONSE,
+    &LUMPED,
+    &LUMPED_ONLY,
+    &DELAY,
+    &DELAY_CLOSING,
+];
+
 fn emit(pdu: &Pdu) -> Vec<u8> {
     let mut buf = vec![0xAA; pdu.buffer_len()];
     let n = pdu.emit(&mut buf).expect("emit");
@@ -195,6 +299,21 @@ fn lumped_only_fixture() {
 }
 
 #[test]
+fn delay_fixtures() {
+    assert_eq!(Pdu::parse(&DELAY), Ok(Pdu::Delay(delay_repr())));
+    assert_eq!(emit(&Pdu::Delay(delay_repr())), DELAY);
+    assert_eq!(
+        Pdu::parse(&DELAY_CLOSING),
+        Ok(Pdu::Delay(delay_closing_repr()))
+    );
+    assert_eq!(emit(&Pdu::Delay(delay_closing_repr())), DELAY_CLOSING);
+    assert_eq!(DelayFrameRepr::parse(&DELAY), Ok(delay_repr()));
+    assert_eq!(delay_repr().buffer_len(), DELAY.len());
+    assert_eq!(DelaySlot::LEN, 12);
+    assert_eq!(DelayMarker::default(), DelayMarker::Empty);
+}
+
+#[test]
 fn ethernet_padding_after_crc_is_ignored() {
     let mut padded = COMMAND.to_vec();
     padded.resize(60, 0);
@@ -203,7 +322,7 @@ fn ethernet_padding_after_crc_is_ignored() {
 
 #[test]
 fn every_single_bit_flip_is_rejected() {
-    for fixture in [&COMMAND[..], &RESPONSE[..], &LUMPED[..], &LUMPED_ONLY[..]] {
+    for fixture in FIXTURES {
         for byte in 0..fixture.len() {
             for bit in 0..8 {
                 let mut b = fixture.to_vec();
@@ -303,6 +422,67 @@ fn typed_errors_name_the_problem() {
             got: FrameKind::Response
         })
     );
+    // Kind 5 is known, 6 is not. A command's payload read as a delay prefix: slot count 15
+    // (the sample time's bytes 2-3), so 12 + 15 * 12 bytes expected.
+    assert_eq!(
+        at(1, 5, &COMMAND),
+        Err(Error::PayloadLength {
+            kind: FrameKind::Delay,
+            expected: 192,
+            got: 16
+        })
+    );
+    assert_eq!(at(1, 6, &DELAY), Err(Error::BadKind(6)));
+    // Delay slots: marker 0, 1 or 2; byte 11 reserved.
+    assert_eq!(at(24 + 10, 3, &DELAY), Err(Error::BadMarker(3)));
+    assert_eq!(at(24 + 10, 0xFF, &DELAY), Err(Error::BadMarker(0xFF)));
+    assert_eq!(
+        at(24 + 12 + 11, 7, &DELAY),
+        Err(Error::Reserved {
+            field: "delay slot byte 11",
+            value: 7
+        })
+    );
+    // A delay frame that declares 4 slots but carries 3, or more than one frame holds.
+    assert_eq!(
+        at(22, 4, &DELAY),
+        Err(Error::PayloadLength {
+            kind: FrameKind::Delay,
+            expected: 60,
+            got: 48
+        })
+    );
+    assert_eq!(
+        at(22, 123, &DELAY),
+        Err(Error::SlotCountOverCapacity {
+            count: 123,
+            capacity: 122
+        })
+    );
+    // Slots 65535 + 1 would address slave 65536.
+    let mut far = DELAY_CLOSING.to_vec();
+    far[20..22].copy_from_slice(&65534u16.to_le_bytes());
+    assert_eq!(
+        Pdu::parse(&reseal(far)),
+        Err(Error::SlotRange {
+            first: 65534,
+            count: 2
+        })
+    );
+    assert_eq!(
+        DelayFrameRepr::parse(&LUMPED),
+        Err(Error::WrongKind {
+            expected: FrameKind::Delay,
+            got: FrameKind::Lumped
+        })
+    );
+    assert_eq!(
+        LumpedFrameRepr::parse(&DELAY),
+        Err(Error::WrongKind {
+            expected: FrameKind::Lumped,
+            got: FrameKind::Delay
+        })
+    );
 }
 
 #[test]
@@ -335,6 +515,43 @@ fn emit_rejects_what_it_cannot_encode() {
     let mut out = vec![0u8; big.buffer_len()];
     // 12 header + 12 prefix + 73 * 20 + 4 CRC = 1488 <= 1500 (MTU); 74 slots would be 1508.
     assert_eq!(big.emit(&mut out), Ok(1488));
+    let mut big = delay_repr();
+    big.slots = vec![DelaySlot::default(); 123];
+    let mut out = vec![0u8; big.buffer_len()];
+    assert_eq!(
+        big.emit(&mut out),
+        Err(Error::SlotCountOverCapacity {
+            count: 123,
+            capacity: 122
+        })
+    );
+    big.slots.truncate(122);
+    let mut out = vec![0u8; big.buffer_len()];
+    // 12 header + 12 prefix + 122 * 12 + 4 CRC = 1492 <= 1500; 123 slots would be 1504.
+    assert_eq!(big.emit(&mut out), Ok(1492));
+    assert_eq!(
+        delay_repr().emit(&mut out[..63]),
+        Err(Error::BufferTooSmall {
+            needed: 64,
+            got: 63
+        })
+    );
+    let mut far = delay_closing_repr();
+    far.first_slot = 65534;
+    assert_eq!(
+        far.emit(&mut out),
+        Err(Error::SlotRange {
+            first: 65534,
+            count: 2
+        })
+    );
+    assert_eq!(
+        DelaySlot::default().emit(&mut [0u8; 11]),
+        Err(Error::BufferTooSmall {
+            needed: 12,
+            got: 11
+        })
+    );
 }
 
 #[test]
@@ -365,6 +582,39 @@ fn slave_writes_its_slot_in_place() {
     };
     assert_eq!(r.slots[1], mine);
     assert_eq!(r.slots[0], lumped_repr().slots[0]);
+}
+
+#[test]
+fn slave_writes_its_delay_slot_in_place() {
+    // Slave 3 reports its residence of probe 11 as probe 12 passes.
+    let mut buf = DELAY.to_vec();
+    let mut frame = Frame::new_checked(&mut buf[..]).expect("frame");
+    assert_eq!(frame.check(), Ok(FrameKind::Delay));
+    let mut payload = frame.lumped_mut().expect("payload");
+    let k = payload.slot_index(3).expect("slot");
+    assert_eq!(k, 2);
+    let mut s = payload.delay_slot_mut(k).expect("delay slot");
+    s.set_residence_ns(290);
+    s.set_residence_of(11);
+    s.set_marker(DelayMarker::Residence);
+    frame.fill_crc();
+    let mut want = delay_repr();
+    want.slots[2] = DelaySlot {
+        residence_ns: 290,
+        path_delay_ns: 0,
+        residence_of: 11,
+        marker: DelayMarker::Residence,
+    };
+    assert_eq!(Pdu::parse(&buf), Ok(Pdu::Delay(want.clone())));
+    // The same through the slot codec over the slot's bytes.
+    let mut buf = DELAY.to_vec();
+    let mut frame = Frame::new_checked(&mut buf[..]).expect("frame");
+    let mut payload = frame.lumped_mut().expect("payload");
+    want.slots[2]
+        .emit(payload.slot_bytes_mut(2).expect("bytes"))
+        .expect("emit slot");
+    frame.fill_crc();
+    assert_eq!(Pdu::parse(&buf), Ok(Pdu::Delay(want)));
 }
 
 #[test]
@@ -587,6 +837,166 @@ fn lumped_only_views_read_and_write_the_fixture_slot() {
 }
 
 #[test]
+fn delay_views_read_and_write_the_fixtures() {
+    let f = frame(&DELAY);
+    assert_eq!(f.kind(), Ok(FrameKind::Delay));
+    assert_eq!(f.kind_byte(), 5);
+    assert_eq!(
+        f.route(),
+        Ok(Route::Delay {
+            first_slot: 0,
+            slot_count: 3
+        })
+    );
+    assert_eq!(f.route().map(|r| r.kind()), Ok(FrameKind::Delay));
+    assert_eq!(f.validate(), Ok(FrameKind::Delay));
+    assert_eq!((f.cycle(), f.seq(), f.payload_len()), (3, 12, 48));
+    let p = f.lumped().expect("delay");
+    assert_eq!(
+        (p.kind(), p.slot_len(), p.slot_count(), p.master_time_ns()),
+        (FrameKind::Delay, 12, 3, 1000)
+    );
+    assert_eq!(
+        (
+            p.slot_index(0),
+            p.slot_index(1),
+            p.slot_index(3),
+            p.slot_index(4)
+        ),
+        (None, Some(0), Some(2), None)
+    );
+    assert_eq!(p.check_slots(), Ok(()));
+    let s0 = p.delay_slot(0).expect("slot 0");
+    assert_eq!(
+        (s0.residence_ns(), s0.path_delay_ns(), s0.residence_of()),
+        (310, 0, 11)
+    );
+    assert_eq!(s0.marker(), Ok(DelayMarker::Residence));
+    assert_eq!(s0.check(), Ok(()));
+    let markers: Vec<_> = (0..3)
+        .map(|k| p.delay_slot(k).expect("slot").marker())
+        .collect();
+    assert_eq!(
+        markers,
+        [
+            Ok(DelayMarker::Residence),
+            Ok(DelayMarker::Written),
+            Ok(DelayMarker::Empty)
+        ]
+    );
+    assert!(p.delay_slot(3).is_none());
+    assert_eq!(p.slot_bytes(1), Some(&DELAY[36..48]));
+    // A delay slot is neither a feedback slot nor a lumped-only slot.
+    assert!(p.feedback_slot(0).is_none());
+    assert!(p.lumped_only_slot(0).is_none());
+    assert_eq!(p.feedback_slots().len(), 0);
+    // ... and kinds 1 and 4 have no delay slots.
+    assert!(
+        frame(&LUMPED)
+            .lumped()
+            .expect("lumped")
+            .delay_slot(0)
+            .is_none()
+    );
+    let lumped_only = frame(&LUMPED_ONLY);
+    assert!(
+        lumped_only
+            .lumped()
+            .expect("lumped-only")
+            .delay_slot(0)
+            .is_none()
+    );
+
+    let f = frame(&DELAY_CLOSING);
+    assert_eq!(
+        f.route(),
+        Ok(Route::Delay {
+            first_slot: 1,
+            slot_count: 2
+        })
+    );
+    let p = f.lumped().expect("delay");
+    assert_eq!((p.slot_index(2), p.slot_index(3)), (Some(0), Some(1)));
+    let delays: Vec<u32> = (0..2)
+        .map(|k| p.delay_slot(k).expect("slot").path_delay_ns())
+        .collect();
+    assert_eq!(delays, [1620, 2930]);
+
+    // The master turns a blank frame into the closing fixture through the views: path delays
+    // in; slave 2 takes its own and marks its slot.
+    let blank = DelayFrameRepr {
+        common: Common {
+            cycle: 4,
+            seq: 13,
+            ..Common::default()
+        },
+        master_time_ns: 0,
+        first_slot: 1,
+        slots: vec![DelaySlot::default(); 2],
+    };
+    let mut buf = vec![0u8; blank.buffer_len()];
+    blank.emit(&mut buf).expect("emit");
+    let mut f = Frame::new_checked(&mut buf[..]).expect("frame");
+    let mut p = f.lumped_mut().expect("delay");
+    p.set_master_time_ns(250_000);
+    assert!(p.feedback_slot_mut(0).is_none());
+    assert!(p.lumped_only_slot_mut(0).is_none());
+    assert!(p.delay_slot_mut(2).is_none());
+    for (k, d) in [1620, 2930].into_iter().enumerate() {
+        p.delay_slot_mut(k).expect("slot").set_path_delay_ns(d);
+    }
+    p.delay_slot_mut(0)
+        .expect("slot")
+        .set_marker(DelayMarker::Written);
+    f.fill_crc();
+    assert_eq!(buf, DELAY_CLOSING);
+}
+
+#[test]
+fn delay_slot_view_writes_what_the_repr_emits() {
+    let mine = delay_repr().slots[0];
+    let mut by_view = [0xAAu8; 12];
+    let mut v = DelaySlotView::new_checked(&mut by_view[..]).expect("slot");
+    v.set_residence_ns(mine.residence_ns);
+    v.set_path_delay_ns(mine.path_delay_ns);
+    v.set_residence_of(mine.residence_of);
+    v.set_marker(mine.marker);
+    assert_eq!(
+        v.check(),
+        Err(Error::Reserved {
+            field: "delay slot byte 11",
+            value: 0xAA
+        })
+    );
+    by_view[11] = 0;
+    assert_eq!(by_view[..], DELAY[24..36]);
+    assert_eq!(DelaySlot::parse(&by_view), Ok(mine));
+    // Bytes past the slot are ignored.
+    assert_eq!(DelaySlot::parse(&DELAY[24..48]), Ok(mine));
+    for (byte, marker) in [
+        (0, DelayMarker::Empty),
+        (1, DelayMarker::Written),
+        (2, DelayMarker::Residence),
+    ] {
+        by_view[10] = byte;
+        let v = DelaySlotView::new_checked(&by_view[..]).expect("slot");
+        assert_eq!((v.marker(), v.check()), (Ok(marker), Ok(())));
+        let mut again = [0xAAu8; 12];
+        DelaySlotView::new_checked(&mut again[..])
+            .expect("slot")
+            .set_marker(marker);
+        assert_eq!(again[10], byte);
+    }
+    by_view[10] = 3;
+    let v = DelaySlotView::new_checked(&by_view[..]).expect("slot");
+    assert_eq!(
+        (v.marker(), v.check()),
+        (Err(Error::BadMarker(3)), Err(Error::BadMarker(3)))
+    );
+    assert_eq!(DelaySlot::parse(&by_view), Err(Error::BadMarker(3)));
+}
+
+#[test]
 fn view_accessors_name_the_wrong_kind_or_length() {
     assert_eq!(
         frame(&RESPONSE).command().map(|_| ()),
@@ -645,6 +1055,57 @@ fn view_accessors_name_the_wrong_kind_or_length() {
             got: 31
         })
     );
+    assert_eq!(
+        DelaySlotView::new_checked(&DELAY[24..35]).map(|_| ()),
+        Err(Error::Truncated {
+            what: "delay slot",
+            needed: 12,
+            got: 11
+        })
+    );
+    assert_eq!(
+        DelaySlot::parse(&DELAY[24..35]),
+        Err(Error::Truncated {
+            what: "delay slot",
+            needed: 12,
+            got: 11
+        })
+    );
+    assert_eq!(
+        frame(&DELAY).command().map(|_| ()),
+        Err(Error::WrongKind {
+            expected: FrameKind::Command,
+            got: FrameKind::Delay
+        })
+    );
+    assert_eq!(
+        frame(&DELAY).response().map(|_| ()),
+        Err(Error::WrongKind {
+            expected: FrameKind::Response,
+            got: FrameKind::Delay
+        })
+    );
+    // The delay payload read as another lumped kind: its slots do not fit that length.
+    assert_eq!(
+        LumpedPayload::new_checked(&DELAY[12..60], FrameKind::Lumped).map(|_| ()),
+        Err(Error::PayloadLength {
+            kind: FrameKind::Lumped,
+            expected: 72,
+            got: 48
+        })
+    );
+    assert_eq!(
+        LumpedPayload::new_checked(&LUMPED[12..64], FrameKind::Delay).map(|_| ()),
+        Err(Error::PayloadLength {
+            kind: FrameKind::Delay,
+            expected: 36,
+            got: 52
+        })
+    );
+    let mut b = DELAY.to_vec();
+    b[1] = 6;
+    assert_eq!(frame(&b).kind(), Err(Error::BadKind(6)));
+    assert_eq!(frame(&b).route(), Err(Error::BadKind(6)));
     // A command whose header declares a 1-byte payload: the target is not there to route by.
     let mut short = COMMAND[..17].to_vec();
     short[10] = 1;
@@ -696,6 +1157,29 @@ fn view_checks_report_what_the_parsers_report() {
     let b = at(42, 2, &LUMPED);
     let p = frame(&b).lumped().map(|p| p.check_slots());
     assert_eq!(p, Ok(Err(Error::BadMarker(2))));
+    // Marker 2 is good in a delay slot, 3 is not.
+    let b = at(24 + 12 + 10, 2, &DELAY);
+    let p = frame(&b).lumped().map(|p| p.check_slots());
+    assert_eq!(p, Ok(Ok(())));
+    let b = at(24 + 12 + 10, 3, &DELAY);
+    let f = frame(&b);
+    let p = f.lumped().expect("view");
+    assert_eq!(p.check_slots(), Err(Error::BadMarker(3)));
+    let s = p.delay_slot(1).expect("slot");
+    assert_eq!(
+        (s.marker(), s.check()),
+        (Err(Error::BadMarker(3)), Err(Error::BadMarker(3)))
+    );
+    assert_eq!(f.validate(), Err(Error::BadMarker(3)));
+    let b = at(24 + 11, 1, &DELAY);
+    let p = frame(&b).lumped().map(|p| p.check_slots());
+    assert_eq!(
+        p,
+        Ok(Err(Error::Reserved {
+            field: "delay slot byte 11",
+            value: 1
+        }))
+    );
     let mut b = LUMPED_ONLY.to_vec();
     b[52..56].copy_from_slice(&f32::INFINITY.to_le_bytes());
     let b = reseal(b);
@@ -708,7 +1192,7 @@ fn view_checks_report_what_the_parsers_report() {
 
 #[test]
 fn validate_and_parse_agree_on_every_single_bit_flip() {
-    for fixture in [&COMMAND[..], &RESPONSE[..], &LUMPED[..], &LUMPED_ONLY[..]] {
+    for fixture in FIXTURES {
         for byte in 0..fixture.len() {
             for bit in 0..8 {
                 let mut b = fixture.to_vec();
@@ -746,11 +1230,21 @@ fn display_of_the_fixtures() {
         line(&LUMPED_ONLY),
         "lumped-only cycle 10 seq 2, slots 4..5, sent at 5 ns"
     );
+    assert_eq!(
+        line(&DELAY),
+        "delay cycle 3 seq 12, slots 0..3, sent at 1000 ns"
+    );
+    assert_eq!(
+        line(&DELAY_CLOSING),
+        "delay cycle 4 seq 13, slots 1..3, sent at 250000 ns"
+    );
     for (bytes, pdu) in [
         (&COMMAND[..], Pdu::Command(command_repr())),
         (&RESPONSE[..], Pdu::Response(response_repr())),
         (&LUMPED[..], Pdu::Lumped(lumped_repr())),
         (&LUMPED_ONLY[..], Pdu::LumpedOnly(lumped_only_repr())),
+        (&DELAY[..], Pdu::Delay(delay_repr())),
+        (&DELAY_CLOSING[..], Pdu::Delay(delay_closing_repr())),
     ] {
         assert_eq!(line(bytes), pdu.to_string());
     }
@@ -770,6 +1264,23 @@ fn display_of_the_fixtures() {
     assert_eq!(
         line(&b),
         "bad frame (bad written-this-cycle marker 2: expected 0 or 1)"
+    );
+    let b = {
+        let mut b = COMMAND.to_vec();
+        b[1] = 6;
+        reseal(b)
+    };
+    assert_eq!(
+        line(&b),
+        "bad frame (bad frame kind 6: expected 1 (lumped), 2 (command), 3 (response), \
+         4 (lumped-only) or 5 (delay))"
+    );
+    let mut brake = delay_repr();
+    brake.common.flags = Flags::BRAKE;
+    brake.common.retry = 3;
+    assert_eq!(
+        Pdu::Delay(brake).to_string(),
+        "delay cycle 3 seq 12 retry 3 flags BRAKE, slots 0..3, sent at 1000 ns"
     );
     let mut stop = command_repr();
     stop.common.flags = Flags::STOP.with(Flags::TORQUE_OFF);

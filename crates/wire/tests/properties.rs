@@ -4,9 +4,9 @@
 
 use proptest::prelude::*;
 use ringsync_wire::{
-    CommandPayload, CommandRepr, Common, EthernetFrame, FeedbackSlot, FeedbackSlotView, Flags,
-    Frame, FrameKind, LumpedOnlySlot, LumpedOnlySlotView, LumpedPayload, LumpedRepr, Pdu,
-    ResponsePayload, ResponseRepr, Route, SlotCodec, Status,
+    CommandPayload, CommandRepr, Common, DelayMarker, DelaySlot, DelaySlotView, EthernetFrame,
+    FeedbackSlot, FeedbackSlotView, Flags, Frame, FrameKind, LumpedOnlySlot, LumpedOnlySlotView,
+    LumpedPayload, LumpedRepr, Pdu, ResponsePayload, ResponseRepr, Route, SlotCodec, Status,
 };
 
 fn common() -> impl Strategy<Value = Common> {
@@ -58,6 +58,25 @@ fn lumped_only_slot() -> impl Strategy<Value = LumpedOnlySlot> {
     )
 }
 
+fn delay_marker() -> impl Strategy<Value = DelayMarker> {
+    prop_oneof![
+        Just(DelayMarker::Empty),
+        Just(DelayMarker::Written),
+        Just(DelayMarker::Residence),
+    ]
+}
+
+fn delay_slot() -> impl Strategy<Value = DelaySlot> {
+    (any::<u32>(), any::<u32>(), any::<u16>(), delay_marker()).prop_map(
+        |(residence_ns, path_delay_ns, residence_of, marker)| DelaySlot {
+            residence_ns,
+            path_delay_ns,
+            residence_of,
+            marker,
+        },
+    )
+}
+
 fn pdu() -> impl Strategy<Value = Pdu> {
     prop_oneof![
         (
@@ -88,6 +107,20 @@ fn pdu() -> impl Strategy<Value = Pdu> {
                     slots
                 })
             ),
+        (
+            common(),
+            any::<u64>(),
+            0u16..1000,
+            prop::collection::vec(delay_slot(), 0..=122)
+        )
+            .prop_map(|(common, master_time_ns, first_slot, slots)| Pdu::Delay(
+                LumpedRepr {
+                    common,
+                    master_time_ns,
+                    first_slot,
+                    slots
+                }
+            )),
         (common(), 1u16.., finite_f32(), any::<u64>()).prop_map(
             |(common, target, command_v, sample_time_ns)| Pdu::Command(CommandRepr {
                 common,
@@ -158,11 +191,18 @@ proptest! {
         let _ = ResponseRepr::parse(&bytes);
         let _ = LumpedRepr::<FeedbackSlot>::parse(&bytes);
         let _ = LumpedRepr::<LumpedOnlySlot>::parse(&bytes);
+        let _ = LumpedRepr::<DelaySlot>::parse(&bytes);
         let _ = FeedbackSlot::parse(&bytes);
         let _ = LumpedOnlySlot::parse(&bytes);
+        let _ = DelaySlot::parse(&bytes);
         if let Ok(f) = Frame::new_checked(&bytes[..]) {
             let _ = (f.check(), f.payload(), f.crc(), f.cycle());
-            for kind in [FrameKind::Lumped, FrameKind::LumpedOnly, FrameKind::Command] {
+            for kind in [
+                FrameKind::Lumped,
+                FrameKind::LumpedOnly,
+                FrameKind::Delay,
+                FrameKind::Command,
+            ] {
                 if let Ok(p) = LumpedPayload::new_checked(f.payload(), kind) {
                     for k in 0..=usize::from(p.slot_count()) {
                         let _ = p.slot_bytes(k);
@@ -178,7 +218,7 @@ proptest! {
 
     /// Valid header with random payload bytes and a correct CRC: reaches the payload checks.
     #[test]
-    fn sealed_random_payloads_never_panic(kind in 0u8..6, payload in prop::collection::vec(any::<u8>(), 0..200)) {
+    fn sealed_random_payloads_never_panic(kind in 0u8..7, payload in prop::collection::vec(any::<u8>(), 0..200)) {
         let mut b = vec![1, kind, 0, 0, 0, 0, 0, 0, 0, 0];
         b.extend_from_slice(&(payload.len() as u16).to_le_bytes());
         b.extend_from_slice(&payload);
@@ -254,6 +294,26 @@ fn read_through_views(f: &Frame<&[u8]>) -> Pdu {
                 slots,
             })
         }
+        FrameKind::Delay => {
+            let p = f.lumped().expect("delay view");
+            let slots = (0..usize::from(p.slot_count()))
+                .map(|k| {
+                    let s = p.delay_slot(k).expect("slot in range");
+                    DelaySlot {
+                        residence_ns: s.residence_ns(),
+                        path_delay_ns: s.path_delay_ns(),
+                        residence_of: s.residence_of(),
+                        marker: s.marker().expect("marker"),
+                    }
+                })
+                .collect();
+            Pdu::Delay(LumpedRepr {
+                common,
+                master_time_ns: p.master_time_ns(),
+                first_slot: p.first_slot(),
+                slots,
+            })
+        }
     }
 }
 
@@ -264,6 +324,7 @@ fn write_through_views(pdu: &Pdu, buf: &mut [u8]) {
     let c = match pdu {
         Pdu::Lumped(l) => l.common,
         Pdu::LumpedOnly(l) => l.common,
+        Pdu::Delay(l) => l.common,
         Pdu::Command(c) => c.common,
         Pdu::Response(r) => r.common,
     };
@@ -313,6 +374,17 @@ fn write_through_views(pdu: &Pdu, buf: &mut [u8]) {
                 v.set_command_v(s.command_v);
             }
         }
+        Pdu::Delay(l) => {
+            let mut p = f.lumped_mut().expect("delay view");
+            p.set_master_time_ns(l.master_time_ns);
+            for (k, s) in l.slots.iter().enumerate() {
+                let mut v = p.delay_slot_mut(k).expect("slot");
+                v.set_residence_ns(s.residence_ns);
+                v.set_path_delay_ns(s.path_delay_ns);
+                v.set_residence_of(s.residence_of);
+                v.set_marker(s.marker);
+            }
+        }
     }
     f.fill_crc();
 }
@@ -360,6 +432,7 @@ fn touch_everything(bytes: &[u8]) {
         for kind in [
             FrameKind::Lumped,
             FrameKind::LumpedOnly,
+            FrameKind::Delay,
             FrameKind::Response,
         ] {
             if let Ok(p) = LumpedPayload::new_checked(f.payload(), kind) {
@@ -384,6 +457,15 @@ fn touch_everything(bytes: &[u8]) {
             s.check(),
         );
     }
+    if let Ok(s) = DelaySlotView::new_checked(bytes) {
+        let _ = (
+            s.residence_ns(),
+            s.path_delay_ns(),
+            s.residence_of(),
+            s.marker(),
+            s.check(),
+        );
+    }
     if let Ok(e) = EthernetFrame::new_checked(bytes) {
         let _ = e.ringsync_pdu().map(touch_everything);
     }
@@ -398,8 +480,14 @@ fn touch_lumped(p: &LumpedPayload<&[u8]>) {
         if let Some(s) = p.lumped_only_slot(k) {
             let _ = (s.desired_velocity(), s.command_v(), s.check());
         }
+        if let Some(s) = p.delay_slot(k) {
+            let _ = (s.residence_ns(), s.path_delay_ns(), s.marker(), s.check());
+        }
+        let _ = p.slot_bytes(k);
     }
-    let _ = p.feedback_slots().map(|s| s.sample_time_ns()).sum::<u64>();
+    for s in p.feedback_slots() {
+        let _ = (s.sample_time_ns(), s.written());
+    }
     let _ = (p.slot_index(0), p.slot_index(1), p.slot_index(u16::MAX));
 }
 
@@ -419,7 +507,7 @@ fn sealed(bytes: &[u8]) -> Option<Vec<u8>> {
 
 proptest! {
     /// Any emitted representation reads back, field by field, through the views; the route,
-    /// the validation and the text form agree with it.
+    /// the validation and the text form agree with it, and no accessor panics on it.
     #[test]
     fn views_read_what_reprs_emit(p in pdu(), pad in 0usize..8) {
         let mut buf = vec![0u8; p.buffer_len() + pad];
@@ -430,12 +518,16 @@ proptest! {
         let route = match &p {
             Pdu::Lumped(l) => Route::Lumped { first_slot: l.first_slot, slot_count: l.slots.len() as u16 },
             Pdu::LumpedOnly(l) => Route::LumpedOnly { first_slot: l.first_slot, slot_count: l.slots.len() as u16 },
+            Pdu::Delay(l) => Route::Delay { first_slot: l.first_slot, slot_count: l.slots.len() as u16 },
             Pdu::Command(c) => Route::Command { target: c.target },
             Pdu::Response(r) => Route::Response { source: r.source },
         };
         prop_assert_eq!(f.route(), Ok(route));
+        prop_assert_eq!(p.route(), route);
         prop_assert_eq!(route.kind(), p.kind());
         prop_assert_eq!(f.to_string(), p.to_string());
+        // Every accessor over a valid frame of each kind (random bytes rarely make one).
+        touch_everything(&buf);
     }
 
     /// Writing a representation's fields through the views into a blank frame of the same
@@ -454,6 +546,12 @@ proptest! {
                 master_time_ns: 0,
                 first_slot: l.first_slot,
                 slots: vec![LumpedOnlySlot::default(); l.slots.len()],
+            }),
+            Pdu::Delay(l) => Pdu::Delay(LumpedRepr {
+                common: Common::default(),
+                master_time_ns: 0,
+                first_slot: l.first_slot,
+                slots: vec![DelaySlot::default(); l.slots.len()],
             }),
             Pdu::Command(_) => Pdu::Command(CommandRepr {
                 common: Common::default(),
@@ -494,6 +592,7 @@ proptest! {
                     p.set_master_time_ns(1);
                     if let Some(mut s) = p.feedback_slot_mut(0) { s.set_written(true); }
                     if let Some(mut s) = p.lumped_only_slot_mut(0) { s.set_command_v(1.0); }
+                    if let Some(mut s) = p.delay_slot_mut(0) { s.set_marker(DelayMarker::Written); }
                 }
                 if let Ok(mut c) = f.command_mut() { c.set_target(1); }
                 if let Ok(mut r) = f.response_mut() { r.set_status(Status::FAULT); }
@@ -504,7 +603,7 @@ proptest! {
 
     /// Random headers and payloads, sealed, of every kind: reaches the views' payload checks.
     #[test]
-    fn sealed_random_frames_through_the_views(kind in 0u8..6, flags in 0u8..4, payload in prop::collection::vec(any::<u8>(), 0..200)) {
+    fn sealed_random_frames_through_the_views(kind in 0u8..7, flags in 0u8..4, payload in prop::collection::vec(any::<u8>(), 0..200)) {
         let mut b = vec![1, kind, flags, 0, 0, 0, 0, 0, 0, 0];
         b.extend_from_slice(&(payload.len() as u16).to_le_bytes());
         b.extend_from_slice(&payload);

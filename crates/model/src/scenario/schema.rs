@@ -306,6 +306,49 @@ pub struct ClockSpec {
     /// Sampling lead: slaves latch their encoders this long before each cycle start
     /// (EtherCAT's "input shift"); 0 samples at the cycle start, as in the paper.
     pub sample_lead: Dur,
+    /// Where each slave's path delay D_i comes from: "plan" (the planner's event-level
+    /// figure, as configured) or "measured" (the nodes' start-up phase measures it before
+    /// the run, docs/planner.md "Delays measured by the nodes").
+    #[serde(deserialize_with = "path_delays")]
+    pub path_delays: PathDelays,
+}
+
+/// Where the slaves' path delays come from (`clock.path_delays`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum PathDelays {
+    /// The planner's event-level figures, configured in each slave.
+    #[default]
+    Plan,
+    /// Measured by the nodes in a start-up phase before the run.
+    Measured,
+}
+
+impl PathDelays {
+    /// The name used in scenarios and outputs.
+    pub fn name(self) -> &'static str {
+        match self {
+            PathDelays::Plan => "plan",
+            PathDelays::Measured => "measured",
+        }
+    }
+}
+
+impl std::str::FromStr for PathDelays {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "plan" => Ok(PathDelays::Plan),
+            "measured" => Ok(PathDelays::Measured),
+            other => Err(format!(
+                "unknown path delay source '{other}': use \"plan\" or \"measured\""
+            )),
+        }
+    }
+}
+
+fn path_delays<'de, D: Deserializer<'de>>(d: D) -> Result<PathDelays, D::Error> {
+    let s = String::deserialize(d)?;
+    s.parse().map_err(serde::de::Error::custom)
 }
 
 impl Default for ClockSpec {
@@ -316,6 +359,7 @@ impl Default for ClockSpec {
             initial_offset: Dur(Duration::from_us(10)),
             timestamp_resolution: Dur(Duration::from_ns(8)),
             sample_lead: Dur(Duration::ZERO),
+            path_delays: PathDelays::Plan,
         }
     }
 }

@@ -5,6 +5,7 @@
 //! Times a node sees and returns are on its own local clock (its hardware timestamp
 //! counter); the driver converts between local and true time.
 
+pub mod calibrate;
 pub mod clock;
 pub mod master;
 pub mod motion;
@@ -12,6 +13,9 @@ pub mod reject;
 pub mod slave;
 pub mod testbed;
 
+pub use calibrate::{
+    CalibrationConfig, CalibrationError, CalibrationState, Calibrator, DelayMeasurement,
+};
 pub use clock::{ClockFilter, SyncClock};
 pub use master::{
     Master, MasterConfig, MasterCounters, MasterEvent, MeasuredSchedule, OffReason, RingState,

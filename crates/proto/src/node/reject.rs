@@ -10,8 +10,9 @@
 pub enum Reject {
     /// Bad CRC, header, flags or payload layout (what the wire layer refuses).
     Malformed,
-    /// A kind this node never receives in its plan (a command at the master, a lumped-only
-    /// frame on the proposed plan's ring, …).
+    /// A kind this node never receives in its plan or its phase (a command at the master, a
+    /// lumped-only frame on the proposed plan's ring, a sync frame before a slave has its
+    /// path delay, a delay probe once it runs, …).
     UnexpectedKind,
     /// The cycle counter is not the cycle in progress by the node's own clock (a command
     /// for another cycle, a lumped frame whose cycle does not match its own timestamp).
@@ -28,7 +29,8 @@ pub enum Reject {
     /// the master sent (stamp, sequence or layout differ), a response from a slave whose
     /// slice is not open.
     Unsolicited,
-    /// Arithmetic on a wire value would overflow (a timestamp beyond the time line).
+    /// A wire value beyond what the node can use: arithmetic on it would overflow (a
+    /// timestamp beyond the time line), or a path delay not shorter than the cycle.
     Overflow,
 }
 

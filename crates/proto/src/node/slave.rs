@@ -49,8 +49,8 @@
 use std::collections::VecDeque;
 
 use ringsync_wire::{
-    CommandRepr, Common, FeedbackSlot, Flags, Frame, FrameKind, LumpedOnlySlot, LumpedPayload, Pdu,
-    ResponseRepr, SlotCodec, Status,
+    CommandRepr, Common, DelayMarker, DelaySlot, FeedbackSlot, Flags, Frame, FrameKind,
+    LumpedOnlySlot, LumpedPayload, Pdu, ResponseRepr, SlotCodec, Status,
 };
 
 use super::clock::SyncClock;
@@ -229,6 +229,12 @@ pub enum SlaveEvent {
         /// Why.
         cause: TorqueOffCause,
     },
+    /// The start-up phase ended: the slave took the path delay the master measured and
+    /// follows the master's clock from now on.
+    Calibrated {
+        /// Its path delay: master send to this slave's first bit in.
+        path_delay: Duration,
+    },
     /// The clock re-locked to a new master time line.
     Relocked {
         /// The step taken [ns]: new time line minus the slave's clock.
@@ -263,6 +269,9 @@ pub struct SlaveCounters {
     /// Clock acquisitions started afresh (a frame disagreed with the frames before it
     /// before the clock had locked).
     pub acquisitions_restarted: u64,
+    /// Delay frames answered: probes written in the start-up phase, closing frames taken
+    /// or acknowledged again.
+    pub delay_frames: u64,
 }
 
 /// Which encoder latch comes next.
@@ -292,6 +301,23 @@ struct Candidate {
     first_local: i64,
     last_local: i64,
     last_at: i64,
+}
+
+/// The slave's phase: measuring the ring's delays with the master, or running.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Phase {
+    /// Start-up: the path delay is not known yet. The slave answers the master's delay
+    /// probes with its residence and waits for the closing frame with its path delay; it
+    /// takes no sync lumped frame (it could not place the master's time) and no command.
+    Calibrating {
+        /// The last probe it wrote: its sequence number and its first bit's local time.
+        probe: Option<(u16, Instant)>,
+        /// That probe's residence once the driver reported its send
+        /// ([`Slave::handle_forwarded`]): (sequence number, ns on this slave's clock).
+        residence: Option<(u16, u32)>,
+    },
+    /// Following the master: clock sync, feedback, commands.
+    Running,
 }
 
 /// A command that passed acceptance: apply it, or answer a retry of the last one again.
@@ -332,6 +358,7 @@ enum CommandAction {
 /// [`samples_taken`](Slave::samples_taken).
 pub struct Slave {
     cfg: SlaveConfig,
+    phase: Phase,
     clock: SyncClock,
     /// Index k of the next sampling instant k·T_cyc.
     k: i64,
@@ -385,6 +412,7 @@ impl Slave {
         let clock = SyncClock::new(cfg.clock_sync);
         Slave {
             cfg,
+            phase: Phase::Running,
             clock,
             k: 0,
             latch: Latch::Window,
@@ -405,6 +433,45 @@ impl Slave {
             counters: SlaveCounters::default(),
             law: None,
             law_slots: Vec::new(),
+        }
+    }
+
+    /// A slave in its start-up phase: its path delay (`cfg.path_delay` is ignored) comes
+    /// from the master's delay measurement ([`crate::node::calibrate`]). Until the closing
+    /// frame gives it, the slave answers delay probes and takes no sync lumped frame and no
+    /// command.
+    pub fn calibrating(mut cfg: SlaveConfig) -> Self {
+        cfg.path_delay = Duration::ZERO;
+        let mut s = Slave::new(cfg);
+        s.phase = Phase::Calibrating {
+            probe: None,
+            residence: None,
+        };
+        s
+    }
+
+    /// The path delay the slave works with: `None` while it waits for the master's
+    /// measurement ([`Slave::calibrating`]).
+    pub fn path_delay(&self) -> Option<Duration> {
+        match self.phase {
+            Phase::Calibrating { .. } => None,
+            Phase::Running => Some(self.cfg.path_delay),
+        }
+    }
+
+    /// The driver sent on the delay probe this slave last wrote, its first bit out at
+    /// local `tx_start`: the slave reports that residence in the next probe (two-step, as a
+    /// transparent clock's follow-up). Any other time it changes nothing.
+    pub fn handle_forwarded(&mut self, tx_start: Instant) {
+        if let Phase::Calibrating {
+            probe: Some((seq, rx)),
+            residence,
+        } = &mut self.phase
+        {
+            let held = tx_start.as_ns().saturating_sub(rx.as_ns());
+            if let Ok(ns) = u32::try_from(held) {
+                *residence = Some((*seq, ns));
+            }
         }
     }
 
@@ -598,6 +665,15 @@ impl Slave {
                 return FrameOutcome::Dropped;
             }
         };
+        if matches!(self.phase, Phase::Calibrating { .. }) || kind == FrameKind::Delay {
+            let seq = frame.seq();
+            let outcome = self.calibration_frame(rx_start, kind, seq, frame.payload_mut());
+            if kind == FrameKind::Delay && outcome == FrameOutcome::Forward {
+                // The CRC covers the slot just written (unchanged bytes give the same CRC).
+                frame.fill_crc();
+            }
+            return outcome;
+        }
         match kind {
             FrameKind::Lumped if self.law.is_none() => {
                 let cycle = frame.cycle();
@@ -648,12 +724,115 @@ impl Slave {
                 self.take_lumped_only(rx_start, rx_end, &mut frame)
             }
             // A lumped frame of the other plan: not ours to read; the ring carries it on.
-            FrameKind::Lumped | FrameKind::LumpedOnly => {
+            FrameKind::Lumped | FrameKind::LumpedOnly | FrameKind::Delay => {
                 self.reject(Reject::UnexpectedKind);
                 FrameOutcome::Forward
             }
             FrameKind::Response => FrameOutcome::Forward,
         }
+    }
+
+    /// A frame in the start-up phase, or a delay frame in any phase (its header and CRC
+    /// checked; `payload` in place): a delay probe gets this slave's residence report, a
+    /// closing frame gives it its path delay (once running, a closing frame with the delay
+    /// it took is acknowledged again, for a master whose first acknowledgement was lost);
+    /// in the start-up phase a sync lumped frame is carried on untouched and a command
+    /// dropped, both counted (the slave cannot place them yet).
+    fn calibration_frame(
+        &mut self,
+        rx_start: Instant,
+        kind: FrameKind,
+        seq: u16,
+        payload: &mut [u8],
+    ) -> FrameOutcome {
+        match kind {
+            FrameKind::Delay => {}
+            FrameKind::Response => return FrameOutcome::Forward,
+            FrameKind::Command => {
+                self.reject(Reject::UnexpectedKind);
+                return FrameOutcome::Dropped;
+            }
+            FrameKind::Lumped | FrameKind::LumpedOnly => {
+                self.reject(Reject::UnexpectedKind);
+                return FrameOutcome::Forward;
+            }
+        }
+        let Ok(mut p) = LumpedPayload::new_checked(payload, kind) else {
+            self.reject(Reject::Malformed);
+            return FrameOutcome::Dropped;
+        };
+        let Some(k) = p.slot_index(self.cfg.address) else {
+            return FrameOutcome::Forward;
+        };
+        let Some(slot) = p.slot_bytes(k).and_then(|b| DelaySlot::parse(b).ok()) else {
+            self.reject(Reject::Malformed);
+            return FrameOutcome::Dropped;
+        };
+        let written = match self.delay_slot(rx_start, seq, slot) {
+            Ok(w) => w,
+            Err(r) => {
+                self.reject(r);
+                return FrameOutcome::Forward;
+            }
+        };
+        if let Some(b) = p.slot_bytes_mut(k) {
+            // Infallible for a delay slot of the right length.
+            let _ = written.emit(b);
+        }
+        self.counters.delay_frames += 1;
+        FrameOutcome::Forward
+    }
+
+    /// This slave's answer to its slot of a delay frame (probe `seq`, first bit in at local
+    /// `rx_start`): the slot to write back, or why the frame is refused. A closing frame
+    /// (a path delay in the slot) ends the start-up phase.
+    fn delay_slot(
+        &mut self,
+        rx_start: Instant,
+        seq: u16,
+        slot: DelaySlot,
+    ) -> Result<DelaySlot, Reject> {
+        let ack = DelaySlot {
+            marker: DelayMarker::Written,
+            ..slot
+        };
+        let Phase::Calibrating { probe, residence } = &mut self.phase else {
+            let mine = i64::from(slot.path_delay_ns) == self.cfg.path_delay.as_ns();
+            return if slot.path_delay_ns != 0 && mine {
+                Ok(ack)
+            } else {
+                Err(Reject::UnexpectedKind)
+            };
+        };
+        if slot.path_delay_ns != 0 {
+            // A path delay is a fraction of the cycle: the master's send to this slave.
+            let d = Duration::from_ns(i64::from(slot.path_delay_ns));
+            if d >= self.cfg.cycle {
+                return Err(Reject::Overflow);
+            }
+            self.cfg.path_delay = d;
+            self.phase = Phase::Running;
+            self.events
+                .push_back(SlaveEvent::Calibrated { path_delay: d });
+            return Ok(ack);
+        }
+        if probe.is_some_and(|(s, _)| s == seq) {
+            return Err(Reject::Duplicate);
+        }
+        let answer = match residence.take() {
+            Some((of, ns)) => DelaySlot {
+                residence_ns: ns,
+                path_delay_ns: 0,
+                residence_of: of,
+                marker: DelayMarker::Residence,
+            },
+            None => DelaySlot {
+                marker: DelayMarker::Written,
+                ..DelaySlot::default()
+            },
+        };
+        *probe = Some((seq, rx_start));
+        Ok(answer)
     }
 
     /// A decoded frame whose first bit arrived at local `rx_start` and last bit at `rx_end`
@@ -667,6 +846,10 @@ impl Slave {
         rx_end: Instant,
         pdu: &mut Pdu,
     ) -> FrameOutcome {
+        // The start-up phase reads and writes delay frames in place: through their bytes.
+        if matches!(self.phase, Phase::Calibrating { .. }) {
+            return self.handle_pdu_as_bytes(rx_start, rx_end, pdu);
+        }
         match pdu {
             Pdu::Lumped(l) if self.law.is_none() => {
                 let k = usize::from(self.cfg.address)
@@ -704,23 +887,34 @@ impl Slave {
             // The lumped-only plan's slaves read and write the frame in place: through
             // its bytes.
             Pdu::LumpedOnly(_) if self.law.is_some() => {
-                let mut bytes = Vec::new();
-                if pdu.emit_into(&mut bytes).is_err() {
-                    self.reject(Reject::Malformed);
-                    return FrameOutcome::Dropped;
-                }
-                let outcome = self.handle_frame(rx_start, rx_end, &mut bytes);
-                if let Ok(p) = Pdu::parse(&bytes) {
-                    *pdu = p;
-                }
-                outcome
+                self.handle_pdu_as_bytes(rx_start, rx_end, pdu)
             }
             Pdu::Lumped(_) | Pdu::LumpedOnly(_) => {
                 self.reject(Reject::UnexpectedKind);
                 FrameOutcome::Forward
             }
             Pdu::Response(_) => FrameOutcome::Forward,
+            Pdu::Delay(_) => self.handle_pdu_as_bytes(rx_start, rx_end, pdu),
         }
+    }
+
+    /// [`Slave::handle_frame`] on the bytes of `pdu`, which takes the frame as modified.
+    fn handle_pdu_as_bytes(
+        &mut self,
+        rx_start: Instant,
+        rx_end: Instant,
+        pdu: &mut Pdu,
+    ) -> FrameOutcome {
+        let mut bytes = Vec::new();
+        if pdu.emit_into(&mut bytes).is_err() {
+            self.reject(Reject::Malformed);
+            return FrameOutcome::Dropped;
+        }
+        let outcome = self.handle_frame(rx_start, rx_end, &mut bytes);
+        if let Ok(p) = Pdu::parse(&bytes) {
+            *pdu = p;
+        }
+        outcome
     }
 
     /// Checks a lumped frame that carries this slave's slot (its `cycle` and send `stamp`,

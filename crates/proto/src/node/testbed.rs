@@ -528,7 +528,9 @@ impl Testbed {
                 }
                 SlaveEvent::Brake { u } => a.u = u,
                 SlaveEvent::TorqueOff { .. } | SlaveEvent::WatchdogExpired => a.u = 0.0,
-                SlaveEvent::Relocked { .. } | SlaveEvent::Braking { .. } => {}
+                SlaveEvent::Relocked { .. }
+                | SlaveEvent::Braking { .. }
+                | SlaveEvent::Calibrated { .. } => {}
             }
             if let SlaveEvent::TorqueOff { .. } = ev {
                 a.off = true;

@@ -1,4 +1,5 @@
-//! Sync lumped frames: the proposed plan's (kind 1) and the lumped-only plan's (kind 4).
+//! Sync lumped frames: the proposed plan's (kind 1) and the lumped-only plan's (kind 4);
+//! and the start-up phase's delay frame (kind 5), which goes round the ring the same way.
 //!
 //! ```text
 //! payload
@@ -6,10 +7,11 @@
 //!      0    8 u64   master send timestamp [ns, master clock]
 //!      8    2 u16   first slot index f (slot k belongs to slave f + k + 1)
 //!     10    2 u16   slot count m
-//!     12  m*S       slots, S = 20 B (kind 1) or 32 B (kind 4)
+//!     12  m*S       slots, S = 20 B (kind 1), 32 B (kind 4) or 12 B (kind 5)
 //! ```
 //! The offsets of the prefix are in [`field`], those of the slots in [`feedback::field`]
-//! (kind 1, and the first 20 B of a kind-4 slot) and [`lumped_only::field`] (kind 4).
+//! (kind 1, and the first 20 B of a kind-4 slot), [`lumped_only::field`] (kind 4) and
+//! [`delay::field`] (kind 5).
 
 use alloc::vec::Vec;
 
@@ -18,9 +20,11 @@ use crate::error::{Error, Result, need};
 use crate::ethernet::MTU;
 use crate::header::{CRC_LEN, Common, FrameKind, HEADER_LEN, emit_common, parse_common};
 
+pub mod delay;
 pub mod feedback;
 pub mod lumped_only;
 
+pub use delay::{DelayMarker, DelaySlot, DelaySlotView};
 pub use feedback::{FeedbackSlot, FeedbackSlotView};
 pub use lumped_only::{LumpedOnlySlot, LumpedOnlySlotView};
 
@@ -97,12 +101,15 @@ pub struct LumpedRepr<S> {
 pub type LumpedFrameRepr = LumpedRepr<FeedbackSlot>;
 /// The lumped-only plan's frame.
 pub type LumpedOnlyFrameRepr = LumpedRepr<LumpedOnlySlot>;
+/// The start-up phase's delay frame.
+pub type DelayFrameRepr = LumpedRepr<DelaySlot>;
 
 /// Slot length of a lumped kind, or `WrongKind` for the others.
 fn slot_len(kind: FrameKind) -> Result<usize> {
     match kind {
         FrameKind::Lumped => Ok(FeedbackSlot::LEN),
         FrameKind::LumpedOnly => Ok(LumpedOnlySlot::LEN),
+        FrameKind::Delay => Ok(DelaySlot::LEN),
         other => Err(Error::WrongKind {
             expected: FrameKind::Lumped,
             got: other,
@@ -195,7 +202,7 @@ pub struct LumpedPayload<T: AsRef<[u8]>> {
 }
 
 impl<T: AsRef<[u8]>> LumpedPayload<T> {
-    /// Wraps the payload of a frame of kind `kind` (lumped or lumped-only) after checking
+    /// Wraps the payload of a frame of kind `kind` (lumped, lumped-only or delay) after checking
     /// its prefix: the slot count within the MTU's capacity, the slot addresses within
     /// 65535, and the payload length equal to prefix plus slots.
     pub fn new_checked(buffer: T, kind: FrameKind) -> Result<Self> {
@@ -229,14 +236,15 @@ impl<T: AsRef<[u8]>> LumpedPayload<T> {
     pub fn into_inner(self) -> T {
         self.buffer
     }
-    /// Frame kind: [`FrameKind::Lumped`] or [`FrameKind::LumpedOnly`].
+    /// Frame kind: [`FrameKind::Lumped`], [`FrameKind::LumpedOnly`] or [`FrameKind::Delay`].
     pub fn kind(&self) -> FrameKind {
         self.kind
     }
-    /// Length of one slot [B]: 20 (kind 1) or 32 (kind 4).
+    /// Length of one slot [B]: 20 (kind 1), 32 (kind 4) or 12 (kind 5).
     pub fn slot_len(&self) -> usize {
         match self.kind {
             FrameKind::LumpedOnly => LumpedOnlySlot::LEN,
+            FrameKind::Delay => DelaySlot::LEN,
             _ => FeedbackSlot::LEN,
         }
     }
@@ -274,16 +282,35 @@ impl<T: AsRef<[u8]>> LumpedPayload<T> {
         self.buffer.as_ref()[field::SLOTS].chunks_exact(self.slot_len())
     }
     /// The feedback part of slot `k` (the whole slot of kind 1, the first 20 B of a kind-4
-    /// slot), or `None` past the end.
+    /// slot), or `None` past the end or in a delay frame.
     pub fn feedback_slot(&self, k: usize) -> Option<FeedbackSlotView<&[u8]>> {
+        if self.kind == FrameKind::Delay {
+            return None;
+        }
         self.slot_bytes(k).map(FeedbackSlotView::new_unchecked)
     }
-    /// The feedback part of every slot, in ring order (slot k belongs to slave
-    /// `first_slot + k + 1`).
-    pub fn feedback_slots(&self) -> impl ExactSizeIterator<Item = FeedbackSlotView<&[u8]>> {
-        self.slot_chunks().map(FeedbackSlotView::new_unchecked)
+    /// Slot `k` of a delay frame; `None` past the end or in a frame of another kind.
+    pub fn delay_slot(&self, k: usize) -> Option<DelaySlotView<&[u8]>> {
+        if self.kind != FrameKind::Delay {
+            return None;
+        }
+        self.slot_bytes(k).map(DelaySlotView::new_unchecked)
     }
-    /// Slot `k` of a lumped-only frame; `None` past the end or in a kind-1 frame.
+    /// The feedback part of every slot, in ring order (slot k belongs to slave
+    /// `first_slot + k + 1`); none in a delay frame, whose slots hold no feedback.
+    pub fn feedback_slots(&self) -> impl ExactSizeIterator<Item = FeedbackSlotView<&[u8]>> {
+        // A delay slot (12 B) is shorter than a feedback slot (20 B): its view's getters
+        // would read past it.
+        let slots = if self.kind == FrameKind::Delay {
+            &[][..]
+        } else {
+            &self.buffer.as_ref()[field::SLOTS]
+        };
+        slots
+            .chunks_exact(self.slot_len())
+            .map(FeedbackSlotView::new_unchecked)
+    }
+    /// Slot `k` of a lumped-only frame; `None` past the end or in a frame of another kind.
     pub fn lumped_only_slot(&self, k: usize) -> Option<LumpedOnlySlotView<&[u8]>> {
         if self.kind != FrameKind::LumpedOnly {
             return None;
@@ -295,6 +322,7 @@ impl<T: AsRef<[u8]>> LumpedPayload<T> {
     pub fn check_slots(&self) -> Result<()> {
         let each = |b: &[u8]| match self.kind {
             FrameKind::LumpedOnly => LumpedOnlySlotView::new_unchecked(b).check(),
+            FrameKind::Delay => DelaySlotView::new_unchecked(b).check(),
             _ => FeedbackSlotView::new_unchecked(b).check(),
         };
         self.slot_chunks().try_for_each(each)
@@ -314,7 +342,17 @@ impl<T: AsRef<[u8]> + AsMut<[u8]>> LumpedPayload<T> {
     }
     /// The feedback part of slot `k`, mutable (see [`LumpedPayload::feedback_slot`]).
     pub fn feedback_slot_mut(&mut self, k: usize) -> Option<FeedbackSlotView<&mut [u8]>> {
+        if self.kind == FrameKind::Delay {
+            return None;
+        }
         self.slot_bytes_mut(k).map(FeedbackSlotView::new_unchecked)
+    }
+    /// Slot `k` of a delay frame, mutable (see [`LumpedPayload::delay_slot`]).
+    pub fn delay_slot_mut(&mut self, k: usize) -> Option<DelaySlotView<&mut [u8]>> {
+        if self.kind != FrameKind::Delay {
+            return None;
+        }
+        self.slot_bytes_mut(k).map(DelaySlotView::new_unchecked)
     }
     /// Slot `k` of a lumped-only frame, mutable (see [`LumpedPayload::lumped_only_slot`]).
     pub fn lumped_only_slot_mut(&mut self, k: usize) -> Option<LumpedOnlySlotView<&mut [u8]>> {
