@@ -297,10 +297,10 @@ local function check_lumped_prefix(s, kind, at, len)
     return nil
 end
 
--- The texts of a bad slot marker and of a delay slot's reserved byte (Error::BadMarker,
--- Error::Reserved: crates/wire prints the same marker text for every lumped kind).
+-- The texts of a bad delay slot marker and of a delay slot's reserved byte
+-- (Error::BadDelayMarker, Error::Reserved).
 local function bad_marker_text(marker)
-    return string.format("bad written-this-cycle marker %d: expected 0 or 1", marker)
+    return string.format("bad delay slot marker %d: expected 0, 1 or 2", marker)
 end
 
 local function delay_reserved_text(reserved)
@@ -328,7 +328,7 @@ local function check_slot(s, kind, at)
     end
     local marker = u8(s, at + FEEDBACK.written[1])
     if marker > 1 then
-        return bad_marker_text(marker)
+        return string.format("bad written-this-cycle marker %d: expected 0 or 1", marker)
     end
     local reserved = u8(s, at + FEEDBACK.reserved[1])
     if reserved ~= 0 then

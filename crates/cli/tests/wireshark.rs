@@ -817,7 +817,7 @@ fn known_frames_on_ethernet_claimed_checked_or_decoded_as() {
     let bad = at("delay marker 3");
     assert_eq!(
         one(bad, "_ws.col.Info"),
-        "bad frame (bad written-this-cycle marker 3: expected 0 or 1)"
+        "bad frame (bad delay slot marker 3: expected 0, 1 or 2)"
     );
     assert_eq!(bad["ringsync.slot.marker"], ["2", "3", "0"]);
     // The frame with a flipped bit is not claimed, until the preference says so: then it

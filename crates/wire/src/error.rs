@@ -75,6 +75,8 @@ pub enum Error {
     },
     /// A "written this cycle" marker other than 0 or 1.
     BadMarker(u8),
+    /// A delay slot's marker other than 0, 1 or 2.
+    BadDelayMarker(u8),
     /// The output buffer is shorter than [`buffer_len`](crate::Pdu::buffer_len) [B].
     BufferTooSmall {
         /// Bytes needed [B].
@@ -139,6 +141,7 @@ impl fmt::Display for Error {
                 write!(f, "slots {first}+{count} address slaves past 65535")
             }
             Error::BadMarker(m) => write!(f, "bad written-this-cycle marker {m}: expected 0 or 1"),
+            Error::BadDelayMarker(m) => write!(f, "bad delay slot marker {m}: expected 0, 1 or 2"),
             Error::BufferTooSmall { needed, got } => {
                 write!(f, "output buffer too small: need {needed} bytes, got {got}")
             }

@@ -434,8 +434,8 @@ fn typed_errors_name_the_problem() {
     );
     assert_eq!(at(1, 6, &DELAY), Err(Error::BadKind(6)));
     // Delay slots: marker 0, 1 or 2; byte 11 reserved.
-    assert_eq!(at(24 + 10, 3, &DELAY), Err(Error::BadMarker(3)));
-    assert_eq!(at(24 + 10, 0xFF, &DELAY), Err(Error::BadMarker(0xFF)));
+    assert_eq!(at(24 + 10, 3, &DELAY), Err(Error::BadDelayMarker(3)));
+    assert_eq!(at(24 + 10, 0xFF, &DELAY), Err(Error::BadDelayMarker(0xFF)));
     assert_eq!(
         at(24 + 12 + 11, 7, &DELAY),
         Err(Error::Reserved {
@@ -991,9 +991,9 @@ fn delay_slot_view_writes_what_the_repr_emits() {
     let v = DelaySlotView::new_checked(&by_view[..]).expect("slot");
     assert_eq!(
         (v.marker(), v.check()),
-        (Err(Error::BadMarker(3)), Err(Error::BadMarker(3)))
+        (Err(Error::BadDelayMarker(3)), Err(Error::BadDelayMarker(3)))
     );
-    assert_eq!(DelaySlot::parse(&by_view), Err(Error::BadMarker(3)));
+    assert_eq!(DelaySlot::parse(&by_view), Err(Error::BadDelayMarker(3)));
 }
 
 #[test]
@@ -1164,13 +1164,13 @@ fn view_checks_report_what_the_parsers_report() {
     let b = at(24 + 12 + 10, 3, &DELAY);
     let f = frame(&b);
     let p = f.lumped().expect("view");
-    assert_eq!(p.check_slots(), Err(Error::BadMarker(3)));
+    assert_eq!(p.check_slots(), Err(Error::BadDelayMarker(3)));
     let s = p.delay_slot(1).expect("slot");
     assert_eq!(
         (s.marker(), s.check()),
-        (Err(Error::BadMarker(3)), Err(Error::BadMarker(3)))
+        (Err(Error::BadDelayMarker(3)), Err(Error::BadDelayMarker(3)))
     );
-    assert_eq!(f.validate(), Err(Error::BadMarker(3)));
+    assert_eq!(f.validate(), Err(Error::BadDelayMarker(3)));
     let b = at(24 + 11, 1, &DELAY);
     let p = frame(&b).lumped().map(|p| p.check_slots());
     assert_eq!(

@@ -68,7 +68,7 @@ impl DelayMarker {
             0 => Ok(DelayMarker::Empty),
             1 => Ok(DelayMarker::Written),
             2 => Ok(DelayMarker::Residence),
-            other => Err(Error::BadMarker(other)),
+            other => Err(Error::BadDelayMarker(other)),
         }
     }
 }
