@@ -2,6 +2,7 @@
 //! (Huang et al. 2015). Thin: parse the command line, call the `ringsync` library, print.
 
 mod latency_cmd;
+mod node_cmd;
 mod plan_cmd;
 mod rt_cmd;
 mod scenario_cmd;
@@ -101,6 +102,10 @@ enum Command {
     Reproduce(sim_cmd::ReproduceArgs),
     /// Run a scenario in real time over UDP on loopback or a veth ring of network namespaces.
     Rt(rt_cmd::RtArgs),
+    /// Run one node of a ring as this process (what `rt --processes` starts, one per node;
+    /// docs/runtime.md, "One process per node").
+    #[command(subcommand)]
+    Node(node_cmd::NodeCmd),
     /// What this host gives a real-time loop, without the ring (cyclictest-like): cycle-start
     /// lateness and stalls, with the same loop and settings as `rt`.
     Latency(latency_cmd::LatencyArgs),
@@ -163,6 +168,7 @@ fn main() -> ExitCode {
         Command::Sweep(args) => sim_cmd::sweep(&args),
         Command::Identify(args) => sim_cmd::identify(&args),
         Command::Rt(args) => rt_cmd::rt(&args),
+        Command::Node(cmd) => node_cmd::node(&cmd),
         Command::Latency(args) => latency_cmd::latency(&args),
     };
     match result {

@@ -108,6 +108,12 @@ pub struct RtArgs {
     /// Skip the simulator's prediction for the same scenario.
     #[arg(long)]
     no_sim_prediction: bool,
+    /// Run every node as its own process (`ringsync node master`, `ringsync node slave
+    /// --index I`), each with its own port, clock and loop, and gather their results (the
+    /// nodes stamp frames in software). Not yet with faults injected, a broken link,
+    /// --pcap or --scope.
+    #[arg(long)]
+    processes: bool,
     #[cfg(feature = "scope")]
     #[command(flatten)]
     scope: crate::scope_opt::RtScopeArgs,
@@ -219,8 +225,11 @@ pub(crate) fn rt(args: &RtArgs) -> Result<Outcome, CliError> {
     let observers = Vec::new();
     // trace.csv and the capture are written as the run goes: its memory does not grow
     // with its duration.
-    let r =
-        ringsync::rt::run_rt_streamed(&mut dir, s, &opts, stop, observers, args.pcap.as_deref())?;
+    let r = if args.processes {
+        ringsync::rt::run_rt_processes(&loaded, &opts, stop)?
+    } else {
+        ringsync::rt::run_rt_streamed(&mut dir, s, &opts, stop, observers, args.pcap.as_deref())?
+    };
     #[cfg(feature = "scope")]
     scope.finish(&r.scenario, loaded.hash, &r.run);
     // The simulator's prediction for the scenario as run (after the overrides).

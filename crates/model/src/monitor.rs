@@ -18,7 +18,7 @@ use ringsync_proto::Duration;
 use ringsync_proto::node::{MonitorKind, MonitorNews, StopReason};
 
 /// A monitor's news at a time, as a run records it.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct MonitorEvent {
     /// When the master's law run saw it [s, true time].
     pub t: f64,

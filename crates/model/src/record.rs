@@ -16,7 +16,7 @@ use crate::result::{Captured, LinkCounters, PassageLog, RingChange, RunResult, T
 use crate::stream::TraceSink;
 
 /// One axis at a cycle start, as the driver observes it.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct AxisProbe {
     /// True position [rad].
     pub x: f64,
@@ -31,7 +31,7 @@ pub struct AxisProbe {
 }
 
 /// One step of a fault reaction.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub enum FaultStep {
     /// The master stopped the group (the axis is the one that caused it).
     GroupStop(StopReason),
@@ -97,7 +97,7 @@ impl FaultStep {
 }
 
 /// A fault-reaction step at a time, on an axis.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct FaultEvent {
     /// When [s, true time].
     pub t: f64,

@@ -48,7 +48,7 @@ pub fn assumptions(s: &crate::Scenario) -> Vec<&'static str> {
 
 /// What the nodes' start-up phase measured (`clock.path_delays = "measured"`), beside the
 /// planner's figures.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct StartUp {
     /// The master's figures.
     pub measured: ringsync_proto::node::DelayMeasurement,
@@ -227,7 +227,7 @@ impl Trace {
 }
 
 /// Link-level counters.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 pub struct LinkCounters {
     /// Frames lost on a hop.
     pub lost: u64,
@@ -239,7 +239,7 @@ pub struct LinkCounters {
 
 /// A change of the ring the master found (ring redundancy, docs/planner.md "A broken
 /// link").
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct RingChange {
     /// When the master found it (its P2P start) [s].
     pub t: f64,

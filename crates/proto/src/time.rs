@@ -8,7 +8,9 @@ use serde::Serialize;
 
 /// A signed span of time [ns]. Signed so that a shortfall (negative idle time) or a clock
 /// offset is representable.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Default, Serialize)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Default, Serialize, serde::Deserialize,
+)]
 #[serde(transparent)]
 pub struct Duration(i64);
 
@@ -97,7 +99,9 @@ impl core::iter::Sum for Duration {
 
 /// A point in time on one time line [ns since that line's origin]; in a cycle plan, the
 /// origin is the cycle start (the master starts sending the lumped frame).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Default, Serialize)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Default, Serialize, serde::Deserialize,
+)]
 #[serde(transparent)]
 pub struct Instant(i64);
 

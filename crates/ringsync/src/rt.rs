@@ -40,6 +40,40 @@ pub fn run_rt(
     Ok(ringsync_rt::run_observed(s, opts, stop, observers)?)
 }
 
+/// Runs the scenario `loaded` as one process per node (`ringsync node …`, started from this
+/// executable): docs/runtime.md, "One process per node".
+pub fn run_rt_processes(
+    loaded: &crate::Loaded,
+    opts: &RtOptions,
+    stop: &AtomicBool,
+) -> Result<RtResult> {
+    let program = std::env::current_exe()
+        .map_err(|e| Error::io("finding the ringsync executable to start the nodes", e))?;
+    Ok(ringsync_rt::launch::run_processes(
+        &loaded.text,
+        &loaded.origin,
+        opts,
+        &program,
+        stop,
+    )?)
+}
+
+/// Runs node `index` (0 the master, i slave i) of the ring the plan at `plan` describes,
+/// until the run's end or `stop`.
+pub fn run_node(
+    plan: &Path,
+    index: usize,
+    stop: &AtomicBool,
+) -> Result<ringsync_rt::node::NodeRecord> {
+    let plan = ringsync_rt::node::NodePlan::read(plan)?;
+    Ok(ringsync_rt::node::run_node(&plan, index, stop)?)
+}
+
+/// Writes what a node saw (JSON), whole or not at all.
+pub fn write_node_record(rec: &ringsync_rt::node::NodeRecord, path: &Path) -> Result<()> {
+    Ok(ringsync_rt::node::write_record(rec, path)?)
+}
+
 /// The simulator's prediction for `s`: means over `seeds` seeds from its own (one run's
 /// Sync-RMSE moves by about ±10 % with the seed; a real-time run is one more draw).
 ///

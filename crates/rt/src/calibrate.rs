@@ -26,7 +26,7 @@ use crate::timing::STALL;
 use crate::transport::{MAX_PDU, Port};
 
 /// What the start-up phase measured [ns].
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct Calibration {
     /// Probes sent.
     pub rounds: usize,
@@ -193,36 +193,61 @@ pub fn calibrate(
         }
     };
     let taken: Vec<Option<Duration>> = slaves.iter().map(Slave::path_delay).collect();
-    let path: Vec<i64> = taken
-        .iter()
-        .zip(&m.path)
-        .map(|(t, p)| t.unwrap_or(*p).as_ns())
-        .collect();
-    let rtt: Vec<i64> = m.round_trips.iter().map(|d| d.as_ns()).collect();
-    let slice = m
-        .residence
-        .iter()
-        .map(|r| {
-            let v: Vec<i64> = rtt.iter().map(|t| t - r.as_ns()).collect();
-            Percentiles::of(&v)
-        })
-        .collect();
-    Ok(Calibration {
-        rounds: m.probes as usize,
+    let rejected = slaves.iter().map(|s| s.counters().rejected.total()).sum();
+    Ok(Calibration::of(
+        m,
+        taken,
         repeated,
-        command: path.clone(),
-        path,
-        round_trip: Percentiles::of(&rtt),
-        slice,
-        start_up: StartUp {
-            taken,
-            planned: spec.plan.d_c.clone(),
-            resolution: spec.scenario.clock.timestamp_resolution.0,
-            slaves_rejected: slaves.iter().map(|s| s.counters().rejected.total()).sum(),
-            took: Duration::from_ns(now_ns() - origin),
-            measured: m,
-        },
-    })
+        rejected,
+        spec,
+        Duration::from_ns(now_ns() - origin),
+    ))
+}
+
+impl Calibration {
+    /// The runtime's figures from the master's measurement `m`: the path delay each slave
+    /// took (`taken`; a slave that took none, which a finished phase rules out, counts with
+    /// the master's figure), the probes not counted after a host stall (`repeated`), the
+    /// frames the slaves refused (`rejected`), how long the phase took (`took`).
+    pub fn of(
+        m: ringsync_proto::node::DelayMeasurement,
+        taken: Vec<Option<Duration>>,
+        repeated: usize,
+        rejected: u64,
+        spec: &Spec,
+        took: Duration,
+    ) -> Calibration {
+        let path: Vec<i64> = taken
+            .iter()
+            .zip(&m.path)
+            .map(|(t, p)| t.unwrap_or(*p).as_ns())
+            .collect();
+        let rtt: Vec<i64> = m.round_trips.iter().map(|d| d.as_ns()).collect();
+        let slice = m
+            .residence
+            .iter()
+            .map(|r| {
+                let v: Vec<i64> = rtt.iter().map(|t| t - r.as_ns()).collect();
+                Percentiles::of(&v)
+            })
+            .collect();
+        Calibration {
+            rounds: m.probes as usize,
+            repeated,
+            command: path.clone(),
+            path,
+            round_trip: Percentiles::of(&rtt),
+            slice,
+            start_up: StartUp {
+                taken,
+                planned: spec.plan.d_c.clone(),
+                resolution: spec.scenario.clock.timestamp_resolution.0,
+                slaves_rejected: rejected,
+                took,
+                measured: m,
+            },
+        }
+    }
 }
 
 fn failed(e: &CalibrationError) -> io::Error {

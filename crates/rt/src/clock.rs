@@ -41,6 +41,16 @@ impl Clock {
         }
     }
 
+    /// A clock whose time 0 is the monotonic clock's reading `t0` [ns] (an epoch shared by
+    /// the processes of a ring on one host).
+    pub fn starting_at(t0: i64) -> Clock {
+        Clock {
+            t0,
+            last: sys::now_ns() - t0,
+            stall: 0,
+        }
+    }
+
     /// `CLOCK_MONOTONIC` at time 0 [ns].
     pub fn t0(&self) -> i64 {
         self.t0

@@ -6,18 +6,22 @@
 //! The rooms: [`run`] (options, results, the steps of a run), [`transport`] (ports and
 //! [`TransportKind::open`]), [`calibrate`], [`schedule`], [`ring`] (the loop), [`timing`],
 //! [`clock`] (the clock and wait discipline the loop shares with [`host`], the probe behind
-//! `ringsync latency`), [`inject`] (faults), [`realtime`] (CPU, priority, memory), [`netns`].
+//! `ringsync latency`), [`inject`] (faults), [`realtime`] (CPU, priority, memory), [`netns`];
+//! [`node`] (one node per process: `ringsync node`).
 
 pub mod calibrate;
 pub mod clock;
 pub mod host;
 pub mod inject;
+pub mod launch;
 pub mod netns;
+pub mod node;
 pub mod realtime;
 pub mod ring;
 pub mod run;
 pub mod schedule;
 pub mod stats;
+pub mod supervise;
 mod sys;
 pub mod timing;
 pub mod transport;

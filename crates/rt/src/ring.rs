@@ -44,7 +44,7 @@ pub const RX_RETRY: i64 = 1_000_000;
 
 /// The slave clock servo of the runtime (both stamps): it rides out bursts of late or lost
 /// frames, which software stamps see as outliers (see the runtime's assumptions).
-const RT_CLOCK_FILTER: ClockFilter = ClockFilter {
+pub(crate) const RT_CLOCK_FILTER: ClockFilter = ClockFilter {
     offset_gain: 0.25,
     rate_gain: 0.25,
     outlier_limit: Some(Duration::from_us(50)),

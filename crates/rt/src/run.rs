@@ -251,6 +251,9 @@ pub enum RtError {
     /// The measured ring does not fit the cycle, or an option is out of range.
     #[error("{0}")]
     Config(String),
+    /// A node process failed, or its start-up phase did (one process per node).
+    #[error("{0}")]
+    Node(String),
 }
 
 pub(crate) fn io_err(context: &str) -> impl FnOnce(io::Error) -> RtError + '_ {

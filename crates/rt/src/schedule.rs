@@ -18,7 +18,7 @@ use crate::run::RtError;
 pub const RT_TIMESTAMP_TOLERANCE: Duration = Duration::from_us(200);
 
 /// The master's P2P schedule on the measured ring [ns].
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct Schedule {
     /// P2P start: after the lumped frame's measured round trip (twice its p99, + 20 µs),
     /// and never before the plan's.

@@ -5,7 +5,7 @@
 use hdrhistogram::Histogram;
 
 /// Percentiles of a sample of durations [ns] (nearest rank).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 pub struct Percentiles {
     /// Number of values.
     pub count: usize,

@@ -214,6 +214,66 @@ pub fn stop_flag() -> &'static AtomicBool {
     &STOP
 }
 
+/// Sends signal `sig` to every process of the process group `pgid` (`kill(-pgid, sig)`).
+/// Group ids 0 and 1 are refused: `kill(0, ..)` would signal the caller's own group and
+/// `kill(-1, ..)` every process the caller may signal.
+pub fn signal_group(pgid: u32, sig: libc::c_int) -> io::Result<()> {
+    let group = libc::pid_t::try_from(pgid)
+        .ok()
+        .filter(|&g| g > 1)
+        .ok_or_else(|| {
+            io::Error::new(
+                io::ErrorKind::InvalidInput,
+                format!("no process group {pgid}"),
+            )
+        })?;
+    // SAFETY: kill reads no memory; `-group` is below -1, so it names exactly one group.
+    if unsafe { libc::kill(-group, sig) } != 0 {
+        return Err(io::Error::last_os_error());
+    }
+    Ok(())
+}
+
+/// Sends signal `sig` to the process `pid` (`kill(pid, sig)`); signal 0 only checks that
+/// the process exists (`ESRCH` when it does not). Pid 0 is refused.
+#[cfg(test)]
+pub fn signal_process(pid: u32, sig: libc::c_int) -> io::Result<()> {
+    let pid = libc::pid_t::try_from(pid)
+        .ok()
+        .filter(|&p| p > 0)
+        .ok_or_else(|| io::Error::new(io::ErrorKind::InvalidInput, format!("no process {pid}")))?;
+    // SAFETY: kill reads no memory; a positive pid names exactly one process.
+    if unsafe { libc::kill(pid, sig) } != 0 {
+        return Err(io::Error::last_os_error());
+    }
+    Ok(())
+}
+
+/// Makes the process that `cmd` starts get SIGKILL when the thread that started it ends
+/// (`PR_SET_PDEATHSIG`), so that a launcher that dies without cleaning up (SIGKILL, abort)
+/// leaves no child running. A child whose launcher is already gone when it gets there
+/// kills itself. The thread must outlive the child: the kernel ties the signal to the
+/// thread, not the process.
+pub fn die_with_parent(cmd: &mut std::process::Command) {
+    use std::os::unix::process::CommandExt;
+    let parent = std::process::id();
+    // SAFETY: the closure runs in the child between fork and exec, where only
+    // async-signal-safe calls are allowed: it calls prctl, getppid and raise and allocates
+    // nothing (`io::Error::last_os_error` is the errno, not a heap value). The prctl
+    // argument is passed as the unsigned long the kernel reads.
+    unsafe {
+        cmd.pre_exec(move || {
+            if libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGKILL as libc::c_ulong) != 0 {
+                return Err(io::Error::last_os_error());
+            }
+            if u32::try_from(libc::getppid()).ok() != Some(parent) {
+                libc::raise(libc::SIGKILL);
+            }
+            Ok(())
+        })
+    };
+}
+
 /// Moves the calling thread into the network namespace `name` (`/run/netns/NAME`).
 pub fn enter_netns(name: &str) -> io::Result<()> {
     let f = std::fs::File::open(format!("/run/netns/{name}"))?;

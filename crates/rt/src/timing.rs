@@ -11,7 +11,7 @@ use crate::stats::{Delays, Percentiles};
 pub const STALL: i64 = 50_000;
 
 /// The ring's timing over the run.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
 pub struct Timing {
     /// Cycles the master started (fewer than planned when the run was interrupted).
     pub cycles: i64,

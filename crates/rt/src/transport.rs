@@ -112,8 +112,8 @@ pub struct OpenRing {
 pub struct UdpPort {
     sock: UdpSocket,
     next: SocketAddr,
-    back: UdpSocket,
-    prev_back: SocketAddr,
+    /// The backward socket and the previous node's (none for a node process's port).
+    back: Option<(UdpSocket, SocketAddr)>,
 }
 
 /// `nodes` pairs of UDP sockets on 127.0.0.1 (ephemeral ports): each node sends forward to
@@ -142,8 +142,7 @@ pub fn udp_ring(nodes: usize) -> io::Result<Vec<UdpPort>> {
         .map(|(i, (sock, back))| UdpPort {
             sock,
             next: addrs[(i + 1) % nodes],
-            back,
-            prev_back: back_addrs[(i + nodes - 1) % nodes],
+            back: Some((back, back_addrs[(i + nodes - 1) % nodes])),
         })
         .collect())
 }
@@ -163,6 +162,16 @@ fn udp_recv(sock: &UdpSocket, buf: &mut [u8]) -> io::Result<Option<usize>> {
 }
 
 impl UdpPort {
+    /// A node's port of its own (one process per node): `sock` bound, non-blocking, sending
+    /// to `next`. It has no backward socket (a node process runs a whole ring).
+    pub fn single(sock: UdpSocket, next: SocketAddr) -> UdpPort {
+        UdpPort {
+            sock,
+            next,
+            back: None,
+        }
+    }
+
     /// This port's address.
     pub fn addr(&self) -> io::Result<SocketAddr> {
         self.sock.local_addr()
@@ -183,13 +192,19 @@ impl Port for UdpPort {
         self.sock.local_addr().ok()
     }
     fn send_back(&mut self, pdu: &[u8]) -> io::Result<()> {
-        self.back.send_to(pdu, self.prev_back).map(|_| ())
+        match &self.back {
+            Some((s, prev)) => s.send_to(pdu, prev).map(|_| ()),
+            None => Err(io::Error::from(io::ErrorKind::Unsupported)),
+        }
     }
     fn recv_back(&mut self, buf: &mut [u8]) -> io::Result<Option<usize>> {
-        udp_recv(&self.back, buf)
+        match &self.back {
+            Some((s, _)) => udp_recv(s, buf),
+            None => Ok(None),
+        }
     }
     fn back_fd(&self) -> Option<RawFd> {
-        Some(self.back.as_raw_fd())
+        self.back.as_ref().map(|(s, _)| s.as_raw_fd())
     }
 }
 
@@ -281,6 +296,36 @@ impl VethPort {
                 Ok((
                     sys::packet_socket(&rx_if, ETHERTYPE)?,
                     sys::packet_socket(&tx_if, ETHERTYPE)?,
+                ))
+            })
+            .join()
+            .map_err(|_| io::Error::other("socket thread panicked"))?
+        })?;
+        Ok(VethPort {
+            rx,
+            tx,
+            src: mac(i),
+            frame: vec![0; ETH_HEADER_LEN + MAX_PDU],
+        })
+    }
+
+    /// Sockets of node `i` on interfaces `rx_if` (frames from the previous node) and `tx_if`
+    /// (to the next), opened in network namespace `netns` when given (a thread enters it,
+    /// opens them and ends), on the host's interfaces otherwise.
+    pub fn open_named(
+        netns: Option<&str>,
+        rx_if: &str,
+        tx_if: &str,
+        i: usize,
+    ) -> io::Result<VethPort> {
+        let (rx, tx) = std::thread::scope(|s| {
+            s.spawn(|| -> io::Result<(OwnedFd, OwnedFd)> {
+                if let Some(ns) = netns {
+                    sys::enter_netns(ns)?;
+                }
+                Ok((
+                    sys::packet_socket(rx_if, ETHERTYPE)?,
+                    sys::packet_socket(tx_if, ETHERTYPE)?,
                 ))
             })
             .join()

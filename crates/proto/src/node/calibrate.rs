@@ -67,7 +67,7 @@ impl CalibrationConfig {
 }
 
 /// The ring's delays as the nodes measured them.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct DelayMeasurement {
     /// Probes sent.
     pub probes: u32,

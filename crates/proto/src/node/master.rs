@@ -91,7 +91,7 @@ pub struct MasterConfig {
 }
 
 /// The ring as the master sees it (ring redundancy, docs/planner.md "A broken link").
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 pub enum RingState {
     /// Frames leave on port A and come back on port B.
     #[default]
@@ -216,7 +216,7 @@ impl MasterConfig {
 }
 
 /// Why the group stopped.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub enum StopReason {
     /// Axis `axis` (0-based) exceeded the following-error limit with error `error` [rad].
     FollowingError {
@@ -307,7 +307,7 @@ impl StopReason {
 }
 
 /// What the master orders an axis's drive to do during a group stop.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum StopOrder {
     /// Brake on its own (the `BRAKE` flag): damp its measured velocity to standstill, then
     /// cut torque. For an axis the master can still reach but no longer sees.
@@ -327,7 +327,7 @@ impl StopOrder {
 }
 
 /// Why the master gave an axis a [`StopOrder`] during a group stop.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub enum OffReason {
     /// The axis could not follow its stop ramp: its error against the ramp [rad] exceeded
     /// the following-error limit.
@@ -409,7 +409,7 @@ pub enum MasterEvent {
 }
 
 /// Counters that explain every lost cycle.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 pub struct MasterCounters {
     /// Frames sent (lumped and commands, retries included).
     pub frames_sent: u64,

@@ -25,7 +25,7 @@ pub struct Setpoint {
 }
 
 /// What the master computed in one cycle (for traces).
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct CycleRecord {
     /// Cycle index k.
     pub k: i64,
@@ -83,7 +83,7 @@ pub struct MotionInput<'a> {
 }
 
 /// Which monitor of the motion, and which of its two limits.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
 pub enum MonitorKind {
     /// The sync error ε's warning limit.
     SyncWarning,

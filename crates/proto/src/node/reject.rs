@@ -69,7 +69,7 @@ impl core::fmt::Display for Reject {
 }
 
 /// Frames (and feedback slots) a node refused, per reason.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 pub struct Rejections {
     counts: [u64; 8],
 }

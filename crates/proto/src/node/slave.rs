@@ -63,7 +63,7 @@ use crate::time::{Duration, Instant};
 pub const STANDSTILL_SAMPLES: u32 = 10;
 
 /// What a slave that loses its master does with its axis.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 pub enum SafeState {
     /// Cut torque at once (the axis coasts against its friction).
     TorqueOff,
@@ -96,7 +96,7 @@ impl std::str::FromStr for SafeState {
 }
 
 /// Why a drive's torque went off.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum TorqueOffCause {
     /// The master ordered it (a command with the `TORQUE_OFF` flag).
     Commanded,
@@ -254,7 +254,7 @@ pub enum FrameOutcome {
 }
 
 /// Counters that explain every lost cycle.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 pub struct SlaveCounters {
     /// Lumped frames taken (clock syncs).
     pub syncs: u64,

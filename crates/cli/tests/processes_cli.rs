@@ -1,0 +1,238 @@
+//! `ringsync rt --processes`: one process per node (`ringsync node …`), started, gathered
+//! and cleaned up by the launcher. Every exit path leaves nothing behind: no node process,
+//! no network namespace, no plan directory. These runs use a 5 ms cycle: on this 2-vCPU
+//! machine a process per node needs a wake-up per hop (docs/runtime.md, "One process per
+//! node").
+
+use std::io::{BufRead as _, BufReader};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+/// The pids of the node processes a launcher `launcher` started (their command lines name
+/// its plan directory), with each one's command line.
+fn nodes_of(launcher: u32) -> Vec<(u32, String)> {
+    let mark = format!("ringsync-nodes-{launcher}-");
+    let mut found = Vec::new();
+    for e in std::fs::read_dir("/proc").expect("/proc").flatten() {
+        let Some(pid) = e.file_name().to_str().and_then(|s| s.parse::<u32>().ok()) else {
+            continue;
+        };
+        let Ok(cmd) = std::fs::read(e.path().join("cmdline")) else {
+            continue;
+        };
+        let cmd = String::from_utf8_lossy(&cmd).replace('\0', " ");
+        // A zombie has an empty command line; a process that is gone is not listed.
+        if cmd.contains(&mark) && cmd.contains(" node ") {
+            found.push((pid, cmd));
+        }
+    }
+    found
+}
+
+/// What a launcher `pid` may leave: node processes, namespaces, plan directories.
+fn leftovers(pid: u32) -> Vec<String> {
+    let mut left: Vec<String> = nodes_of(pid).into_iter().map(|(_, c)| c).collect();
+    let out = Command::new("ip")
+        .args(["netns", "list"])
+        .output()
+        .expect("ip netns list (iproute2)");
+    let prefix = format!("ringsync-{pid}-");
+    left.extend(
+        String::from_utf8_lossy(&out.stdout)
+            .lines()
+            .filter(|l| l.starts_with(&prefix))
+            .map(str::to_string),
+    );
+    let plans = format!("ringsync-nodes-{pid}-");
+    left.extend(
+        std::fs::read_dir(std::env::temp_dir())
+            .expect("temp dir")
+            .flatten()
+            .map(|e| e.file_name().to_string_lossy().into_owned())
+            .filter(|n| n.starts_with(&plans)),
+    );
+    left
+}
+
+/// Waits (at most 10 s) until `pid` left nothing behind; what is left otherwise.
+fn wait_clean(pid: u32) -> Vec<String> {
+    let t = Instant::now();
+    loop {
+        let left = leftovers(pid);
+        if left.is_empty() || t.elapsed() > Duration::from_secs(10) {
+            return left;
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+/// Starts `ringsync rt --processes ARGS` (veth, 5 ms cycle) and reads its standard error
+/// until a line contains `until`: the child, and the lines read so far (the rest are read
+/// by a thread into the returned handle).
+fn start(
+    out: &std::path::Path,
+    duration: &str,
+    until: &str,
+) -> (
+    std::process::Child,
+    Vec<String>,
+    std::thread::JoinHandle<Vec<String>>,
+) {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_ringsync"))
+        .args([
+            "rt",
+            "paper-2015",
+            "--processes",
+            "--transport",
+            "veth",
+            "--cycle",
+            "5ms",
+            "--watchdog-cycles",
+            "20",
+            "--no-sim-prediction",
+            "--duration",
+            duration,
+            "--out",
+        ])
+        .arg(out)
+        .env("RUST_BACKTRACE", "0")
+        .stderr(Stdio::piped())
+        .stdout(Stdio::piped())
+        .spawn()
+        .expect("start ringsync");
+    let stderr = child.stderr.take().expect("stderr");
+    let mut lines = BufReader::new(stderr).lines();
+    let t = Instant::now();
+    let mut seen = Vec::new();
+    while !seen.last().is_some_and(|l: &String| l.contains(until)) {
+        let Some(line) = lines.next() else {
+            panic!("ringsync ended before {until:?}: {seen:?}")
+        };
+        seen.push(line.expect("read stderr"));
+        assert!(t.elapsed() < Duration::from_secs(60), "{seen:?}");
+    }
+    let rest = std::thread::spawn(move || lines.map_while(Result::ok).collect());
+    (child, seen, rest)
+}
+
+#[test]
+fn a_ring_of_node_processes_runs_as_one_and_leaves_nothing_behind() {
+    let dir = std::env::temp_dir().join(format!("ringsync-proc-run-{}", std::process::id()));
+    let (mut child, _, rest) = start(&dir, "3s", "starting 5 node processes");
+    let pid = child.id();
+    // While it runs: a process per node, each its own.
+    let t = Instant::now();
+    let mut nodes = nodes_of(pid);
+    while nodes.len() < 5 && t.elapsed() < Duration::from_secs(10) {
+        std::thread::sleep(Duration::from_millis(20));
+        nodes = nodes_of(pid);
+    }
+    assert_eq!(nodes.len(), 5, "{nodes:?}");
+    assert_eq!(
+        nodes
+            .iter()
+            .filter(|(_, c)| c.contains(" node master "))
+            .count(),
+        1
+    );
+    for i in 1..=4 {
+        let slave = format!(" node slave --index {i} ");
+        assert_eq!(
+            nodes.iter().filter(|(_, c)| c.contains(&slave)).count(),
+            1,
+            "{nodes:?}"
+        );
+    }
+    let status = child.wait().expect("wait");
+    let err = rest.join().expect("stderr").join("\n");
+    // 0: done; 3: the host cut the run short (a group stop): still a run of every node.
+    assert!(matches!(status.code(), Some(0 | 3)), "{status}: {err}");
+    let summary: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(dir.join("summary.json")).expect("summary.json"),
+    )
+    .expect("json");
+    // What the ring reports of itself: every node read frames; every slave took the path
+    // delay its start-up phase measured; the results are one run's.
+    let nodes = summary["nodes"].as_array().expect("nodes");
+    assert_eq!(nodes.len(), 5, "{summary}");
+    for n in nodes {
+        assert!(n["frames_read"].as_u64().unwrap_or(0) > 0, "{n}");
+    }
+    let taken = summary["start_up"]["taken_by_slaves_ns"]
+        .as_array()
+        .expect("taken");
+    assert!(
+        taken.iter().all(|d| d.as_i64().is_some_and(|d| d > 0)),
+        "{taken:?}"
+    );
+    assert_eq!(summary["stamps"], "software");
+    assert_eq!(summary["cycles_planned"], 600);
+    let trace = std::fs::read_to_string(dir.join("trace.csv")).expect("trace.csv");
+    assert!(
+        trace.lines().count() > 4 * 100,
+        "{} rows",
+        trace.lines().count()
+    );
+    assert!(summary["sync_rmse"].as_f64().is_some_and(f64::is_finite));
+    assert_eq!(wait_clean(pid), Vec::<String>::new());
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_killed_node_process_ends_the_ring_and_leaves_nothing_behind() {
+    let dir = std::env::temp_dir().join(format!("ringsync-proc-kill-{}", std::process::id()));
+    let (mut child, _, rest) = start(&dir, "30s", "starting 5 node processes");
+    let pid = child.id();
+    // Slave 2 dies (SIGKILL: no chance to say anything) once the ring runs.
+    let t = Instant::now();
+    let slave = loop {
+        let found = nodes_of(pid)
+            .into_iter()
+            .find(|(_, c)| c.contains(" node slave --index 2 "));
+        if let Some((p, _)) = found {
+            break p;
+        }
+        assert!(t.elapsed() < Duration::from_secs(10), "no slave 2 process");
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    std::thread::sleep(Duration::from_millis(2_500));
+    let killed = Command::new("kill")
+        .args(["-KILL", &slave.to_string()])
+        .status()
+        .expect("kill");
+    assert!(killed.success());
+    let status = child.wait().expect("wait");
+    let err = rest.join().expect("stderr").join("\n");
+    assert_eq!(status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("node process slave 2 was killed by signal 9"),
+        "{err}"
+    );
+    assert_eq!(wait_clean(pid), Vec::<String>::new());
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn sigterm_to_the_launcher_ends_every_node_and_keeps_what_they_saw() {
+    let dir = std::env::temp_dir().join(format!("ringsync-proc-term-{}", std::process::id()));
+    let (mut child, _, rest) = start(&dir, "30s", "starting 5 node processes");
+    let pid = child.id();
+    std::thread::sleep(Duration::from_millis(3_000));
+    let sent = Command::new("kill")
+        .args(["-TERM", &pid.to_string()])
+        .status()
+        .expect("kill");
+    assert!(sent.success());
+    let status = child.wait().expect("wait");
+    let err = rest.join().expect("stderr").join("\n");
+    assert_eq!(status.code(), Some(1), "{err}");
+    assert!(err.contains("interrupted"), "{err}");
+    // The nodes' records, gathered: the partial run's results.
+    let summary: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(dir.join("summary.json")).expect("summary.json"),
+    )
+    .expect("json");
+    assert_eq!(summary["interrupted"], true);
+    assert_eq!(wait_clean(pid), Vec::<String>::new());
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -1,0 +1,344 @@
+//! `ringsync rt --processes`: the launcher of a ring of node processes (docs/runtime.md,
+//! "One process per node"). It builds the ring's links (UDP sockets on loopback, or the
+//! veth ring of network namespaces), writes the [`NodePlan`] every node reads, starts
+//! `ringsync node slave --index I` for each slave and `ringsync node master`
+//! ([`crate::supervise`]: each in its own process group, its standard error relayed), waits
+//! for them, and merges their [`NodeRecord`]s into one run's result, the same
+//! summary.json and trace.csv an in-process run writes. Whatever happens (a node that dies,
+//! Ctrl-C, SIGTERM, SIGHUP, the deadline), every child is stopped and reaped, the
+//! namespaces and links are removed and the plan's directory is deleted.
+
+use std::collections::BTreeMap;
+use std::ffi::OsString;
+use std::net::UdpSocket;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
+
+use ringsync_model::Spec;
+use ringsync_model::observer::Observer;
+use ringsync_model::record::{AxisProbe, Recorder};
+use ringsync_model::result::{LinkCounters, RunResult};
+use ringsync_model::scenario::Scenario;
+use ringsync_proto::node::{MasterCounters, SlaveCounters};
+
+use crate::netns::VethRing;
+use crate::node::{NodeLink, NodePlan, NodeRecord, Tap, read_record};
+use crate::run::{Injection, RtError, RtOptions, RtResult, Stamps, Streamed, io_err};
+use crate::supervise::{ChildSpec, Ended, supervise};
+use crate::sys;
+use crate::transport::TransportKind;
+
+/// Time to start the processes before the master's start-up phase begins [ns].
+const SPAWN: i64 = 800_000_000;
+/// Time the start-up phase has besides its probes (one per cycle) [ns].
+const START_UP_MARGIN: i64 = 300_000_000;
+
+/// What a process run does not do yet, named; `None` when `opts` asks for none of it.
+fn unsupported(s: &Scenario, opts: &RtOptions) -> Option<&'static str> {
+    if opts.kill.is_some() {
+        Some("--kill-slave")
+    } else if opts.garbage_rate > 0.0 || !opts.forge.is_empty() {
+        Some("--garbage-rate and --forge")
+    } else if opts.flap.is_some() {
+        Some("--flap-link")
+    } else if !s.faults.break_link.is_empty() {
+        Some("a broken link (--break-link, faults.break_link)")
+    } else if opts.capture {
+        Some("--pcap")
+    } else {
+        None
+    }
+}
+
+/// The directory of one launch's plan and records, removed on drop.
+struct Scratch(PathBuf);
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+/// Runs the scenario of TOML `text` (from `origin`) as one process per node, `program`
+/// being the `ringsync` executable the nodes run as (`ringsync node …`). `stop` ends the
+/// run early.
+pub fn run_processes(
+    text: &str,
+    origin: &str,
+    opts: &RtOptions,
+    program: &Path,
+    stop: &AtomicBool,
+) -> Result<RtResult, RtError> {
+    let scenario = Scenario::from_toml(text, origin)?;
+    if let Some(what) = unsupported(&scenario, opts) {
+        return Err(RtError::Config(format!(
+            "{what} is not run with one process per node yet: drop --processes"
+        )));
+    }
+    let run_scenario = crate::run::as_run(&scenario, opts);
+    let spec = run_scenario.build()?;
+    let n = spec.axes();
+    let say = |m: &str| {
+        if opts.verbose {
+            eprintln!("ringsync rt: {m}");
+        }
+    };
+    // The links.
+    let (links, veth) = match opts.transport {
+        TransportKind::Udp => {
+            // Free ports on loopback: bound here, then let go for the nodes to bind.
+            let socks = (0..=n)
+                .map(|_| UdpSocket::bind("127.0.0.1:0"))
+                .collect::<std::io::Result<Vec<_>>>()
+                .map_err(io_err("finding free UDP ports on 127.0.0.1"))?;
+            let addrs = socks
+                .iter()
+                .map(UdpSocket::local_addr)
+                .collect::<std::io::Result<Vec<_>>>()
+                .map_err(io_err("finding free UDP ports on 127.0.0.1"))?;
+            drop(socks);
+            let links = (0..=n)
+                .map(|i| NodeLink::Udp {
+                    listen: addrs[i],
+                    next: addrs[(i + 1) % (n + 1)],
+                })
+                .collect();
+            (links, None)
+        }
+        TransportKind::Veth => {
+            say(&format!(
+                "creating {} network namespaces and veth links",
+                n + 1
+            ));
+            let ring = Arc::new(VethRing::create(n + 1)?);
+            let links = (0..=n)
+                .map(|i| NodeLink::Raw {
+                    netns: Some(ring.netns(i)),
+                    rx_if: ring.in_if(i),
+                    tx_if: ring.out_if(i),
+                })
+                .collect();
+            (links, Some(ring))
+        }
+    };
+    let t_cyc = spec.scenario.ring.cycle.0.as_ns();
+    let probes = opts.calibration_rounds.max(2);
+    let start_up = probes as i64 * t_cyc + START_UP_MARGIN;
+    let epoch = sys::now_ns() + SPAWN + start_up;
+    let plan = NodePlan {
+        scenario: text.to_string(),
+        origin: origin.to_string(),
+        duration_ns: opts.duration.map(|d| d.as_ns()),
+        cycle_ns: opts.cycle.map(|d| d.as_ns()),
+        watchdog_cycles: opts.watchdog_cycles,
+        sample_lead_ns: Some(run_scenario.clock.sample_lead.0.as_ns()),
+        response_timeout_ns: opts.response_timeout.as_ns(),
+        probes,
+        epoch_ns: epoch,
+        start_up_ns: start_up,
+        priority: opts.realtime.priority,
+        spin_ns: opts.realtime.spin.as_ns(),
+        lock_memory: opts.realtime.lock_memory,
+        links,
+    };
+    let scratch = Scratch(std::env::temp_dir().join(format!(
+        "ringsync-nodes-{}-{}",
+        std::process::id(),
+        sys::now_ns()
+    )));
+    std::fs::create_dir_all(&scratch.0)
+        .map_err(io_err(&format!("creating {}", scratch.0.display())))?;
+    let plan_path = scratch.0.join("plan.json");
+    let plan_text = serde_json::to_vec_pretty(&plan)
+        .map_err(|e| RtError::Config(format!("cannot write the node plan: {e}")))?;
+    std::fs::write(&plan_path, plan_text)
+        .map_err(io_err(&format!("writing {}", plan_path.display())))?;
+    let record = |i: usize| scratch.0.join(format!("node-{i}.json"));
+    // The slaves first, so that they listen when the master's probes come.
+    let child = |i: usize| {
+        let mut args: Vec<OsString> = vec!["node".into()];
+        if i == 0 {
+            args.push("master".into());
+        } else {
+            args.extend(["slave".into(), "--index".into(), i.to_string().into()]);
+        }
+        args.extend([
+            "--plan".into(),
+            plan_path.clone().into_os_string(),
+            "--out".into(),
+            record(i).into_os_string(),
+        ]);
+        ChildSpec {
+            name: if i == 0 {
+                "master".into()
+            } else {
+                format!("slave {i}")
+            },
+            program: program.to_path_buf(),
+            args,
+            env: Vec::new(),
+        }
+    };
+    let children: Vec<ChildSpec> = (1..=n).chain([0]).map(child).collect();
+    say(&format!(
+        "starting {} node processes; start-up phase {:.0} ms, then {} cycles of {:.1} µs",
+        n + 1,
+        start_up as f64 * 1e-6,
+        spec.scenario.duration.0.as_ns() / t_cyc,
+        t_cyc as f64 * 1e-3
+    ));
+    let run_for = epoch - sys::now_ns() + spec.scenario.duration.0.as_ns();
+    let deadline = std::time::Instant::now()
+        + std::time::Duration::from_nanos(u64::try_from(run_for).unwrap_or(0))
+        + std::time::Duration::from_secs(10);
+    let sup = supervise(children, stop, deadline, std::time::Duration::from_secs(2))
+        .map_err(io_err("starting the node processes"))?;
+    // Every child is gone: the namespaces may go.
+    drop(veth);
+    if sup.timed_out {
+        return Err(RtError::Node(
+            "the node processes outlived the run by 10 s and were stopped".into(),
+        ));
+    }
+    if let Some(f) = sup.first_failure {
+        let c = &sup.children[f];
+        let how = match c.ended {
+            Ended::Exited(code) => format!("exited with status {code}"),
+            Ended::Signalled(sig) => format!("was killed by signal {sig}"),
+            Ended::Killed => "was killed".into(),
+        };
+        let last = c.stderr_tail.lines().last().unwrap_or("").trim();
+        return Err(RtError::Node(format!(
+            "node process {} {how}{}",
+            c.name,
+            if last.is_empty() {
+                String::new()
+            } else {
+                format!(": {last}")
+            }
+        )));
+    }
+    let records = (0..=n)
+        .map(|i| read_record(&record(i)))
+        .collect::<Result<Vec<_>, _>>()?;
+    let interrupted = sup.stopped || records.iter().any(|r| r.interrupted);
+    let master = &records[0];
+    let run = merge(&spec, &records, opts.trace);
+    let mut realtime = master.realtime.clone();
+    realtime.push(format!(
+        "one process per node ({} processes), each its own loop; slaves sleep to their deadlines",
+        n + 1
+    ));
+    let calibration = master
+        .calibration
+        .clone()
+        .ok_or_else(|| RtError::Node("the master's record has no start-up figures".into()))?;
+    let mut run = run;
+    run.start_up = Some(calibration.start_up.clone());
+    Ok(RtResult {
+        scenario: run_scenario,
+        transport: opts.transport,
+        stamps: Stamps::Software,
+        run,
+        timing: master.timing.clone().unwrap_or_default(),
+        schedule: master.schedule.unwrap_or(crate::schedule::Schedule {
+            p2p_start: 0,
+            slice: 0,
+            response_timeout: opts.response_timeout.as_ns(),
+        }),
+        calibration,
+        realtime,
+        injected: Injection::default(),
+        nodes_rx: records
+            .iter()
+            .map(|r| (r.frames_read, r.last_read_s))
+            .collect(),
+        interrupted,
+        killed: None,
+        detection_cycles: None,
+        streamed: Streamed::default(),
+    })
+}
+
+/// One run's result from the records of its nodes: every cycle's probe made of the
+/// master's desired positions and each slave's own axis, and every event, replayed into a
+/// recorder in true-time order (as an in-process run's recorder is told them).
+pub fn merge(spec: &Spec, records: &[NodeRecord], trace: bool) -> RunResult {
+    let n = spec.axes();
+    let t_cyc = spec.scenario.ring.cycle.0.as_ns();
+    let cycles = spec.scenario.duration.0.as_ns() / t_cyc;
+    let zero = AxisProbe {
+        x: 0.0,
+        x_d: 0.0,
+        clock_error_ns: 0.0,
+        u: 0.0,
+        saturated: false,
+    };
+    // Each cycle's probes: x_d from the master, the rest from each slave.
+    let mut probes: BTreeMap<i64, Vec<AxisProbe>> = BTreeMap::new();
+    for r in records {
+        for e in &r.events {
+            if let Tap::Cycle { k, probes: p } = &e.ev {
+                let row = probes.entry(*k).or_insert_with(|| vec![zero; n]);
+                if r.node == 0 {
+                    for (a, m) in row.iter_mut().zip(p) {
+                        a.x_d = m.x_d;
+                    }
+                } else if let (Some(a), Some(s)) = (row.get_mut(r.node - 1), p.first()) {
+                    a.x = s.x;
+                    a.clock_error_ns = s.clock_error_ns;
+                    a.u = s.u;
+                    a.saturated = s.saturated;
+                }
+            }
+        }
+    }
+    let mut events: Vec<(i64, usize, usize, &Tap)> = records
+        .iter()
+        .flat_map(|r| {
+            r.events
+                .iter()
+                .enumerate()
+                .map(move |(j, e)| (e.t, r.node, j, &e.ev))
+        })
+        .collect();
+    events.sort_by_key(|(t, node, j, _)| (*t, *node, *j));
+    let mut rec = Recorder::new(n, cycles, t_cyc as f64 * 1e-9, trace);
+    let mut last_k = -1;
+    for (_, _, _, ev) in events {
+        match ev {
+            Tap::Cycle { k, .. } => {
+                if *k > last_k
+                    && let Some(p) = probes.get(k)
+                {
+                    rec.cycle(*k, *k as f64 * t_cyc as f64 * 1e-9, p);
+                    last_k = *k;
+                }
+            }
+            Tap::Computed { k, record } => rec.computed(*k, record),
+            Tap::Applied { axis, t, u } => rec.applied(*axis, *t, *u),
+            Tap::Fault(f) => rec.fault(f),
+            Tap::Monitor(m) => rec.monitor(m),
+            Tap::Ring(c) => rec.ring(c),
+        }
+    }
+    let master: MasterCounters = records.first().and_then(|r| r.master).unwrap_or_default();
+    let slaves: Vec<SlaveCounters> = (1..=n)
+        .map(|i| {
+            records
+                .iter()
+                .find(|r| r.node == i)
+                .and_then(|r| r.slave)
+                .unwrap_or_default()
+        })
+        .collect();
+    rec.finish(
+        &spec.scenario.name,
+        master,
+        slaves,
+        LinkCounters::default(),
+        Vec::new(),
+        Vec::new(),
+    )
+}

@@ -1,0 +1,687 @@
+//! One node per process: `ringsync node master` and `ringsync node slave --index I`
+//! (docs/runtime.md, "One process per node"). Each process is one device of the ring: the
+//! unchanged sans-IO node, its own port (a UDP socket, or raw Ethernet on two interfaces,
+//! in a network namespace or not), its own clock (a slave's oscillator over the host's
+//! monotonic clock), its own loop and scheduling, and for a slave its simulated axis.
+//!
+//! The processes of a ring share a [`NodePlan`]: the scenario's text, the runtime's
+//! overrides, every node's link, and an **epoch**, the host's `CLOCK_MONOTONIC` reading at
+//! the run's time 0 (so the processes must run on one host; true time is that clock less
+//! the epoch). Before time 0 the nodes measure the ring's delays themselves
+//! ([`crate::calibrate`]'s figures, [`ringsync_proto::node::calibrate`]'s phase): the master
+//! starts its probes `start_up_ns` before the epoch, each slave answers them in its start-up
+//! phase and takes the path delay the master sends it. Then the run: the master's cycles
+//! from time 0; each slave latches, follows the master's clock (software stamps: the
+//! instant its loop reads a frame) and drives its axis.
+//!
+//! Each process writes a [`NodeRecord`]: what its node saw, as the events the recorder of an
+//! in-process run is told (cycle starts with the axis's true state, law runs, applied
+//! commands, fault steps, monitor events, ring changes), with the true time of each, plus
+//! its counters. The launcher ([`crate::launch`]) merges them into one run's result.
+
+use std::io;
+use std::net::{SocketAddr, UdpSocket};
+use std::path::Path;
+use std::sync::atomic::{AtomicBool, AtomicI64, Ordering};
+use std::sync::{Arc, Mutex};
+
+use serde::{Deserialize, Serialize};
+
+use ringsync_model::Spec;
+use ringsync_model::devices::Devices;
+use ringsync_model::monitor::MonitorEvent;
+use ringsync_model::observer::Observer;
+use ringsync_model::oscillator::Oscillator;
+use ringsync_model::record::{AxisProbe, FaultEvent};
+use ringsync_model::result::RingChange;
+use ringsync_model::scenario::Scenario;
+use ringsync_model::spec::timestamp_tolerance;
+use ringsync_proto::node::{
+    CalibrationConfig, CalibrationState, Calibrator, CycleRecord, FrameOutcome, MasterCounters,
+    Slave, SlaveCounters, WireFrame,
+};
+use ringsync_proto::{Duration, Instant};
+
+use crate::calibrate::Calibration;
+use crate::clock::Clock;
+use crate::realtime::{Pin, Realtime};
+use crate::ring::RT_CLOCK_FILTER;
+use crate::run::{RtError, RtOptions, io_err};
+use crate::schedule::{self, RT_TIMESTAMP_TOLERANCE, Schedule};
+use crate::sys;
+use crate::timing::{Timing, TimingLog};
+use crate::transport::{MAX_PDU, Port, VethPort};
+
+/// Where one node's frames come from and go.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum NodeLink {
+    /// UDP datagrams: the node's socket, and the next node's.
+    Udp {
+        /// This node's socket.
+        listen: SocketAddr,
+        /// The next node's socket (the master's, for slave n).
+        next: SocketAddr,
+    },
+    /// Raw Ethernet (EtherType 0x88B5) on the interface from the previous node and the one
+    /// to the next, inside network namespace `netns` when given (real interfaces: none).
+    Raw {
+        /// The network namespace to open the sockets in (`/run/netns/NAME`).
+        netns: Option<String>,
+        /// The interface frames arrive on.
+        rx_if: String,
+        /// The interface frames leave on.
+        tx_if: String,
+    },
+}
+
+/// What every process of one ring shares (the launcher writes it as JSON; docs/runtime.md
+/// shows one written by hand for real interfaces).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct NodePlan {
+    /// The scenario's TOML text.
+    pub scenario: String,
+    /// Where it came from (for messages).
+    pub origin: String,
+    /// The runtime's overrides of the scenario [ns]: duration, cycle, sampling lead.
+    pub duration_ns: Option<i64>,
+    /// Cycle time override [ns].
+    pub cycle_ns: Option<i64>,
+    /// W override.
+    pub watchdog_cycles: Option<u32>,
+    /// Sampling lead override [ns].
+    pub sample_lead_ns: Option<i64>,
+    /// How long the master waits for a response beyond its slice [ns].
+    pub response_timeout_ns: i64,
+    /// Delay probes of the start-up phase.
+    pub probes: usize,
+    /// `CLOCK_MONOTONIC` at the run's time 0 [ns] (one host's clock).
+    pub epoch_ns: i64,
+    /// The master starts its probes this long before time 0 [ns].
+    pub start_up_ns: i64,
+    /// SCHED_FIFO priority of every node's loop (0: the normal scheduler).
+    pub priority: i32,
+    /// The master's busy-wait before its deadlines [ns] (the slaves sleep).
+    pub spin_ns: i64,
+    /// Lock memory.
+    pub lock_memory: bool,
+    /// Each node's link, index 0 the master.
+    pub links: Vec<NodeLink>,
+}
+
+impl NodePlan {
+    /// The ring this plan runs: the scenario with the runtime's overrides, built.
+    pub fn spec(&self) -> Result<Spec, RtError> {
+        let s = Scenario::from_toml(&self.scenario, &self.origin)?;
+        let opts = RtOptions {
+            duration: self.duration_ns.map(Duration::from_ns),
+            cycle: self.cycle_ns.map(Duration::from_ns),
+            watchdog_cycles: self.watchdog_cycles,
+            sample_lead: self.sample_lead_ns.map(Duration::from_ns),
+            ..RtOptions::default()
+        };
+        let spec = crate::run::as_run(&s, &opts).build()?;
+        if self.links.len() != spec.axes() + 1 {
+            return Err(RtError::Config(format!(
+                "the node plan has {} links for a ring of {} nodes",
+                self.links.len(),
+                spec.axes() + 1
+            )));
+        }
+        Ok(spec)
+    }
+
+    /// Reads a plan written as JSON.
+    pub fn read(path: &Path) -> Result<NodePlan, RtError> {
+        let text = std::fs::read_to_string(path)
+            .map_err(io_err(&format!("reading the node plan {}", path.display())))?;
+        serde_json::from_str(&text).map_err(|e| {
+            RtError::Config(format!(
+                "the node plan {} is not valid: {e}",
+                path.display()
+            ))
+        })
+    }
+}
+
+/// What a node saw, with the true time it happened [ns].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Tapped {
+    /// True time [ns].
+    pub t: i64,
+    /// What.
+    pub ev: Tap,
+}
+
+/// One event of a node, as the recorder of an in-process run is told it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Tap {
+    /// Cycle `k` started: the master's probe (every axis's desired position) or a slave's
+    /// (its own axis's true state, at index 0).
+    Cycle {
+        /// Cycle index.
+        k: i64,
+        /// The probes.
+        probes: Vec<AxisProbe>,
+    },
+    /// The master's law ran for cycle `k`.
+    Computed {
+        /// Cycle index.
+        k: i64,
+        /// What it computed.
+        record: CycleRecord,
+    },
+    /// A drive took a command [axis 0-based, t s, u V].
+    Applied {
+        /// Axis (0-based).
+        axis: usize,
+        /// When [s].
+        t: f64,
+        /// The command [V].
+        u: f64,
+    },
+    /// A step of a fault reaction.
+    Fault(FaultEvent),
+    /// A monitor's warning or trip.
+    Monitor(MonitorEvent),
+    /// The ring changed.
+    Ring(RingChange),
+}
+
+/// What one node process hands the launcher.
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+pub struct NodeRecord {
+    /// The node: 0 the master, i slave i.
+    pub node: usize,
+    /// What it saw, in its order.
+    pub events: Vec<Tapped>,
+    /// The master's counters.
+    pub master: Option<MasterCounters>,
+    /// The slave's counters.
+    pub slave: Option<SlaveCounters>,
+    /// The master's start-up figures.
+    pub calibration: Option<Calibration>,
+    /// The master's schedule on the measured ring.
+    pub schedule: Option<Schedule>,
+    /// The path delay the slave took [ns].
+    pub path_delay_ns: Option<i64>,
+    /// The master's timing of the run.
+    pub timing: Option<Timing>,
+    /// Real-time settings applied (or not).
+    pub realtime: Vec<String>,
+    /// Frames the node read, and when it last read one [s].
+    pub frames_read: u64,
+    /// When it last read one [s, true time].
+    pub last_read_s: Option<f64>,
+    /// The node was told to stop before the end.
+    pub interrupted: bool,
+}
+
+/// An observer that keeps the events of one node.
+struct Tapper {
+    /// The slave's axis (0-based), or `None` for the master.
+    axis: Option<usize>,
+    now: Arc<AtomicI64>,
+    events: Arc<Mutex<Vec<Tapped>>>,
+}
+
+impl Tapper {
+    fn push(&self, ev: Tap) {
+        let t = self.now.load(Ordering::Relaxed);
+        if let Ok(mut v) = self.events.lock() {
+            v.push(Tapped { t, ev });
+        }
+    }
+}
+
+impl Observer for Tapper {
+    fn cycle(&mut self, k: i64, _t: f64, axes: &[AxisProbe]) {
+        let probes = match self.axis {
+            Some(i) => axes.get(i).copied().into_iter().collect(),
+            None => axes.to_vec(),
+        };
+        self.push(Tap::Cycle { k, probes });
+    }
+    fn computed(&mut self, k: i64, record: &CycleRecord) {
+        if self.axis.is_none() {
+            self.push(Tap::Computed {
+                k,
+                record: record.clone(),
+            });
+        }
+    }
+    fn applied(&mut self, axis: usize, t: f64, u: f64) {
+        if self.axis == Some(axis) {
+            self.push(Tap::Applied { axis, t, u });
+        }
+    }
+    fn fault(&mut self, event: &FaultEvent) {
+        self.push(Tap::Fault(*event));
+    }
+    fn monitor(&mut self, event: &MonitorEvent) {
+        if self.axis.is_none() {
+            self.push(Tap::Monitor(*event));
+        }
+    }
+    fn ring(&mut self, change: &RingChange) {
+        if self.axis.is_none() {
+            self.push(Tap::Ring(*change));
+        }
+    }
+}
+
+/// Opens node `node`'s port on `link` (its frames to the next node; a node process has no
+/// backward port: a broken ring is not run this way yet).
+pub fn open_port(link: &NodeLink, node: usize) -> io::Result<Box<dyn Port>> {
+    match link {
+        NodeLink::Udp { listen, next } => {
+            let sock = UdpSocket::bind(listen)?;
+            sock.set_nonblocking(true)?;
+            Ok(Box::new(crate::transport::UdpPort::single(sock, *next)))
+        }
+        NodeLink::Raw {
+            netns,
+            rx_if,
+            tx_if,
+        } => Ok(Box::new(VethPort::open_named(
+            netns.as_deref(),
+            rx_if,
+            tx_if,
+            node,
+        )?)),
+    }
+}
+
+/// The last frames of a run still go round after the master's last cycle: a slave runs on
+/// this long after the end [ns].
+const TAIL: i64 = 50_000_000;
+
+/// Runs node `node` (0 the master, i slave i) of `plan` until the run's end or `stop`, and
+/// returns what it saw.
+pub fn run_node(plan: &NodePlan, node: usize, stop: &AtomicBool) -> Result<NodeRecord, RtError> {
+    let mut spec = plan.spec()?;
+    let n = spec.axes();
+    let link = plan.links.get(node).ok_or_else(|| {
+        RtError::Config(format!(
+            "node {node} is not on this ring of {} nodes",
+            n + 1
+        ))
+    })?;
+    let mut port = open_port(link, node).map_err(io_err("opening the node's port"))?;
+    let realtime = Realtime {
+        spin: Duration::from_ns(if node == 0 { plan.spin_ns } else { 0 }),
+        priority: plan.priority,
+        cpu: Pin::Off,
+        lock_memory: plan.lock_memory,
+    };
+    let applied = realtime.apply();
+    let mut rec = NodeRecord {
+        node,
+        realtime: applied.lines.clone(),
+        ..NodeRecord::default()
+    };
+    let mut clock = Clock::starting_at(plan.epoch_ns);
+    // The clock windows of the runtime (software stamps), as an in-process run sets them.
+    let tolerance = RT_TIMESTAMP_TOLERANCE.max(timestamp_tolerance(&spec.scenario));
+    spec.master.timestamp_tolerance = tolerance;
+    for c in &mut spec.slaves {
+        c.clock_window = tolerance;
+    }
+    if node == 0 {
+        run_master(&mut spec, plan, port.as_mut(), &mut clock, stop, &mut rec)?;
+    } else {
+        run_slave(
+            &mut spec,
+            node - 1,
+            port.as_mut(),
+            &mut clock,
+            stop,
+            &mut rec,
+        )?;
+    }
+    drop(applied);
+    Ok(rec)
+}
+
+/// Shared state of a node's loop and its tap.
+struct TapHandle {
+    now: Arc<AtomicI64>,
+    events: Arc<Mutex<Vec<Tapped>>>,
+}
+
+fn tap(dev: &mut Devices, axis: Option<usize>) -> TapHandle {
+    let t = TapHandle {
+        now: Arc::new(AtomicI64::new(0)),
+        events: Arc::new(Mutex::new(Vec::new())),
+    };
+    dev.observe(Box::new(Tapper {
+        axis,
+        now: t.now.clone(),
+        events: t.events.clone(),
+    }));
+    t
+}
+
+impl TapHandle {
+    fn at(&self, t: i64) {
+        self.now.store(t, Ordering::Relaxed);
+    }
+    fn take(&self) -> Vec<Tapped> {
+        self.events
+            .lock()
+            .map(|mut v| std::mem::take(&mut *v))
+            .unwrap_or_default()
+    }
+}
+
+/// The master: its start-up phase before time 0, then its cycles.
+fn run_master(
+    spec: &mut Spec,
+    plan: &NodePlan,
+    port: &mut dyn Port,
+    clock: &mut Clock,
+    stop: &AtomicBool,
+    rec: &mut NodeRecord,
+) -> Result<(), RtError> {
+    let n = spec.axes();
+    let t_cyc = spec.scenario.ring.cycle.0;
+    let mut buf = vec![0u8; MAX_PDU];
+    let mut fds = [sys::pollfd(port.rx_fd())];
+    // 1. The start-up phase: one probe per cycle from `start_up_ns` before time 0.
+    let origin = -plan.start_up_ns;
+    let mut cal = Calibrator::new(
+        CalibrationConfig::new(n, t_cyc, u32::try_from(plan.probes).unwrap_or(u32::MAX)),
+        Instant::from_ns(origin),
+    );
+    sys::sleep_until(plan.epoch_ns + origin);
+    while let Some(due) = cal.poll_timeout() {
+        if stop.load(Ordering::Relaxed) {
+            rec.interrupted = true;
+            return Ok(());
+        }
+        let now = clock.now();
+        if now >= due.as_ns() {
+            cal.handle_timeout(Instant::from_ns(now));
+            while let Some(tx) = cal.poll_transmit() {
+                port.send(&tx.bytes)
+                    .map_err(io_err("sending a delay probe"))?;
+            }
+            continue;
+        }
+        clock
+            .wait_readable_until(&mut fds, due.as_ns())
+            .map_err(io_err("waiting for delay probes"))?;
+        while let Some(len) = port.recv(&mut buf).map_err(io_err("reading"))? {
+            // Every probe counts: the medians ride out the host's stalls. (The in-process
+            // runtime drops a probe whose pass the host stalled; here a send that wakes the
+            // next node's process takes tens of µs itself, and a stall of another process
+            // is not this one's to see.)
+            let t = clock.now();
+            cal.handle_frame(Instant::from_ns(t), &buf[..len]);
+        }
+    }
+    let m = match cal.state() {
+        CalibrationState::Done => cal.measurement().cloned(),
+        CalibrationState::Failed(e) => {
+            return Err(RtError::Node(format!("the start-up phase failed: {e}")));
+        }
+        _ => None,
+    }
+    .ok_or_else(|| RtError::Node("the start-up phase did not finish".into()))?;
+    // Every slave acknowledged the delay the master sent it.
+    let taken = m.path.iter().map(|d| Some(*d)).collect();
+    let took = Duration::from_ns(clock.now() - origin);
+    let calibration = Calibration::of(m, taken, 0, 0, spec, took);
+    let response_timeout = Duration::from_ns(plan.response_timeout_ns);
+    let sched = schedule::apply(spec, &calibration, response_timeout)?;
+    rec.calibration = Some(calibration);
+    rec.schedule = Some(sched);
+    if clock.now() >= 0 {
+        return Err(RtError::Node(format!(
+            "the start-up phase ran past the run's start ({:.1} ms given): give it more time",
+            plan.start_up_ns as f64 * 1e-6
+        )));
+    }
+    // 2. The cycles.
+    let t_cyc = t_cyc.as_ns();
+    let cycles = spec.scenario.duration.0.as_ns() / t_cyc;
+    let end = cycles * t_cyc;
+    let mut dev = Devices::new(spec, cycles, false)?;
+    let tap = tap(&mut dev, None);
+    let mut log = TimingLog::new(cycles);
+    let (mut k, mut probe_k) = (0i64, 0i64);
+    let spin = plan.spin_ns;
+    let mut out: Vec<Vec<u8>> = Vec::new();
+    loop {
+        if stop.load(Ordering::Relaxed) {
+            rec.interrupted = true;
+            break;
+        }
+        let now = clock.now();
+        if now >= end {
+            break;
+        }
+        if probe_k < cycles && probe_k * t_cyc <= now {
+            tap.at(probe_k * t_cyc);
+            dev.probe(probe_k, probe_k * t_cyc);
+            probe_k += 1;
+            continue;
+        }
+        let mut got = false;
+        while let Some(len) = port.recv(&mut buf).map_err(io_err("reading"))? {
+            got = true;
+            let t = clock.now();
+            rec.frames_read += 1;
+            rec.last_read_s = Some(t as f64 * 1e-9);
+            log.master_rx(t);
+            tap.at(t);
+            let news = dev.master_frame(t, &buf[..len], &mut |_, _, f: WireFrame| {
+                out.push(f.into_bytes())
+            });
+            if news.computed {
+                log.computed(t);
+            }
+            for b in out.drain(..) {
+                let _ = port.send(&b);
+            }
+        }
+        let m = dev.master_deadline();
+        let now = clock.now();
+        if m <= now && m < end {
+            if m == k * t_cyc {
+                let c = dev.master.counters();
+                let stall = clock.take_stall();
+                let late = log.cycle_start(k, now, m, c.lumped_lost + c.commands_lost, stall);
+                clock.note_stall(late);
+                k += 1;
+            }
+            tap.at(now);
+            let news = dev.master_timeout(now, &mut |_, _, f: WireFrame| out.push(f.into_bytes()));
+            if news.computed {
+                log.computed(now);
+            }
+            for b in out.drain(..) {
+                if port.send(&b).is_err() {
+                    log.timing.send_errors += 1;
+                }
+            }
+            continue;
+        }
+        if got {
+            continue;
+        }
+        let wake = m.min(probe_k * t_cyc).min(end);
+        if wake - now > spin {
+            if dev.master.awaiting_frames() {
+                clock
+                    .wait_readable_until(&mut fds, wake - spin)
+                    .map_err(io_err("waiting for frames"))?;
+            } else {
+                clock.sleep_until(wake - spin);
+            }
+        }
+    }
+    let counters = dev.master.counters();
+    rec.timing = Some(log.finish(&counters));
+    rec.master = Some(counters);
+    rec.events = tap.take();
+    Ok(())
+}
+
+/// Slave `i` (0-based): its start-up phase, then the run with its axis.
+fn run_slave(
+    spec: &mut Spec,
+    i: usize,
+    port: &mut dyn Port,
+    clock: &mut Clock,
+    stop: &AtomicBool,
+    rec: &mut NodeRecord,
+) -> Result<(), RtError> {
+    let t_cyc = spec.scenario.ring.cycle.0.as_ns();
+    let cycles = spec.scenario.duration.0.as_ns() / t_cyc;
+    let end = cycles * t_cyc;
+    let osc = Oscillator::for_scenario(&spec.scenario)
+        .get(i)
+        .copied()
+        .ok_or_else(|| RtError::Config(format!("slave {} is not on this ring", i + 1)))?;
+    let mut buf = vec![0u8; MAX_PDU];
+    let mut fds = [sys::pollfd(port.rx_fd())];
+    // 1. The start-up phase: answer the probes until the master's closing frame gives the
+    //    slave its path delay (it must come before the run's start).
+    let mut node = Slave::calibrating(spec.slaves[i].clone());
+    let delay = loop {
+        if stop.load(Ordering::Relaxed) {
+            rec.interrupted = true;
+            return Ok(());
+        }
+        if let Some(d) = node.path_delay() {
+            break d;
+        }
+        let now = clock.now();
+        if now >= 0 {
+            return Err(RtError::Node(format!(
+                "slave {} had no path delay from the master by the run's start (the master's probes did not reach it)",
+                i + 1
+            )));
+        }
+        clock
+            .wait_readable_until(&mut fds, now + 10_000_000)
+            .map_err(io_err("waiting for delay probes"))?;
+        while let Some(len) = port.recv(&mut buf).map_err(io_err("reading"))? {
+            let t = clock.now();
+            rec.frames_read += 1;
+            let bytes = &mut buf[..len];
+            if node.handle_frame(osc.local(t), osc.local(t), bytes) == FrameOutcome::Forward {
+                let _ = port.send(bytes);
+                node.handle_forwarded(osc.local(clock.now()));
+            }
+        }
+    };
+    spec.slaves[i].path_delay = delay;
+    rec.path_delay_ns = Some(delay.as_ns());
+    // 2. The run: the same node, running, with the delay it took (a fresh `Slave` of the
+    //    devices, configured with it).
+    let mut dev = Devices::new(spec, cycles, false)?;
+    for sl in &mut dev.slaves {
+        sl.clock_mut().set_filter(RT_CLOCK_FILTER);
+    }
+    let tap = tap(&mut dev, Some(i));
+    let mut pending: Vec<(i64, Vec<u8>)> = Vec::new();
+    let mut probe_k = 0i64;
+    // The timers due by `now`, in time order: latches, cycle probes, responses.
+    let timers = |dev: &mut Devices,
+                  pending: &mut Vec<(i64, Vec<u8>)>,
+                  probe_k: &mut i64,
+                  port: &mut dyn Port,
+                  now: i64| loop {
+        let latch = dev.latch_at(i);
+        let probe = if *probe_k < cycles {
+            *probe_k * t_cyc
+        } else {
+            i64::MAX
+        };
+        let (j, send) = pending
+            .iter()
+            .enumerate()
+            .min_by_key(|(_, p)| p.0)
+            .map_or((usize::MAX, i64::MAX), |(j, p)| (j, p.0));
+        let first = latch.min(probe).min(send);
+        if first > now {
+            return first;
+        }
+        tap.at(first);
+        if first == latch {
+            dev.latch(i, latch, &mut |_, at, f: WireFrame| {
+                pending.push((at, f.into_bytes()))
+            });
+        } else if first == probe {
+            dev.probe(*probe_k, probe);
+            *probe_k += 1;
+        } else {
+            let (_, b) = pending.swap_remove(j);
+            let _ = port.send(&b);
+        }
+    };
+    loop {
+        if stop.load(Ordering::Relaxed) {
+            rec.interrupted = true;
+            break;
+        }
+        let now = clock.now();
+        if now >= end + TAIL {
+            break;
+        }
+        let next = timers(&mut dev, &mut pending, &mut probe_k, port, now);
+        let mut got = false;
+        while let Some(len) = port.recv(&mut buf).map_err(io_err("reading"))? {
+            got = true;
+            let t = clock.now();
+            // Everything due before the frame first (as in the in-process loop).
+            timers(&mut dev, &mut pending, &mut probe_k, port, t);
+            rec.frames_read += 1;
+            rec.last_read_s = Some(t as f64 * 1e-9);
+            tap.at(t);
+            let bytes = &mut buf[..len];
+            let outcome = dev.slave_frame(i, t, t, bytes, &mut |_, at, f: WireFrame| {
+                pending.push((at, f.into_bytes()))
+            });
+            if outcome == FrameOutcome::Forward {
+                let _ = port.send(bytes);
+            }
+        }
+        if got {
+            continue;
+        }
+        let wake = next.min(end + TAIL);
+        clock
+            .wait_readable_until(&mut fds, wake)
+            .map_err(io_err("waiting for frames"))?;
+    }
+    rec.slave = Some(dev.slaves[i].counters());
+    rec.events = tap.take();
+    Ok(())
+}
+
+/// Writes `rec` as JSON to `path`, whole or not at all (a temporary file renamed).
+pub fn write_record(rec: &NodeRecord, path: &Path) -> Result<(), RtError> {
+    let tmp = path.with_extension("json.part");
+    let text = serde_json::to_vec(rec)
+        .map_err(|e| RtError::Config(format!("cannot write the node's record: {e}")))?;
+    std::fs::write(&tmp, text).map_err(io_err(&format!("writing {}", tmp.display())))?;
+    std::fs::rename(&tmp, path).map_err(io_err(&format!("writing {}", path.display())))
+}
+
+/// Reads a record [`write_record`] wrote.
+pub fn read_record(path: &Path) -> Result<NodeRecord, RtError> {
+    let text = std::fs::read(path).map_err(io_err(&format!(
+        "reading the node record {}",
+        path.display()
+    )))?;
+    serde_json::from_slice(&text).map_err(|e| {
+        RtError::Config(format!(
+            "the node record {} is not valid: {e}",
+            path.display()
+        ))
+    })
+}
