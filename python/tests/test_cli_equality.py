@@ -113,3 +113,20 @@ def test_the_clis_parquet_trace_holds_the_runs_exact_values(cli, tmp_path: Path)
     for col, name in zip(df.columns[2:], names):
         assert np.array_equal(df[col].to_numpy(), mine[name].to_numpy(), equal_nan=True), col
         assert np.allclose(df[col], csv[col], rtol=0, atol=5e-7, equal_nan=True), col
+
+
+def test_path_delays_the_nodes_measured_come_through_as_the_cli_writes_them(cli, tmp_path: Path) -> None:
+    # clock.path_delays = "measured": the nodes' start-up phase before the run. On the
+    # reference ring the measured delays are the planner's, so the run is the plan's run.
+    cli_summary = cli.sim_summary(
+        "paper-2015", tmp_path / "cli", "--set", 'clock.path_delays="measured"'
+    )
+    r = ringsync.simulate("paper-2015", **{"clock.path_delays": "measured"})
+    assert r.summary == cli_summary
+    start = r.summary["start_up"]
+    assert start["measured_minus_planned_ns"] == [0, 0, 0, 0]
+    assert start["taken_by_slaves_ns"] == start["path_delay_ns"]
+    assert any("every link of the ring" in a for a in r.summary["assumptions"])
+    plan = ringsync.simulate("paper-2015")
+    assert "start_up" not in plan.summary
+    assert r.metrics["sync_rmse"] == plan.metrics["sync_rmse"]
