@@ -110,9 +110,12 @@ pub struct RtArgs {
     no_sim_prediction: bool,
     /// Run every node as its own process (`ringsync node master`, `ringsync node slave
     /// --index I`), each with its own port, clock and loop, and gather their results (the
-    /// nodes stamp frames in software). Not yet with faults injected, a broken link,
-    /// --pcap or --scope.
-    #[arg(long)]
+    /// nodes stamp frames in software, unpinned). Not yet with faults injected, a broken
+    /// link, --pcap, --scope, --stamps or --cpu.
+    #[arg(long, conflicts_with_all = [
+        "cpu", "stamps", "pcap", "kill_slave", "flap_link", "forge", "inject_garbage",
+        "break_link",
+    ])]
     processes: bool,
     #[cfg(feature = "scope")]
     #[command(flatten)]
@@ -159,6 +162,13 @@ impl RealtimeArgs {
 /// Runs `ringsync rt`: exit status 3 when the run ends in a group stop, 1 when it is
 /// interrupted (its partial results written all the same).
 pub(crate) fn rt(args: &RtArgs) -> Result<Outcome, CliError> {
+    #[cfg(feature = "scope")]
+    if args.processes && args.scope.scope.is_some() {
+        return Err(CliError::Usage(
+            "--scope is not fed by a ring of node processes yet: drop --processes or --scope"
+                .into(),
+        ));
+    }
     let loaded = ringsync::load(&args.scenario)?;
     let loaded = if args.break_link.is_empty() {
         loaded

@@ -31,7 +31,8 @@ use crate::transport::TransportKind;
 
 /// Time to start the processes before the master's start-up phase begins [ns].
 const SPAWN: i64 = 800_000_000;
-/// Time the start-up phase has besides its probes (one per cycle) [ns].
+/// Time the start-up phase has besides its probes ([`crate::node::PROBE_INTERVAL`] apart,
+/// or a cycle when shorter) [ns].
 const START_UP_MARGIN: i64 = 300_000_000;
 
 /// What a process run does not do yet, named; `None` when `opts` asks for none of it.
@@ -124,7 +125,8 @@ pub fn run_processes(
     };
     let t_cyc = spec.scenario.ring.cycle.0.as_ns();
     let probes = opts.calibration_rounds.max(2);
-    let start_up = probes as i64 * t_cyc + START_UP_MARGIN;
+    let interval = t_cyc.min(crate::node::PROBE_INTERVAL.as_ns());
+    let start_up = probes as i64 * interval + START_UP_MARGIN;
     let epoch = sys::now_ns() + SPAWN + start_up;
     let plan = NodePlan {
         scenario: text.to_string(),
@@ -230,10 +232,19 @@ pub fn run_processes(
         "one process per node ({} processes), each its own loop; slaves sleep to their deadlines",
         n + 1
     ));
-    let calibration = master
-        .calibration
-        .clone()
-        .ok_or_else(|| RtError::Node("the master's record has no start-up figures".into()))?;
+    let Some(mut calibration) = master.calibration.clone() else {
+        return Err(RtError::Node(if interrupted {
+            "interrupted in the start-up phase, before the run began: no results".into()
+        } else {
+            "the master ended without its start-up figures".into()
+        }));
+    };
+    // What each slave took, and refused, in its own start-up phase.
+    let su = &mut calibration.start_up;
+    for (t, r) in su.taken.iter_mut().zip(records.iter().skip(1)) {
+        *t = r.path_delay_ns.map(ringsync_proto::Duration::from_ns);
+    }
+    su.slaves_rejected = records.iter().skip(1).map(|r| r.start_up_rejected).sum();
     let mut run = run;
     run.start_up = Some(calibration.start_up.clone());
     Ok(RtResult {
@@ -304,9 +315,30 @@ pub fn merge(spec: &Spec, records: &[NodeRecord], trace: bool) -> RunResult {
         })
         .collect();
     events.sort_by_key(|(t, node, j, _)| (*t, *node, *j));
+    // The cycles every node saw the start of: a partial run (a node stopped earlier than
+    // another) keeps only those, so that no axis's row is made up.
+    let last = records
+        .iter()
+        .map(|r| {
+            r.events
+                .iter()
+                .filter_map(|e| match e.ev {
+                    Tap::Cycle { k, .. } => Some(k),
+                    _ => None,
+                })
+                .max()
+                .unwrap_or(-1)
+        })
+        .min()
+        .unwrap_or(-1)
+        .min(cycles - 1);
+    let end = (last + 1) * t_cyc;
     let mut rec = Recorder::new(n, cycles, t_cyc as f64 * 1e-9, trace);
     let mut last_k = -1;
-    for (_, _, _, ev) in events {
+    for (t, _, _, ev) in events {
+        if t >= end {
+            break;
+        }
         match ev {
             Tap::Cycle { k, .. } => {
                 if *k > last_k
@@ -316,6 +348,7 @@ pub fn merge(spec: &Spec, records: &[NodeRecord], trace: bool) -> RunResult {
                     last_k = *k;
                 }
             }
+            Tap::Computed { k, .. } if *k > last => {}
             Tap::Computed { k, record } => rec.computed(*k, record),
             Tap::Applied { axis, t, u } => rec.applied(*axis, *t, *u),
             Tap::Fault(f) => rec.fault(f),
@@ -333,12 +366,83 @@ pub fn merge(spec: &Spec, records: &[NodeRecord], trace: bool) -> RunResult {
                 .unwrap_or_default()
         })
         .collect();
-    rec.finish(
+    let mut run = rec.finish(
         &spec.scenario.name,
         master,
         slaves,
         LinkCounters::default(),
         Vec::new(),
         Vec::new(),
-    )
+    );
+    run.cycles = last + 1;
+    run
+}
+
+#[cfg(test)]
+mod tests {
+    use ringsync_model::record::{FaultEvent, FaultStep};
+    use ringsync_proto::node::SafeState;
+
+    use super::*;
+    use crate::node::Tapped;
+
+    fn probe(x: f64, x_d: f64) -> AxisProbe {
+        AxisProbe {
+            x,
+            x_d,
+            clock_error_ns: 0.0,
+            u: 0.0,
+            saturated: false,
+        }
+    }
+
+    /// A node's record with the cycle starts `0..cycles` (1 ms apart).
+    fn record(node: usize, n: usize, cycles: i64) -> NodeRecord {
+        let events = (0..cycles)
+            .map(|k| Tapped {
+                t: k * 1_000_000,
+                ev: Tap::Cycle {
+                    k,
+                    probes: if node == 0 {
+                        vec![probe(0.0, 0.5); n]
+                    } else {
+                        vec![probe(0.5, 0.0)]
+                    },
+                },
+            })
+            .collect();
+        NodeRecord {
+            node,
+            events,
+            ..NodeRecord::default()
+        }
+    }
+
+    #[test]
+    fn the_merge_keeps_only_cycles_every_node_saw_and_nothing_after_them() {
+        let spec = Scenario::from_toml("duration = \"10ms\"\n", "test")
+            .expect("scenario")
+            .build()
+            .expect("spec");
+        let n = spec.axes();
+        let mut records: Vec<NodeRecord> = (0..=n).map(|i| record(i, n, 6)).collect();
+        // Slave 3 stopped after cycle 2 (a SIGTERM that reached it first); slave 1's
+        // watchdog fired later, after the cycles every node saw.
+        records[3] = record(3, n, 3);
+        records[1].events.push(Tapped {
+            t: 4_500_000,
+            ev: Tap::Fault(FaultEvent {
+                t: 4.5e-3,
+                axis: 1,
+                step: FaultStep::Watchdog(SafeState::Brake),
+            }),
+        });
+        let run = merge(&spec, &records, true);
+        assert_eq!(run.cycles, 3);
+        assert!(run.faults.is_empty() && run.watchdog.is_empty());
+        // Every row takes x_d from the master (0.5; its own x, 0, is not the axes') and x
+        // from each slave (0.5; its x_d, 0, is not the master's): e = 0 on every axis.
+        assert_eq!(run.summary.track_rmse, 0.0);
+        assert_eq!(run.summary.samples, 3);
+    }
 }

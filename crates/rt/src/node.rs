@@ -206,6 +206,8 @@ pub struct NodeRecord {
     pub schedule: Option<Schedule>,
     /// The path delay the slave took [ns].
     pub path_delay_ns: Option<i64>,
+    /// Frames the slave refused in its start-up phase.
+    pub start_up_rejected: u64,
     /// The master's timing of the run.
     pub timing: Option<Timing>,
     /// Real-time settings applied (or not).
@@ -292,6 +294,10 @@ pub fn open_port(link: &NodeLink, node: usize) -> io::Result<Box<dyn Port>> {
         )?)),
     }
 }
+
+/// The start-up phase sends a probe at most this often (once per cycle at shorter
+/// cycles): a long cycle need not make the phase long.
+pub const PROBE_INTERVAL: Duration = Duration::from_ms(2);
 
 /// The last frames of a run still go round after the master's last cycle: a slave runs on
 /// this long after the end [ns].
@@ -390,10 +396,9 @@ fn run_master(
     let mut fds = [sys::pollfd(port.rx_fd())];
     // 1. The start-up phase: one probe per cycle from `start_up_ns` before time 0.
     let origin = -plan.start_up_ns;
-    let mut cal = Calibrator::new(
-        CalibrationConfig::new(n, t_cyc, u32::try_from(plan.probes).unwrap_or(u32::MAX)),
-        Instant::from_ns(origin),
-    );
+    let mut cfg = CalibrationConfig::new(n, t_cyc, u32::try_from(plan.probes).unwrap_or(u32::MAX));
+    cfg.interval = t_cyc.min(PROBE_INTERVAL);
+    let mut cal = Calibrator::new(cfg, Instant::from_ns(origin));
     sys::sleep_until(plan.epoch_ns + origin);
     while let Some(due) = cal.poll_timeout() {
         if stop.load(Ordering::Relaxed) {
@@ -401,6 +406,14 @@ fn run_master(
             return Ok(());
         }
         let now = clock.now();
+        if now >= 0 {
+            return Err(RtError::Node(format!(
+                "the start-up phase ran past the run's start ({:.1} ms given, {} of {} probes sent): give it more time",
+                plan.start_up_ns as f64 * 1e-6,
+                cal.measurement().map_or(0, |m| m.probes),
+                plan.probes
+            )));
+        }
         if now >= due.as_ns() {
             cal.handle_timeout(Instant::from_ns(now));
             while let Some(tx) = cal.poll_transmit() {
@@ -580,6 +593,7 @@ fn run_slave(
     };
     spec.slaves[i].path_delay = delay;
     rec.path_delay_ns = Some(delay.as_ns());
+    rec.start_up_rejected = node.counters().rejected.total();
     // 2. The run: the same node, running, with the delay it took (a fresh `Slave` of the
     //    devices, configured with it).
     let mut dev = Devices::new(spec, cycles, false)?;
@@ -595,7 +609,11 @@ fn run_slave(
                   probe_k: &mut i64,
                   port: &mut dyn Port,
                   now: i64| loop {
-        let latch = dev.latch_at(i);
+        // Nothing of the axis happens from the run's end on (the master has stopped): the
+        // tail only carries the last frames round.
+        let latch = Some(dev.latch_at(i))
+            .filter(|&l| l < end)
+            .unwrap_or(i64::MAX);
         let probe = if *probe_k < cycles {
             *probe_k * t_cyc
         } else {
@@ -607,17 +625,18 @@ fn run_slave(
             .min_by_key(|(_, p)| p.0)
             .map_or((usize::MAX, i64::MAX), |(j, p)| (j, p.0));
         let first = latch.min(probe).min(send);
-        if first > now {
+        if first > now || first == i64::MAX {
             return first;
         }
         tap.at(first);
-        if first == latch {
+        // On a tie the cycle's probe first, as in the in-process loop.
+        if first == probe {
+            dev.probe(*probe_k, probe);
+            *probe_k += 1;
+        } else if first == latch {
             dev.latch(i, latch, &mut |_, at, f: WireFrame| {
                 pending.push((at, f.into_bytes()))
             });
-        } else if first == probe {
-            dev.probe(*probe_k, probe);
-            *probe_k += 1;
         } else {
             let (_, b) = pending.swap_remove(j);
             let _ = port.send(&b);

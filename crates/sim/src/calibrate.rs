@@ -89,6 +89,7 @@ pub fn calibrate(spec: &Spec, probes: u32) -> Result<StartUp, CalibrationError> 
         _ => Err(CalibrationError::NoCompleteProbe {
             sent: 0,
             back: 0,
+            late: 0,
             silent: Vec::new(),
         }),
     }

@@ -28,7 +28,7 @@
 //! the slaves after it by up to δ·n/(n + 1).
 //!
 //! Nothing from the wire is trusted: a returning frame counts only as the echo of a probe
-//! the master sent (its sequence number and send stamp), once; a residence only for a
+//! the master sent (its sequence number and send stamp, ns since the phase began), once; a residence only for a
 //! probe the master sent, at most one cycle long; every refusal is counted.
 
 use ringsync_wire::{Common, DelayMarker, DelaySlot, Frame, FrameKind, LumpedRepr, Pdu, SlotCodec};
@@ -98,6 +98,8 @@ pub enum CalibrationError {
         sent: u32,
         /// Probes that came back.
         back: u32,
+        /// Probes that came back a cycle or more after they were sent (not counted).
+        late: u32,
         /// 1-based addresses of the slaves that never reported a residence (empty when no
         /// probe came back).
         silent: Vec<usize>,
@@ -132,17 +134,30 @@ impl std::fmt::Display for CalibrationError {
                 .join(", ")
         };
         match self {
+            CalibrationError::NoCompleteProbe {
+                sent,
+                back: 0,
+                late,
+                ..
+            } if *late > 0 => write!(
+                f,
+                "{late} of {sent} delay probes came back a cycle or more after they were sent: the ring's round trip does not fit the cycle"
+            ),
             CalibrationError::NoCompleteProbe { sent, back: 0, .. } => write!(
                 f,
                 "none of {sent} delay probes came back round the ring (a node does not forward)"
             ),
-            CalibrationError::NoCompleteProbe { sent, back, silent } if silent.is_empty() => {
+            CalibrationError::NoCompleteProbe {
+                sent, back, silent, ..
+            } if silent.is_empty() => {
                 write!(
                     f,
                     "no delay probe came back with every slave's residence ({back} of {sent} probes back; a probe's residences come with the next one)"
                 )
             }
-            CalibrationError::NoCompleteProbe { sent, back, silent } => write!(
+            CalibrationError::NoCompleteProbe {
+                sent, back, silent, ..
+            } => write!(
                 f,
                 "no delay probe came back with every slave's residence ({back} of {sent} probes back): {} never reported one",
                 list(silent)
@@ -197,6 +212,10 @@ struct Sent {
 pub struct Calibrator {
     cfg: CalibrationConfig,
     state: CalibrationState,
+    /// The phase's start: the frames' send stamps count from it.
+    start: Instant,
+    /// Echoes that came back a cycle or more after their probe.
+    late: u32,
     next_at: Instant,
     seq: u16,
     sent: Vec<Sent>,
@@ -228,6 +247,8 @@ impl Calibrator {
         Calibrator {
             cfg,
             state,
+            start,
+            late: 0,
             next_at: start,
             seq: 0,
             sent: Vec::new(),
@@ -315,12 +336,18 @@ impl Calibrator {
                 seq,
                 ..Common::default()
             },
-            master_time_ns: now.as_ns().max(0) as u64,
+            master_time_ns: self.stamp(now),
             first_slot: 0,
             slots,
         });
         self.out.push_on(now, Port::A, pdu);
         seq
+    }
+
+    /// A frame's send stamp: ns since the phase began (the phase may run before the
+    /// cycles' time 0, on a time line of its own).
+    fn stamp(&self, at: Instant) -> u64 {
+        stamp_since(self.start, at)
     }
 
     fn send_probe(&mut self, now: Instant) {
@@ -369,7 +396,8 @@ impl Calibrator {
             return Err(Reject::Unsolicited);
         }
         let seq = d.common.seq;
-        let stamp = |at: Instant| at.as_ns().max(0) as u64;
+        let start = self.start;
+        let stamp = |at: Instant| stamp_since(start, at);
         if let Some((cs, at)) = self.closing
             && cs == seq
             && stamp(at) == d.master_time_ns
@@ -397,7 +425,11 @@ impl Calibrator {
             .as_ns()
             .checked_sub(p.at.as_ns())
             .ok_or(Reject::Overflow)?;
-        if rtt <= 0 || rtt >= cycle {
+        if rtt <= 0 {
+            return Err(Reject::Stale);
+        }
+        if rtt >= cycle {
+            self.late += 1;
             return Err(Reject::Stale);
         }
         p.back = Some(Duration::from_ns(rtt));
@@ -444,6 +476,7 @@ impl Calibrator {
             return Err(CalibrationError::NoCompleteProbe {
                 sent: self.sent.len() as u32,
                 back,
+                late: self.late,
                 silent,
             });
         }
@@ -501,6 +534,11 @@ impl Calibrator {
     pub fn recycle(&mut self, buf: Vec<u8>) {
         self.out.recycle(buf);
     }
+}
+
+/// The send stamp of a frame sent at `at` in a phase begun at `start` [ns since `start`].
+fn stamp_since(start: Instant, at: Instant) -> u64 {
+    u64::try_from(at.as_ns().saturating_sub(start.as_ns())).unwrap_or(0)
 }
 
 /// The median of `v` (the mean of the middle two for an even count); 0 for none.
@@ -657,6 +695,7 @@ mod tests {
             CalibrationError::NoCompleteProbe {
                 sent: 8,
                 back: 0,
+                late: 0,
                 silent: vec![]
             }
         );
@@ -769,5 +808,67 @@ mod tests {
         assert_eq!(s.counters().rejected.get(Reject::UnexpectedKind), 2);
         assert_eq!((s.counters().syncs, s.counters().commands), (0, 0));
         assert_eq!(s.poll_event(), None);
+    }
+
+    #[test]
+    fn a_slave_reports_the_residence_of_its_probe_not_of_a_frame_after_it() {
+        let mut s = Slave::calibrating(SlaveConfig::new(1, CYCLE, Duration::ZERO));
+        let mut cal = Calibrator::new(CalibrationConfig::new(1, CYCLE, 3), Instant::ZERO);
+        let probe = |cal: &mut Calibrator, t: i64| {
+            cal.handle_timeout(Instant::from_ns(t));
+            cal.poll_transmit().expect("probe").bytes
+        };
+        let mut p0 = probe(&mut cal, 0);
+        let dup = p0.clone();
+        let t = Instant::from_ns(1_000);
+        assert_eq!(s.handle_frame(t, t, &mut p0), FrameOutcome::Forward);
+        s.handle_forwarded(Instant::from_ns(1_700));
+        // The same probe again, forwarded much later: refused, and its send is not probe
+        // 0's residence.
+        let mut again = dup;
+        let t2 = Instant::from_ns(500_000);
+        let _ = s.handle_frame(t2, t2, &mut again);
+        s.handle_forwarded(Instant::from_ns(900_000));
+        let mut p1 = probe(&mut cal, 1_000_000);
+        let t3 = Instant::from_ns(1_001_000);
+        let _ = s.handle_frame(t3, t3, &mut p1);
+        let d = LumpedRepr::<DelaySlot>::parse(&p1).expect("parse");
+        assert_eq!(d.slots[0].marker, DelayMarker::Residence);
+        assert_eq!((d.slots[0].residence_of, d.slots[0].residence_ns), (0, 700));
+    }
+
+    #[test]
+    fn a_phase_before_time_0_stamps_each_frame_apart_and_names_a_slow_ring() {
+        // A process ring's master starts before the cycles' time 0: the stamps still tell
+        // its probes apart, so a forged echo with a guessed sequence number is refused.
+        let start = Instant::from_ns(-5_000_000);
+        let mut cal = Calibrator::new(CalibrationConfig::new(1, CYCLE, 2), start);
+        cal.handle_timeout(start);
+        let p0 = cal.poll_transmit().expect("probe 0").bytes;
+        cal.handle_timeout(start + CYCLE);
+        let p1 = cal.poll_transmit().expect("probe 1").bytes;
+        let stamp = |b: &[u8]| {
+            LumpedRepr::<DelaySlot>::parse(b)
+                .expect("parse")
+                .master_time_ns
+        };
+        assert_eq!((stamp(&p0), stamp(&p1)), (0, 1_000_000));
+        let mut forged = LumpedRepr::<DelaySlot>::parse(&p1).expect("parse");
+        forged.master_time_ns = 0;
+        let mut b = Vec::new();
+        Pdu::Delay(forged).emit_into(&mut b).expect("emit");
+        cal.handle_frame(start + CYCLE + Duration::from_us(10), &b);
+        assert_eq!(cal.rejected().get(Reject::Unsolicited), 1);
+        // Both probes back a cycle late: the error says the round trip does not fit.
+        cal.handle_frame(start + CYCLE + CYCLE, &p0);
+        cal.handle_frame(start + CYCLE * 3, &p1);
+        cal.handle_timeout(start + CYCLE * 2);
+        let CalibrationState::Failed(e) = cal.state() else {
+            panic!("{:?}", cal.state())
+        };
+        assert!(
+            e.to_string().contains("round trip does not fit the cycle"),
+            "{e}"
+        );
     }
 }

@@ -315,6 +315,9 @@ enum Phase {
         /// That probe's residence once the driver reported its send
         /// ([`Slave::handle_forwarded`]): (sequence number, ns on this slave's clock).
         residence: Option<(u16, u32)>,
+        /// The last frame handled was that probe, written: the next send the driver reports
+        /// is its.
+        written: bool,
     },
     /// Following the master: clock sync, feedback, commands.
     Running,
@@ -446,6 +449,7 @@ impl Slave {
         s.phase = Phase::Calibrating {
             probe: None,
             residence: None,
+            written: false,
         };
         s
     }
@@ -459,14 +463,17 @@ impl Slave {
         }
     }
 
-    /// The driver sent on the delay probe this slave last wrote, its first bit out at
-    /// local `tx_start`: the slave reports that residence in the next probe (two-step, as a
-    /// transparent clock's follow-up). Any other time it changes nothing.
+    /// The driver sent on the frame this slave handled last, its first bit out at local
+    /// `tx_start`: when that frame was a delay probe the slave wrote, the slave reports this
+    /// residence in the next probe (two-step, as a transparent clock's follow-up). After any
+    /// other frame (a duplicate, a frame not for it, a response) it changes nothing.
     pub fn handle_forwarded(&mut self, tx_start: Instant) {
         if let Phase::Calibrating {
             probe: Some((seq, rx)),
             residence,
+            written,
         } = &mut self.phase
+            && std::mem::take(written)
         {
             let held = tx_start.as_ns().saturating_sub(rx.as_ns());
             if let Ok(ns) = u32::try_from(held) {
@@ -665,6 +672,10 @@ impl Slave {
                 return FrameOutcome::Dropped;
             }
         };
+        if let Phase::Calibrating { written, .. } = &mut self.phase {
+            // Only the probe this frame turns out to be is the next send's.
+            *written = false;
+        }
         if matches!(self.phase, Phase::Calibrating { .. }) || kind == FrameKind::Delay {
             let seq = frame.seq();
             let outcome = self.calibration_frame(rx_start, kind, seq, frame.payload_mut());
@@ -796,7 +807,12 @@ impl Slave {
             marker: DelayMarker::Written,
             ..slot
         };
-        let Phase::Calibrating { probe, residence } = &mut self.phase else {
+        let Phase::Calibrating {
+            probe,
+            residence,
+            written,
+        } = &mut self.phase
+        else {
             let mine = i64::from(slot.path_delay_ns) == self.cfg.path_delay.as_ns();
             return if slot.path_delay_ns != 0 && mine {
                 Ok(ack)
@@ -832,6 +848,7 @@ impl Slave {
             },
         };
         *probe = Some((seq, rx_start));
+        *written = true;
         Ok(answer)
     }
 
