@@ -90,6 +90,7 @@ fn wait_clean(pid: u32) -> Vec<String> {
 /// until a line contains `until`: the child, and the lines read so far (the rest are read
 /// by a thread into the returned handle).
 fn start(
+    transport: &str,
     out: &std::path::Path,
     duration: &str,
     watchdog: &str,
@@ -105,7 +106,7 @@ fn start(
             scenario().to_str().expect("utf-8 path"),
             "--processes",
             "--transport",
-            "veth",
+            transport,
             "--watchdog-cycles",
             watchdog,
             "--no-sim-prediction",
@@ -137,10 +138,20 @@ fn start(
 #[test]
 fn a_ring_of_node_processes_runs_as_one_and_leaves_nothing_behind() {
     let _one = ONE_AT_A_TIME.lock();
-    let dir = std::env::temp_dir().join(format!("ringsync-proc-run-{}", std::process::id()));
+    for transport in ["veth", "udp"] {
+        runs_as_one(transport);
+    }
+}
+
+/// A ring of node processes on `transport`.
+fn runs_as_one(transport: &str) {
+    let dir = std::env::temp_dir().join(format!(
+        "ringsync-proc-run-{transport}-{}",
+        std::process::id()
+    ));
     // W = 1: a slave's watchdog expires one cycle after the master's last command; no
     // such step may come after the run's end.
-    let (mut child, _, rest) = start(&dir, "4s", "1", "starting 5 node processes");
+    let (mut child, _, rest) = start(transport, &dir, "4s", "1", "starting 5 node processes");
     let pid = child.id();
     // While it runs: a process per node, each its own.
     let t = Instant::now();
@@ -217,7 +228,7 @@ fn a_ring_of_node_processes_runs_as_one_and_leaves_nothing_behind() {
 fn a_killed_node_process_ends_the_ring_and_leaves_nothing_behind() {
     let _one = ONE_AT_A_TIME.lock();
     let dir = std::env::temp_dir().join(format!("ringsync-proc-kill-{}", std::process::id()));
-    let (mut child, _, rest) = start(&dir, "30s", "20", "starting 5 node processes");
+    let (mut child, _, rest) = start("veth", &dir, "30s", "20", "starting 5 node processes");
     let pid = child.id();
     // Slave 2 dies (SIGKILL: no chance to say anything) once the ring runs.
     let t = Instant::now();
@@ -252,7 +263,7 @@ fn a_killed_node_process_ends_the_ring_and_leaves_nothing_behind() {
 fn sigterm_to_the_launcher_ends_every_node_and_keeps_what_they_saw() {
     let _one = ONE_AT_A_TIME.lock();
     let dir = std::env::temp_dir().join(format!("ringsync-proc-term-{}", std::process::id()));
-    let (mut child, _, rest) = start(&dir, "30s", "20", "starting 5 node processes");
+    let (mut child, _, rest) = start("veth", &dir, "30s", "20", "starting 5 node processes");
     let pid = child.id();
     std::thread::sleep(Duration::from_millis(3_000));
     let sent = Command::new("kill")
@@ -271,5 +282,88 @@ fn sigterm_to_the_launcher_ends_every_node_and_keeps_what_they_saw() {
     .expect("json");
     assert_eq!(summary["interrupted"], true);
     assert_eq!(wait_clean(pid), Vec::<String>::new());
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_node_given_a_bad_plan_says_what_is_wrong_in_one_line() {
+    let run = |args: &[&str]| {
+        let o = Command::new(env!("CARGO_BIN_EXE_ringsync"))
+            .args(args)
+            .env("RUST_BACKTRACE", "0")
+            .output()
+            .expect("run ringsync");
+        (
+            o.status.code(),
+            String::from_utf8_lossy(&o.stderr).into_owned(),
+        )
+    };
+    let dir = std::env::temp_dir().join(format!("ringsync-proc-bad-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("dir");
+    let out = dir.join("rec.json");
+    let out = out.to_str().expect("utf-8");
+    // A plan that is not there, one that is not a plan, a ring of the wrong size, a slave
+    // numbered 0.
+    let missing = dir.join("missing.json");
+    let (code, err) = run(&[
+        "node",
+        "master",
+        "--plan",
+        missing.to_str().expect("utf-8"),
+        "--out",
+        out,
+    ]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(
+        err.contains("missing.json") && err.lines().count() == 1,
+        "{err}"
+    );
+    let junk = dir.join("junk.json");
+    std::fs::write(&junk, "{\"scenario\": 3}").expect("write");
+    let (code, err) = run(&[
+        "node",
+        "master",
+        "--plan",
+        junk.to_str().expect("utf-8"),
+        "--out",
+        out,
+    ]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("junk.json is not valid"), "{err}");
+    let short = dir.join("short.json");
+    std::fs::write(
+        &short,
+        r#"{"scenario": "", "origin": "t", "duration_ns": null, "cycle_ns": null,
+            "watchdog_cycles": null, "sample_lead_ns": null, "response_timeout_ns": 200000,
+            "probes": 10, "epoch_ns": 0, "start_up_ns": 100000000, "priority": 0,
+            "spin_ns": 0, "lock_memory": false,
+            "links": [{"udp": {"listen": "127.0.0.1:9", "next": "127.0.0.1:9"}}]}"#,
+    )
+    .expect("write");
+    let (code, err) = run(&[
+        "node",
+        "slave",
+        "--index",
+        "1",
+        "--plan",
+        short.to_str().expect("utf-8"),
+        "--out",
+        out,
+    ]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("has 1 links for a ring of 5 nodes"), "{err}");
+    let (code, err) = run(&[
+        "node",
+        "slave",
+        "--index",
+        "0",
+        "--plan",
+        short.to_str().expect("utf-8"),
+        "--out",
+        out,
+    ]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("--index counts slaves from 1"), "{err}");
+    assert!(!std::path::Path::new(out).exists());
     let _ = std::fs::remove_dir_all(&dir);
 }

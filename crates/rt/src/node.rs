@@ -133,8 +133,10 @@ impl NodePlan {
 
     /// Reads a plan written as JSON.
     pub fn read(path: &Path) -> Result<NodePlan, RtError> {
-        let text = std::fs::read_to_string(path)
-            .map_err(io_err(&format!("reading the node plan {}", path.display())))?;
+        // A plan that cannot be read is bad input (exit status 2), as a scenario file is.
+        let text = std::fs::read_to_string(path).map_err(|e| {
+            RtError::Config(format!("cannot read the node plan {}: {e}", path.display()))
+        })?;
         serde_json::from_str(&text).map_err(|e| {
             RtError::Config(format!(
                 "the node plan {} is not valid: {e}",
