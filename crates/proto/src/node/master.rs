@@ -851,8 +851,17 @@ impl Master {
             .iter()
             .position(|m| *m >= self.cfg.watchdog_cycles)
         {
-            self.pending_stop
-                .get_or_insert(StopReason::NoResponse { axis });
+            // An axis the ring's copies have been failing to meet around is cut off: the
+            // split is the cause to name (it and the response watchdog both count about W
+            // cycles from the second break, and a run the host made late delays the split's
+            // count by one).
+            let reason = match self.split {
+                Some((first, last)) if (first..=last).contains(&axis) => {
+                    StopReason::RingSplit { axis: first, last }
+                }
+                _ => StopReason::NoResponse { axis },
+            };
+            self.pending_stop.get_or_insert(reason);
         }
         self.retry_queue.clear();
         self.k += 1;
