@@ -83,13 +83,7 @@ impl Devices {
         let (master, slaves) = spec.nodes()?;
         let axes = spec.plant()?;
         let n = slaves.len();
-        let zero = AxisProbe {
-            x: 0.0,
-            x_d: 0.0,
-            clock_error_ns: 0.0,
-            u: 0.0,
-            saturated: false,
-        };
+        let zero = AxisProbe::AT_REST;
         Ok(Devices {
             master,
             safe: slaves.iter().map(|s| s.config().safe_state).collect(),

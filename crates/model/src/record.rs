@@ -30,6 +30,17 @@ pub struct AxisProbe {
     pub saturated: bool,
 }
 
+impl AxisProbe {
+    /// An axis at rest at 0, desired 0, no clock error, 0 V.
+    pub const AT_REST: AxisProbe = AxisProbe {
+        x: 0.0,
+        x_d: 0.0,
+        clock_error_ns: 0.0,
+        u: 0.0,
+        saturated: false,
+    };
+}
+
 /// One step of a fault reaction.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub enum FaultStep {
@@ -153,13 +164,7 @@ impl Recorder {
     /// A recorder for `n` axes over `cycles` cycles of `t_cyc` [s]; `trace` keeps the
     /// trace (reserved for the whole run).
     pub fn new(n: usize, cycles: i64, t_cyc: f64, trace: bool) -> Self {
-        let zero = AxisProbe {
-            x: 0.0,
-            x_d: 0.0,
-            clock_error_ns: 0.0,
-            u: 0.0,
-            saturated: false,
-        };
+        let zero = AxisProbe::AT_REST;
         let groups = if trace {
             usize::try_from(cycles.max(0)).unwrap_or(0) + 1
         } else {

@@ -279,13 +279,7 @@ pub fn merge(spec: &Spec, records: &[NodeRecord], trace: bool) -> RunResult {
     let n = spec.axes();
     let t_cyc = spec.scenario.ring.cycle.0.as_ns();
     let cycles = spec.scenario.duration.0.as_ns() / t_cyc;
-    let zero = AxisProbe {
-        x: 0.0,
-        x_d: 0.0,
-        clock_error_ns: 0.0,
-        u: 0.0,
-        saturated: false,
-    };
+    let zero = AxisProbe::AT_REST;
     // Each cycle's probes: x_d from the master, the rest from each slave.
     let mut probes: BTreeMap<i64, Vec<AxisProbe>> = BTreeMap::new();
     for r in records {

@@ -288,25 +288,7 @@ impl VethPort {
     /// Sockets on node `i`'s interfaces of `ring`.
     pub fn open(ring: &VethRing, i: usize) -> io::Result<VethPort> {
         let (ns, rx_if, tx_if) = (ring.netns(i), ring.in_if(i), ring.out_if(i));
-        // A thread enters the namespace, opens the sockets there and ends; the sockets stay
-        // bound to that namespace's interfaces.
-        let (rx, tx) = std::thread::scope(|s| {
-            s.spawn(|| -> io::Result<(OwnedFd, OwnedFd)> {
-                sys::enter_netns(&ns)?;
-                Ok((
-                    sys::packet_socket(&rx_if, ETHERTYPE)?,
-                    sys::packet_socket(&tx_if, ETHERTYPE)?,
-                ))
-            })
-            .join()
-            .map_err(|_| io::Error::other("socket thread panicked"))?
-        })?;
-        Ok(VethPort {
-            rx,
-            tx,
-            src: mac(i),
-            frame: vec![0; ETH_HEADER_LEN + MAX_PDU],
-        })
+        VethPort::open_named(Some(&ns), &rx_if, &tx_if, i)
     }
 
     /// Sockets of node `i` on interfaces `rx_if` (frames from the previous node) and `tx_if`
