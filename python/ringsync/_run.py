@@ -321,7 +321,9 @@ def rt(scenario: ScenarioLike = "paper-2015", *, prediction_seeds: int = 8, **ov
     Returns a :class:`Run` (``realtime`` True): the same arrays and metrics as a
     simulation, ``summary`` is what ``ringsync rt`` writes (the simulator's fields plus the
     timing: ``overruns``, ``lateness_us``, ``p2p_phase_us``, ``calibration`` …, and the
-    simulator's prediction from ``prediction_seeds`` seeds, 0 for none), ``text()`` its
+    simulator's predictions from ``prediction_seeds`` seeds, 0 for none:
+    ``summary["sim_prediction"]`` for the scenario as run on its plan's links, and its
+    ``"measured_ring"`` for the ring as the start-up phase measured it), ``text()`` its
     lines. Numbers vary from run to run: the host's timing is part of the result.
     ``overrides`` set scenario keys first, as for :func:`simulate`.
 

@@ -9,6 +9,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 import ringsync
 
@@ -22,6 +23,12 @@ def test_rt_gives_a_run_with_the_timing(tmp_path: Path) -> None:
     assert r.summary["transport"] == "udp"
     assert r.summary["cycles_planned"] == 300
     assert r.summary["sim_prediction"]["seeds"] == 1
+    # The second prediction runs the ring as the start-up phase measured it.
+    measured = r.summary["sim_prediction"]["measured_ring"]
+    start_up = r.summary["start_up"]
+    assert measured["seeds"] == 1 and measured["sync_rmse"] > 0
+    assert measured["link_us"] * 1e3 == pytest.approx(start_up["link_ns"])
+    assert measured["residence_us"] * 1e3 == pytest.approx(sorted(start_up["residence_ns"])[len(start_up["residence_ns"]) // 2])
     assert r.e.shape[1] == 4 and 0 < r.e.shape[0] <= 300
     n = r.metrics["samples"]
     # A trace row is taken when the master computes, from its cycle's probe (or the one

@@ -242,11 +242,12 @@ pub(crate) fn rt(args: &RtArgs) -> Result<Outcome, CliError> {
     };
     #[cfg(feature = "scope")]
     scope.finish(&r.scenario, loaded.hash, &r.run);
-    // The simulator's prediction for the scenario as run (after the overrides).
+    // The simulator's predictions: the scenario as run (after the overrides), and the
+    // ring as measured.
     let prediction = if args.no_sim_prediction {
         None
     } else {
-        Some(ringsync::predict(&r.scenario, 8)?)
+        Some(ringsync::predict_rt(&r, 8)?)
     };
     ringsync::rt::write_rt(&mut dir, &r, loaded.hash, prediction, args.pcap.as_deref())?;
     ringsync::identify::write_scenario(&dir, &loaded, None)?;

@@ -34,4 +34,6 @@ pub use law::{
     RingCoupled, Sign, SyncController, SyncParams, VelocitySource,
 };
 pub use metrics::{Metrics, Summary};
-pub use trajectory::{AxisTrajectory, Cosine, Sequence, State, Trajectory, Trapezoid};
+pub use trajectory::{
+    AxisTrajectory, Cosine, GroupTrajectories, Sequence, State, Trajectory, Trapezoid,
+};

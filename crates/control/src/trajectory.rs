@@ -274,11 +274,85 @@ impl Trajectory for AxisTrajectory {
     }
 }
 
+/// The trajectories of a group's axes, each evaluated once per instant asked: axes whose
+/// trajectories are equal (the reference scenario's four follow one cosine) share one
+/// evaluation while they are asked for the same instant, as a master is at a cycle's start
+/// and at its sampling instant, and a lumped-only slave for every axis at once. Results are
+/// [`Trajectory::at`]'s to the bit.
+#[derive(Debug, Clone)]
+pub struct GroupTrajectories {
+    each: Vec<AxisTrajectory>,
+    /// For each axis, the first axis with an equal trajectory.
+    first: Vec<usize>,
+    /// Each first axis's last instant asked [s, as bits] and the state then.
+    last_t: Vec<std::cell::Cell<u64>>,
+    last: Vec<std::cell::Cell<State>>,
+}
+
+impl GroupTrajectories {
+    /// The group of `each` (one trajectory per axis).
+    pub fn new(each: Vec<AxisTrajectory>) -> Self {
+        let first = (0..each.len())
+            .map(|i| each[..i].iter().position(|t| *t == each[i]).unwrap_or(i))
+            .collect();
+        let last_t = vec![std::cell::Cell::new(0.0f64.to_bits()); each.len()];
+        let last = each
+            .iter()
+            .map(|t| std::cell::Cell::new(t.at(0.0)))
+            .collect();
+        GroupTrajectories {
+            each,
+            first,
+            last_t,
+            last,
+        }
+    }
+
+    /// How many axes.
+    pub fn len(&self) -> usize {
+        self.each.len()
+    }
+
+    /// Whether the group has no axis.
+    pub fn is_empty(&self) -> bool {
+        self.each.is_empty()
+    }
+
+    /// Axis `axis`'s desired state at `t` [s].
+    pub fn at(&self, axis: usize, t: f64) -> State {
+        let j = self.first[axis];
+        let key = t.to_bits();
+        if self.last_t[j].get() == key {
+            return self.last[j].get();
+        }
+        let s = self.each[j].at(t);
+        self.last_t[j].set(key);
+        self.last[j].set(s);
+        s
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use proptest::prelude::*;
 
     use super::*;
+
+    /// A group shares evaluations between equal trajectories and gives each axis what its
+    /// own trajectory gives, whatever the order of the instants asked.
+    #[test]
+    fn a_group_gives_each_axis_its_own_trajectory() {
+        let a = AxisTrajectory::Cosine(Cosine::with_peak_speed(15.12, 2.0).expect("cosine"));
+        let b = AxisTrajectory::Cosine(Cosine::new(0.3, 1.5, 0.1).expect("cosine"));
+        let each = vec![a.clone(), b.clone(), a.clone(), b.clone(), a.clone()];
+        let g = GroupTrajectories::new(each.clone());
+        assert_eq!(g.first, [0, 1, 0, 1, 0]);
+        for t in [0.0, 0.25, 0.25, -1.0, 0.1, 0.25, 0.7, 0.7] {
+            for axis in [4, 0, 3, 1, 2, 2] {
+                assert_eq!(g.at(axis, t), each[axis].at(t), "axis {axis} at {t}");
+            }
+        }
+    }
 
     #[test]
     fn reference_cosine() {

@@ -6,8 +6,8 @@
 //! their ramp has ended and they stand still, and every axis at the stop timeout.
 
 use ringsync_control::{
-    AxisTrajectory, ControlInput, ControlLaw, ControlOutput, Controller, Feedback, State,
-    Trajectory, VelocitySource,
+    AxisTrajectory, ControlInput, ControlLaw, ControlOutput, Controller, Feedback,
+    GroupTrajectories, State, VelocitySource,
 };
 use ringsync_proto::Duration;
 use ringsync_proto::node::motion::{Motion, MotionInput, MotionOutput, Setpoint};
@@ -77,7 +77,7 @@ impl StopRamp {
 /// The motion application of a master: a control law on the desired motion of every axis.
 pub struct ControlMotion {
     controller: Controller<Box<dyn ControlLaw>>,
-    trajectories: Vec<AxisTrajectory>,
+    trajectories: GroupTrajectories,
     /// Encoder resolution of each axis [rad per count].
     resolution: Vec<f64>,
     stop_settings: StopSettings,
@@ -116,7 +116,7 @@ impl ControlMotion {
         let t_cyc = cycle.as_ns() as f64 * 1e-9;
         ControlMotion {
             controller: Controller::new(law, velocity),
-            trajectories,
+            trajectories: GroupTrajectories::new(trajectories),
             resolution,
             stop_settings: stop,
             stop: None,
@@ -157,7 +157,7 @@ impl ControlMotion {
     fn state(&self, i: usize, t: f64) -> State {
         match &self.stop {
             Some(r) => r[i].at(t),
-            None => self.trajectories[i].at(t),
+            None => self.trajectories.at(i, t),
         }
     }
 
@@ -185,7 +185,7 @@ impl ControlMotion {
                     let (x0, v0) = match self.measured(input, i) {
                         Some((x, v, ts)) => (x + v * (t - ts), v),
                         None => {
-                            let d = self.trajectories[i].at(t);
+                            let d = self.trajectories.at(i, t);
                             (d.x, d.v)
                         }
                     };
@@ -363,7 +363,7 @@ impl Motion for ControlMotion {
 /// slaves before it and last cycle's of those after it, each slave evaluating the shared
 /// trajectory itself.
 pub struct SlaveControl {
-    trajectories: Vec<AxisTrajectory>,
+    trajectories: GroupTrajectories,
     resolution: Vec<f64>,
     controller: Controller<Box<dyn ControlLaw>>,
     fb: Feedback,
@@ -394,7 +394,7 @@ impl SlaveControl {
         let n = law.axes();
         let t_cyc = cycle.as_ns() as f64 * 1e-9;
         SlaveControl {
-            trajectories,
+            trajectories: GroupTrajectories::new(trajectories),
             resolution,
             controller: Controller::new(law, velocity),
             fb: Feedback::new(n),
@@ -438,13 +438,13 @@ impl SlaveLaw for SlaveControl {
             self.fb.position[a] = f64::from(slot.position) * res;
             self.fb.velocity[a] = f64::from(slot.velocity) * res;
             self.fb.sample_time[a] = ts;
-            self.fb.desired[a] = self.trajectories[a].at(ts);
+            self.fb.desired[a] = self.trajectories.at(a, ts);
             self.fb.fresh[a] = true;
             self.seen[a] = slot.sample_time_ns;
         }
         for a in 0..n {
             self.input.apply_time[a] = now;
-            self.input.desired[a] = self.trajectories[a].at(now);
+            self.input.desired[a] = self.trajectories.at(a, now);
         }
         if self
             .controller

@@ -88,7 +88,7 @@ fn rt(py: Python<'_>, text: String, origin: String, prediction_seeds: u64) -> Py
                 };
                 let r = ringsync::run_rt(&loaded.scenario, &opts, &flag, Vec::new())?;
                 let prediction = if prediction_seeds > 0 && !r.interrupted {
-                    Some(ringsync::predict(&r.scenario, prediction_seeds)?)
+                    Some(ringsync::predict_rt(&r, prediction_seeds)?)
                 } else {
                     None
                 };

@@ -16,7 +16,7 @@
 //! | sweep keys over seeds | [`sweep::cases`], [`run_case`], [`sweep::run_cases`], [`sweep::aggregate`] | [`sweep::Case`], [`sweep::CaseResult`], [`sweep::Mean`] |
 //! | identify the axes of a run (H, C, F) | [`identify::identify_run`], [`identify::identified_toml`] | [`identify::Identification`] |
 //! | reproduce the paper's Table 1 over seeds | [`reproduce`], [`reproduce_with`] | [`Reproduction`] |
-//! | run in real time | [`run_rt`] (stop flag, observers), [`predict`] | [`RtResult`], [`SimPrediction`] |
+//! | run in real time | [`run_rt`] (stop flag, observers), [`predict`], [`predict_rt`] | [`RtResult`], [`SimPrediction`], [`RtPrediction`] |
 //! | write results atomically | [`OutDir`], [`write_sim`], [`sweep::write_sweep`], [`write_reproduction`], [`rt::write_rt`] | files |
 //!
 //! Errors are one type, [`Error`]; [`Error::is_usage`] tells bad input from a failure.
@@ -53,7 +53,7 @@ pub use load::{Loaded, key_value, load, parse, with_values};
 pub use output::OutDir;
 pub use plan::{plan, plan_of};
 pub use reproduce::{ReproOptions, Reproduction, reproduce, reproduce_with, write_reproduction};
-pub use rt::{SimPrediction, predict, run_rt};
+pub use rt::{RtPrediction, SimPrediction, predict, predict_rt, run_rt};
 pub use simulate::{Outputs, SimOptions, sim_text, simulate, simulate_with, write_sim};
 pub use sweep::run_case;
 

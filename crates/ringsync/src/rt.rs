@@ -89,6 +89,36 @@ pub fn predict(s: &Scenario, seeds: u64) -> Result<SimPrediction> {
     Ok(ringsync_sim::predict(s, seeds)?)
 }
 
+/// The simulator's predictions beside a real-time run: for the scenario as run, on the
+/// links and schedule its plan describes, and for the ring as the run measured it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RtPrediction {
+    /// The scenario as run (after the overrides) on its plan's links and schedule.
+    pub planned: SimPrediction,
+    /// The ring the nodes ran: their schedule, path delays and command timing, every link
+    /// the measured L and every slave the median measured residence
+    /// ([`ringsync_rt::schedule::measured_ring`]); `None` when the simulator could not run
+    /// it.
+    pub measured: Option<SimPrediction>,
+    /// The link L the measured ring's hops took [ns].
+    pub link_ns: i64,
+    /// The residence its slaves took [ns].
+    pub residence_ns: i64,
+}
+
+/// Both of the simulator's predictions for the run `r` ([`RtPrediction`]), each the mean
+/// over `seeds` seeds.
+pub fn predict_rt(r: &RtResult, seeds: u64) -> Result<RtPrediction> {
+    let planned = predict(&r.scenario, seeds)?;
+    let ring = ringsync_rt::schedule::measured_ring(&r.spec, &r.calibration);
+    Ok(RtPrediction {
+        planned,
+        measured: ringsync_sim::predict::predict_spec(&ring, seeds).ok(),
+        link_ns: ring.plan.hop.as_ns(),
+        residence_ns: ring.scenario.ring.residence.0.as_ns(),
+    })
+}
+
 /// Runs `s` in real time as [`run_rt`] does, writing `trace.csv` into `dir` and the frames
 /// sent as pcapng to `pcap` (when given) while it runs ([`crate::stream`]): the run's memory
 /// does not grow with its duration. The result's trace and captured frames are empty
@@ -120,7 +150,7 @@ pub fn write_rt(
     dir: &mut OutDir,
     r: &RtResult,
     hash: u64,
-    prediction: Option<SimPrediction>,
+    prediction: Option<RtPrediction>,
     pcap: Option<&Path>,
 ) -> Result<()> {
     let summary = rt_summary(r, hash, r.transport.name(), prediction);
@@ -167,13 +197,13 @@ fn nodes_json(r: &RtResult) -> Value {
 }
 
 /// summary.json of a real-time run, as [`write_rt`] writes it: the simulator's fields plus
-/// the timing (µs), the calibration and, when given, the prediction. `hash` is the scenario
-/// text's hash, `transport` its name.
+/// the timing (µs), the calibration and, when given, the predictions. `hash` is the
+/// scenario text's hash, `transport` its name.
 pub fn rt_summary(
     r: &RtResult,
     hash: u64,
     transport: &str,
-    prediction: Option<SimPrediction>,
+    prediction: Option<RtPrediction>,
 ) -> Value {
     let mut v = summary_json(&r.scenario, hash, &r.run);
     let t = &r.timing;
@@ -206,12 +236,18 @@ pub fn rt_summary(
             "max": r.run.clock_error_max_ns.iter().copied().fold(0.0, f64::max),
             "rms": r.run.clock_error_rms_ns.clone(),
         },
-        "sim_prediction": prediction.map(|p| json!({
-            "track_rmse": p.track_rmse, "sync_rmse": p.sync_rmse,
-            "sync_rmse_min": p.sync_rmse_range.0, "sync_rmse_max": p.sync_rmse_range.1,
-            "seeds": p.seeds,
-            "note": "means over the seeds: one run's Sync-RMSE moves by about ±10 % with the seed",
-        })),
+        "sim_prediction": prediction.map(|p| {
+            let mut v = prediction_json(&p.planned);
+            v["note"] = json!("means over the seeds: one run's Sync-RMSE moves by about ±10 % with the seed");
+            v["measured_ring"] = p.measured.map_or(Value::Null, |m| {
+                let mut v = prediction_json(&m);
+                v["link_us"] = json!(p.link_ns as f64 * 1e-3);
+                v["residence_us"] = json!(p.residence_ns as f64 * 1e-3);
+                v["assumption"] = json!(ringsync_rt::schedule::MEASURED_RING_ASSUMPTION);
+                v
+            });
+            v
+        }),
         "calibration": {
             "rounds": c.rounds,
             "rounds_repeated_after_host_stalls": c.repeated,
@@ -257,7 +293,7 @@ pub fn rt_summary(
 
 /// The run in a paragraph: cycles, overruns and the host's stalls, lateness, the P2P phase,
 /// the metrics beside the prediction, clock error, injections, rejections, the group stop.
-pub fn rt_text(r: &RtResult, prediction: Option<SimPrediction>) -> String {
+pub fn rt_text(r: &RtResult, prediction: Option<RtPrediction>) -> String {
     let transport = r.transport;
     let t = &r.timing;
     let m = &r.run.summary;
@@ -290,10 +326,23 @@ pub fn rt_text(r: &RtResult, prediction: Option<SimPrediction>) -> String {
         m.sync_rmse,
     );
     if let Some(p) = prediction {
-        text += &format!(
-            "\n  simulator, mean of {} seeds: Track-RMSE {:.6} rad, Sync-RMSE {:.7} rad ({:.7} to {:.7})",
-            p.seeds, p.track_rmse, p.sync_rmse, p.sync_rmse_range.0, p.sync_rmse_range.1
-        );
+        let line = |what: &str, p: &SimPrediction| {
+            format!(
+                "\n  simulator{what}, mean of {} seeds: Track-RMSE {:.6} rad, Sync-RMSE {:.7} rad ({:.7} to {:.7})",
+                p.seeds, p.track_rmse, p.sync_rmse, p.sync_rmse_range.0, p.sync_rmse_range.1
+            )
+        };
+        text += &line("", &p.planned);
+        if let Some(m) = &p.measured {
+            text += &line(
+                &format!(
+                    " on the ring as measured (links {:.1} µs, residence {:.1} µs)",
+                    p.link_ns as f64 * 1e-3,
+                    p.residence_ns as f64 * 1e-3
+                ),
+                m,
+            );
+        }
     }
     text += &format!(
         "\n  residual clock error ≤ {:.0} ns ({} stamps)",
@@ -397,4 +446,13 @@ pub fn latency_text(r: &HostLatency, opts: &HostOptions) -> String {
         r.longest_stalled_run
     );
     text
+}
+
+/// One prediction's figures for summary.json.
+fn prediction_json(p: &SimPrediction) -> Value {
+    json!({
+        "track_rmse": p.track_rmse, "sync_rmse": p.sync_rmse,
+        "sync_rmse_min": p.sync_rmse_range.0, "sync_rmse_max": p.sync_rmse_range.1,
+        "seeds": p.seeds,
+    })
 }

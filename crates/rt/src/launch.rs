@@ -247,8 +247,12 @@ pub fn run_processes(
     su.slaves_rejected = records.iter().skip(1).map(|r| r.start_up_rejected).sum();
     let mut run = run;
     run.start_up = Some(calibration.start_up.clone());
+    // The master's configuration: the same schedule from the same figures.
+    let mut ran = spec.clone();
+    crate::schedule::apply(&mut ran, &calibration, opts.response_timeout)?;
     Ok(RtResult {
         scenario: run_scenario,
+        spec: ran,
         transport: opts.transport,
         stamps: Stamps::Software,
         run,

@@ -175,6 +175,10 @@ impl Default for RtOptions {
 pub struct RtResult {
     /// The scenario as run (with the overrides).
     pub scenario: Scenario,
+    /// The nodes' configuration as they ran: the scenario's, with the schedule, path
+    /// delays and command timing of the measured ring
+    /// ([`schedule::measured_ring`] makes a simulator's ring of it).
+    pub spec: ringsync_model::Spec,
     /// The transport the frames travelled on.
     pub transport: TransportKind,
     /// How the slaves stamped the lumped frames.
@@ -584,7 +588,8 @@ pub fn run_streamed(
             .map(|c| c.rejected.get(Reject::Malformed))
             .sum::<u64>();
     Ok(RtResult {
-        scenario: spec.scenario,
+        scenario: spec.scenario.clone(),
+        spec,
         transport: opts.transport,
         stamps: opts.stamps,
         run,

@@ -97,3 +97,87 @@ pub fn apply(
         response_timeout: timeout,
     })
 }
+
+/// The ring the nodes ran, as the simulator can run it: `ran` (the nodes' configuration:
+/// the measured schedule, path delays and command arrivals) with every hop taking the
+/// measured link L and every slave the median of the measured residences, since the
+/// simulator's links are all alike and so are its slaves. What it cannot take from the
+/// measurement: the hops' spread (no jitter is added: the simulator's scenario jitter
+/// stands) and the software stamps' error (its slaves stamp as the scenario says).
+/// [`MEASURED_RING_ASSUMPTION`] says so in the outputs.
+pub fn measured_ring(ran: &Spec, cal: &Calibration) -> Spec {
+    let mut spec = ran.clone();
+    let m = &cal.start_up.measured;
+    spec.plan.hop = m.link;
+    let mut r: Vec<i64> = m.residence.iter().map(|d| d.as_ns()).collect();
+    r.sort_unstable();
+    if let Some(mid) = r.get(r.len() / 2) {
+        spec.scenario.ring.residence.0 = Duration::from_ns(*mid);
+    }
+    spec
+}
+
+/// What the simulator's prediction for the ring as measured ([`measured_ring`]) assumes.
+pub const MEASURED_RING_ASSUMPTION: &str = "the ring as the start-up phase measured it: the nodes' schedule, path delays and command timing, every link the measured L and every slave the median measured residence; the hops' spread and the stamps' error are not modelled";
+
+#[cfg(test)]
+mod tests {
+    use ringsync_model::Scenario;
+    use ringsync_model::result::StartUp;
+    use ringsync_proto::node::DelayMeasurement;
+
+    use super::*;
+    use crate::stats::Percentiles;
+
+    /// The ring as measured takes the measured link and the median residence, keeps the
+    /// nodes' schedule, and changes nothing else.
+    #[test]
+    fn the_measured_ring_takes_the_link_and_the_median_residence() {
+        let s = Scenario::from_toml("duration = \"10ms\"\n", "test").expect("scenario");
+        let mut ran = s.build().expect("spec");
+        let us = |v: i64| Duration::from_ns(v * 1000);
+        let pct = |v: i64| Percentiles {
+            count: 10,
+            p50: v,
+            p99: v,
+            p999: v,
+            max: v,
+        };
+        let cal = Calibration {
+            rounds: 10,
+            repeated: 0,
+            path: vec![35_000, 75_000, 120_000, 150_000],
+            round_trip: pct(200_000),
+            command: vec![35_000, 75_000, 120_000, 150_000],
+            slice: vec![pct(180_000); 4],
+            start_up: StartUp {
+                measured: DelayMeasurement {
+                    probes: 10,
+                    probes_back: 10,
+                    complete: 10,
+                    round_trips: vec![us(200); 10],
+                    link: us(35),
+                    residence: vec![us(9), us(3), us(40), us(5)],
+                    path: vec![us(35), us(79), us(117), us(192)],
+                    closing_sent: 4,
+                },
+                taken: vec![None; 4],
+                planned: Vec::new(),
+                resolution: Duration::from_ns(8),
+                slaves_rejected: 0,
+                took: us(20_000),
+            },
+        };
+        ran.scenario.ring.cycle.0 = Duration::from_ms(3);
+        apply(&mut ran, &cal, Duration::from_us(200)).expect("fits");
+        let m = measured_ring(&ran, &cal);
+        assert_eq!(m.plan.hop, us(35));
+        // Sorted 3, 5, 9, 40: the upper median.
+        assert_eq!(m.scenario.ring.residence.0, us(9));
+        assert_ne!(m.plan.hop, ran.plan.hop);
+        let mut back = m.clone();
+        back.plan.hop = ran.plan.hop;
+        back.scenario.ring.residence = ran.scenario.ring.residence;
+        assert_eq!(format!("{back:?}"), format!("{ran:?}"));
+    }
+}

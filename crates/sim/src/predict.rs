@@ -1,8 +1,8 @@
 //! The simulator's prediction for a scenario, to set beside a real-time run of it.
 
-use ringsync_model::Scenario;
+use ringsync_model::{Scenario, Spec};
 
-use crate::run::{RunError, RunOptions, run};
+use crate::run::{RunError, RunOptions, simulate};
 
 /// The simulator's prediction for a scenario: means over several seeds, because one run's
 /// Sync-RMSE moves by about ±10 % with the seed (encoder quantisation) and a real-time run
@@ -22,12 +22,18 @@ pub struct SimPrediction {
 /// Simulates `s` with `seeds` seeds from its own (the runtime's prediction: the scenario
 /// as run, after its overrides).
 pub fn predict(s: &Scenario, seeds: u64) -> Result<SimPrediction, RunError> {
+    predict_spec(&s.build()?, seeds)
+}
+
+/// [`predict`] for a built ring (a runtime's measured one, for instance:
+/// `ringsync_rt::schedule::measured_ring`).
+pub fn predict_spec(spec: &Spec, seeds: u64) -> Result<SimPrediction, RunError> {
     let seeds = seeds.max(1);
     let (mut track, mut sync, mut lo, mut hi) = (0.0, 0.0, f64::INFINITY, 0.0f64);
     for k in 0..seeds {
-        let mut sk = s.clone();
-        sk.seed = s.seed.wrapping_add(k);
-        let r = run(&sk, RunOptions::default())?;
+        let mut sk = spec.clone();
+        sk.scenario.seed = spec.scenario.seed.wrapping_add(k);
+        let r = simulate(&sk, RunOptions::default(), Vec::new(), &mut |_, _| {})?;
         track += r.summary.track_rmse;
         sync += r.summary.sync_rmse;
         lo = lo.min(r.summary.sync_rmse);
