@@ -27,6 +27,7 @@ use crate::node::{NodeLink, NodePlan, NodeRecord, Tap, read_record};
 use crate::run::{Injection, RtError, RtOptions, RtResult, Stamps, Streamed, io_err};
 use crate::supervise::{ChildSpec, Ended, supervise};
 use crate::sys;
+use crate::timing::Timing;
 use crate::transport::TransportKind;
 
 /// Time to start the processes before the master's start-up phase begins [ns].
@@ -43,8 +44,8 @@ fn unsupported(s: &Scenario, opts: &RtOptions) -> Option<&'static str> {
         Some("--garbage-rate and --forge")
     } else if opts.flap.is_some() {
         Some("--flap-link")
-    } else if !s.faults.break_link.is_empty() {
-        Some("a broken link (--break-link, faults.break_link)")
+    } else if !s.faults.break_link.is_empty() && opts.transport == TransportKind::Udp {
+        Some("a broken link over UDP (--break-link, faults.break_link; use --transport veth)")
     } else if opts.capture {
         Some("--pcap")
     } else {
@@ -194,8 +195,37 @@ pub fn run_processes(
     let deadline = std::time::Instant::now()
         + std::time::Duration::from_nanos(u64::try_from(run_for).unwrap_or(0))
         + std::time::Duration::from_secs(10);
-    let sup = supervise(children, stop, deadline, std::time::Duration::from_secs(2))
-        .map_err(io_err("starting the node processes"))?;
+    // Broken links: the veth link taken down (and up) at its time; the nodes beside it
+    // sense it from the same schedule, as a PHY senses its link.
+    let t0 = Arc::new(std::sync::atomic::AtomicI64::new(epoch));
+    let stop_breaks = Arc::new(AtomicBool::new(false));
+    let breakers: Vec<_> = match &veth {
+        Some(v) => run_scenario
+            .faults
+            .break_link
+            .iter()
+            .map(|b| {
+                say(&format!(
+                    "link {} breaks at {:.3} s{}",
+                    b.link,
+                    b.at.as_ns() as f64 * 1e-9,
+                    b.heal
+                        .map(|h| format!(" and heals at {:.3} s", h.as_ns() as f64 * 1e-9))
+                        .unwrap_or_default(),
+                ));
+                crate::inject::spawn_break(v.clone(), *b, t0.clone(), stop_breaks.clone())
+            })
+            .collect(),
+        None => Vec::new(),
+    };
+    let sup = supervise(children, stop, deadline, std::time::Duration::from_secs(2));
+    stop_breaks.store(true, std::sync::atomic::Ordering::SeqCst);
+    for h in breakers {
+        if let Ok(Err(why)) = h.join() {
+            eprintln!("ringsync rt: warning: a link break did not happen: {why}");
+        }
+    }
+    let sup = sup.map_err(io_err("starting the node processes"))?;
     // Every child is gone: the namespaces may go.
     drop(veth);
     if sup.timed_out {
@@ -256,7 +286,12 @@ pub fn run_processes(
         transport: opts.transport,
         stamps: Stamps::Software,
         run,
-        timing: master.timing.clone().unwrap_or_default(),
+        timing: Timing {
+            // Every node's frames dropped beside a broken link.
+            broken_dropped: records.iter().map(|r| r.broken_dropped).sum(),
+            receive_errors: records.iter().map(|r| r.receive_errors).sum(),
+            ..master.timing.clone().unwrap_or_default()
+        },
         schedule: master.schedule.unwrap_or(crate::schedule::Schedule {
             p2p_start: 0,
             slice: 0,

@@ -9,6 +9,7 @@
 //! `ringsync latency`), [`inject`] (faults), [`realtime`] (CPU, priority, memory), [`netns`];
 //! [`node`] (one node per process: `ringsync node`).
 
+mod breaks;
 pub mod calibrate;
 pub mod clock;
 pub mod host;

@@ -34,18 +34,20 @@ use ringsync_model::observer::Observer;
 use ringsync_model::oscillator::Oscillator;
 use ringsync_model::record::{AxisProbe, FaultEvent};
 use ringsync_model::result::RingChange;
+use ringsync_model::scenario::LinkBreak;
 use ringsync_model::scenario::Scenario;
 use ringsync_model::spec::timestamp_tolerance;
 use ringsync_proto::node::{
     CalibrationConfig, CalibrationState, Calibrator, CycleRecord, FrameOutcome, MasterCounters,
-    Slave, SlaveCounters, WireFrame,
+    Port as MasterPort, Slave, SlaveCounters, WireFrame,
 };
 use ringsync_proto::{Duration, Instant};
 
+use crate::breaks::Breaks;
 use crate::calibrate::Calibration;
 use crate::clock::Clock;
 use crate::realtime::{Pin, Realtime};
-use crate::ring::RT_CLOCK_FILTER;
+use crate::ring::{RT_CLOCK_FILTER, RX_RETRY};
 use crate::run::{RtError, RtOptions, io_err};
 use crate::schedule::{self, RT_TIMESTAMP_TOLERANCE, Schedule};
 use crate::sys;
@@ -220,6 +222,14 @@ pub struct NodeRecord {
     pub last_read_s: Option<f64>,
     /// The node was told to stop before the end.
     pub interrupted: bool,
+    /// Frames it had to drop beside a broken link: its link ahead broken and it cut off
+    /// from both of the master's ports (a slave), or the port's own link broken (the
+    /// master).
+    #[serde(default)]
+    pub broken_dropped: u64,
+    /// Receive errors (a link gone down: its direction is read again [`RX_RETRY`] later).
+    #[serde(default)]
+    pub receive_errors: u64,
 }
 
 /// An observer that keeps the events of one node.
@@ -395,7 +405,7 @@ fn run_master(
     let n = spec.axes();
     let t_cyc = spec.scenario.ring.cycle.0;
     let mut buf = vec![0u8; MAX_PDU];
-    let mut fds = [sys::pollfd(port.rx_fd())];
+    let mut fds = vec![sys::pollfd(port.rx_fd())];
     // 1. The start-up phase: one probe per cycle from `start_up_ns` before time 0.
     let origin = -plan.start_up_ns;
     let mut cfg = CalibrationConfig::new(n, t_cyc, u32::try_from(plan.probes).unwrap_or(u32::MAX));
@@ -467,7 +477,31 @@ fn run_master(
     let mut log = TimingLog::new(cycles);
     let (mut k, mut probe_k) = (0i64, 0i64);
     let spin = plan.spin_ns;
-    let mut out: Vec<Vec<u8>> = Vec::new();
+    // Frames to send, each with whether it goes out of port B.
+    let mut out: Vec<(bool, Vec<u8>)> = Vec::new();
+    let port_b = dev.port_b_node();
+    // A broken ring: the master senses its ports' links (as a PHY does) and sends out of
+    // both; frames come back to either port.
+    let breaks = Breaks::new(spec.scenario.faults.break_link.clone(), n);
+    let mut port_events: std::collections::VecDeque<_> =
+        LinkBreak::port_changes(&spec.scenario.faults.break_link, n).into();
+    // Reading paused after a receive error, per direction (forward, backward).
+    let mut paused = [None; 2];
+    let send =
+        |port: &mut dyn Port, log: &mut TimingLog, t: i64, (b_side, bytes): (bool, Vec<u8>)| {
+            let link = if b_side { n + 1 } else { 1 };
+            if breaks.down(link, t) {
+                log.timing.broken_dropped += 1;
+            } else if if b_side {
+                port.send_back(&bytes)
+            } else {
+                port.send(&bytes)
+            }
+            .is_err()
+            {
+                log.timing.send_errors += 1;
+            }
+        };
     loop {
         if stop.load(Ordering::Relaxed) {
             rec.interrupted = true;
@@ -477,6 +511,12 @@ fn run_master(
         if now >= end {
             break;
         }
+        while port_events.front().is_some_and(|e| e.0 <= now) {
+            if let Some((_, p, up)) = port_events.pop_front() {
+                tap.at(now);
+                dev.master_link(now, p, up);
+            }
+        }
         if probe_k < cycles && probe_k * t_cyc <= now {
             tap.at(probe_k * t_cyc);
             dev.probe(probe_k, probe_k * t_cyc);
@@ -484,21 +524,36 @@ fn run_master(
             continue;
         }
         let mut got = false;
-        while let Some(len) = port.recv(&mut buf).map_err(io_err("reading"))? {
-            got = true;
-            let t = clock.now();
-            rec.frames_read += 1;
-            rec.last_read_s = Some(t as f64 * 1e-9);
-            log.master_rx(t);
-            tap.at(t);
-            let news = dev.master_frame(t, &buf[..len], &mut |_, _, f: WireFrame| {
-                out.push(f.into_bytes())
-            });
-            if news.computed {
-                log.computed(t);
+        // Frames back at port B (round the ring), then at port A (turned back beside a
+        // broken link).
+        for side in [MasterPort::B, MasterPort::A] {
+            if side == MasterPort::A && breaks.is_empty() {
+                break;
             }
-            for b in out.drain(..) {
-                let _ = port.send(&b);
+            while let Some(len) = read_dir(
+                port,
+                side == MasterPort::A,
+                &mut paused,
+                &mut buf,
+                clock.now(),
+                &mut log.timing.receive_errors,
+            ) {
+                got = true;
+                let t = clock.now();
+                rec.frames_read += 1;
+                rec.last_read_s = Some(t as f64 * 1e-9);
+                log.master_rx(t);
+                tap.at(t);
+                let news =
+                    dev.master_frame_port(side, t, &buf[..len], &mut |from, _, f: WireFrame| {
+                        out.push((from == port_b, f.into_bytes()))
+                    });
+                if news.computed {
+                    log.computed(t);
+                }
+                for f in out.drain(..) {
+                    send(port, &mut log, t, f);
+                }
             }
         }
         let m = dev.master_deadline();
@@ -512,23 +567,28 @@ fn run_master(
                 k += 1;
             }
             tap.at(now);
-            let news = dev.master_timeout(now, &mut |_, _, f: WireFrame| out.push(f.into_bytes()));
+            let news = dev.master_timeout(now, &mut |from, _, f: WireFrame| {
+                out.push((from == port_b, f.into_bytes()))
+            });
             if news.computed {
                 log.computed(now);
             }
-            for b in out.drain(..) {
-                if port.send(&b).is_err() {
-                    log.timing.send_errors += 1;
-                }
+            for f in out.drain(..) {
+                send(port, &mut log, now, f);
             }
             continue;
         }
         if got {
             continue;
         }
-        let wake = m.min(probe_k * t_cyc).min(end);
+        let wake = m
+            .min(probe_k * t_cyc)
+            .min(end)
+            .min(port_events.front().map_or(i64::MAX, |e| e.0))
+            .min(paused.iter().flatten().copied().min().unwrap_or(i64::MAX));
         if wake - now > spin {
             if dev.master.awaiting_frames() {
+                let mut fds = wait_fds(port, !breaks.is_empty(), &paused);
                 clock
                     .wait_readable_until(&mut fds, wake - spin)
                     .map_err(io_err("waiting for frames"))?;
@@ -538,6 +598,8 @@ fn run_master(
         }
     }
     let counters = dev.master.counters();
+    rec.broken_dropped = log.timing.broken_dropped;
+    rec.receive_errors = log.timing.receive_errors;
     rec.timing = Some(log.finish(&counters));
     rec.master = Some(counters);
     rec.events = tap.take();
@@ -561,7 +623,7 @@ fn run_slave(
         .copied()
         .ok_or_else(|| RtError::Config(format!("slave {} is not on this ring", i + 1)))?;
     let mut buf = vec![0u8; MAX_PDU];
-    let mut fds = [sys::pollfd(port.rx_fd())];
+    let mut fds = vec![sys::pollfd(port.rx_fd())];
     // 1. The start-up phase: answer the probes until the master's closing frame gives the
     //    slave its path delay (it must come before the run's start).
     let mut node = Slave::calibrating(spec.slaves[i].clone());
@@ -594,6 +656,12 @@ fn run_slave(
         }
     };
     spec.slaves[i].path_delay = delay;
+    // The clock window as the master's schedule sets it (`schedule::apply`): at least twice
+    // the ring's path, which this slave knows as its own over its share of the hops.
+    let n = spec.axes() as i64;
+    let ring_path = delay.as_ns().saturating_mul(n + 1) / (i as i64 + 1);
+    let window = &mut spec.slaves[i].clock_window;
+    *window = (*window).max(Duration::from_ns(2 * ring_path));
     rec.path_delay_ns = Some(delay.as_ns());
     rec.start_up_rejected = node.counters().rejected.total();
     // 2. The run: the same node, running, with the delay it took (a fresh `Slave` of the
@@ -605,11 +673,29 @@ fn run_slave(
     let tap = tap(&mut dev, Some(i));
     let mut pending: Vec<(i64, Vec<u8>)> = Vec::new();
     let mut probe_k = 0i64;
+    // A broken ring: the slave senses its two links (as its PHYs do), turns back what its
+    // broken link ahead would carry, and takes what comes back to it beside a broken link
+    // behind.
+    let breaks = Breaks::new(spec.scenario.faults.break_link.clone(), spec.axes());
+    let me = i + 1;
+    let mut paused = [None; 2];
+    let mut receive_errors = 0u64;
+    let forward = |port: &mut dyn Port, t: i64, bytes: &[u8], dropped: &mut u64| {
+        if !breaks.down(me + 1, t) {
+            let _ = port.send(bytes);
+        } else if !breaks.cut_off(me, t) {
+            let _ = port.send_back(bytes);
+        } else {
+            *dropped += 1;
+        }
+    };
+    let mut dropped = 0u64;
     // The timers due by `now`, in time order: latches, cycle probes, responses.
     let timers = |dev: &mut Devices,
                   pending: &mut Vec<(i64, Vec<u8>)>,
                   probe_k: &mut i64,
                   port: &mut dyn Port,
+                  dropped: &mut u64,
                   now: i64| loop {
         // Nothing of the axis happens from the run's end on (the master has stopped): the
         // tail only carries the last frames round.
@@ -640,8 +726,8 @@ fn run_slave(
                 pending.push((at, f.into_bytes()))
             });
         } else {
-            let (_, b) = pending.swap_remove(j);
-            let _ = port.send(&b);
+            let (at, b) = pending.swap_remove(j);
+            forward(port, at, &b, dropped);
         }
     };
     loop {
@@ -653,35 +739,109 @@ fn run_slave(
         if now >= end + TAIL {
             break;
         }
-        let next = timers(&mut dev, &mut pending, &mut probe_k, port, now);
+        let next = timers(
+            &mut dev,
+            &mut pending,
+            &mut probe_k,
+            port,
+            &mut dropped,
+            now,
+        );
         let mut got = false;
-        while let Some(len) = port.recv(&mut buf).map_err(io_err("reading"))? {
-            got = true;
-            let t = clock.now();
-            // Everything due before the frame first (as in the in-process loop).
-            timers(&mut dev, &mut pending, &mut probe_k, port, t);
-            rec.frames_read += 1;
-            rec.last_read_s = Some(t as f64 * 1e-9);
-            tap.at(t);
-            let bytes = &mut buf[..len];
-            let outcome = dev.slave_frame(i, t, t, bytes, &mut |_, at, f: WireFrame| {
-                pending.push((at, f.into_bytes()))
-            });
-            if outcome == FrameOutcome::Forward {
-                let _ = port.send(bytes);
+        // Frames coming round the ring, then (a broken ring) frames coming backward.
+        for back in [false, true] {
+            if back && breaks.is_empty() {
+                break;
+            }
+            while let Some(len) = read_dir(
+                port,
+                back,
+                &mut paused,
+                &mut buf,
+                clock.now(),
+                &mut receive_errors,
+            ) {
+                got = true;
+                let t = clock.now();
+                // Everything due before the frame first (as in the in-process loop).
+                timers(&mut dev, &mut pending, &mut probe_k, port, &mut dropped, t);
+                rec.frames_read += 1;
+                rec.last_read_s = Some(t as f64 * 1e-9);
+                let bytes = &mut buf[..len];
+                if back && !breaks.down(me, t) {
+                    // A relay backward: the link behind is whole.
+                    let _ = port.send_back(bytes);
+                    continue;
+                }
+                if back && breaks.cut_off(me, t) {
+                    dropped += 1;
+                    continue;
+                }
+                // Round the ring, or turned here beside the broken link behind.
+                tap.at(t);
+                let outcome = dev.slave_frame(i, t, t, bytes, &mut |_, at, f: WireFrame| {
+                    pending.push((at, f.into_bytes()))
+                });
+                if outcome == FrameOutcome::Forward {
+                    forward(port, t, bytes, &mut dropped);
+                }
             }
         }
         if got {
             continue;
         }
-        let wake = next.min(end + TAIL);
+        let wake = next
+            .min(end + TAIL)
+            .min(paused.iter().flatten().copied().min().unwrap_or(i64::MAX));
+        let mut fds = wait_fds(port, !breaks.is_empty(), &paused);
         clock
             .wait_readable_until(&mut fds, wake)
             .map_err(io_err("waiting for frames"))?;
     }
     rec.slave = Some(dev.slaves[i].counters());
+    rec.broken_dropped = dropped;
+    rec.receive_errors = receive_errors;
     rec.events = tap.take();
     Ok(())
+}
+
+/// The next frame waiting on `port` from one direction (`back`: frames coming backward
+/// round the ring, `paused[1]`; else `paused[0]`), read into `buf`: its length. A receive
+/// error (a link gone down: the socket reports it, and would keep the poll awake) pauses
+/// that direction for [`RX_RETRY`], as in one process, and counts in `errors`.
+fn read_dir(
+    port: &mut dyn Port,
+    back: bool,
+    paused: &mut [Option<i64>; 2],
+    buf: &mut [u8],
+    now: i64,
+    errors: &mut u64,
+) -> Option<usize> {
+    let p = &mut paused[usize::from(back)];
+    if p.is_some_and(|until| now < until) {
+        return None;
+    }
+    *p = None;
+    match if back {
+        port.recv_back(buf)
+    } else {
+        port.recv(buf)
+    } {
+        Ok(read) => read,
+        Err(_) => {
+            *errors += 1;
+            *p = Some(now + RX_RETRY);
+            None
+        }
+    }
+}
+
+/// The descriptors a node's loop waits on: each direction it reads (backward only on a
+/// ring that breaks) that is not paused.
+fn wait_fds(port: &dyn Port, both: bool, paused: &[Option<i64>; 2]) -> Vec<libc::pollfd> {
+    let fwd = paused[0].is_none().then(|| port.rx_fd());
+    let back = port.back_fd().filter(|_| both && paused[1].is_none());
+    fwd.into_iter().chain(back).map(sys::pollfd).collect()
 }
 
 /// Writes `rec` as JSON to `path`, whole or not at all (a temporary file renamed).

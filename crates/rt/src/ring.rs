@@ -24,6 +24,7 @@ use ringsync_proto::node::{ClockFilter, FrameOutcome, Port as MasterPort, WireFr
 use ringsync_wire::Frame;
 use ringsync_wire::Pdu;
 
+use crate::breaks::Breaks;
 use crate::clock::Clock;
 use crate::netns::VethRing;
 use crate::run::{Kill, RtError, RtOptions, Sinks, Stamps, io_err, rejected_line};
@@ -141,7 +142,7 @@ pub(crate) struct Ring {
     /// Broken links (`faults.break_link`): the nodes beside one sense it, as a PHY does,
     /// and turn frames back; and the master's port links' changes still to tell it of
     /// (true ns, port, up).
-    breaks: Vec<LinkBreak>,
+    breaks: Breaks,
     port_events: std::collections::VecDeque<(i64, MasterPort, bool)>,
     /// CLOCK_MONOTONIC at true time 0, for the injectors' threads [ns].
     pub t0_shared: Arc<AtomicI64>,
@@ -310,8 +311,8 @@ impl Ring {
             rx_frames: vec![0; n + 1],
             flap: None,
             breaks: match mode {
-                Mode::WarmUp => Vec::new(),
-                Mode::Run { .. } => spec.scenario.faults.break_link.clone(),
+                Mode::WarmUp => Breaks::default(),
+                Mode::Run { .. } => Breaks::new(spec.scenario.faults.break_link.clone(), n),
             },
             port_events: match mode {
                 Mode::WarmUp => Default::default(),
@@ -359,9 +360,7 @@ impl Ring {
     /// Whether link `link` (1..=n+1, from node link − 1 to node link; n + 1 is the master's
     /// port B) is broken at `t` [ns].
     fn link_down(&self, link: usize, t: i64) -> bool {
-        self.breaks
-            .iter()
-            .any(|b| b.link as usize == link && b.broken_at(t))
+        self.breaks.down(link, t)
     }
 
     /// Node `node` sends a frame on round the ring, as its PHYs let it: forward, or back the
@@ -377,12 +376,10 @@ impl Ring {
         }
     }
 
-    /// Whether slave `node` is cut off from both of the master's ports at `t` (a link
-    /// broken on either side of it): what it would turn back could only go round between
-    /// the breaks for ever, so it is dropped instead (as the simulator's walk gives up).
+    /// Whether slave `node` is cut off from both of the master's ports at `t`
+    /// ([`Breaks::cut_off`]).
     fn cut_off(&self, node: usize, t: i64) -> bool {
-        let n1 = self.ports.len();
-        (1..=node).any(|l| self.link_down(l, t)) && (node + 1..=n1).any(|l| self.link_down(l, t))
+        self.breaks.cut_off(node, t)
     }
 
     fn send(&mut self, node: usize, t: i64, bytes: &[u8], back: bool) {

@@ -73,6 +73,13 @@ pub fn apply(
                 .collect(),
         };
         *m = m.clone().with_measured(&measured);
+        // The ring model the master works out a broken ring's cycle from (the copy's stamp
+        // shift above all): the measured link and residence, not the plan's wire figures
+        // (a process per node takes tens of µs a hop).
+        if let Some(model) = &mut m.ring {
+            model.hop = cal.start_up.measured.link;
+            model.residence = median_residence(cal).unwrap_or(model.residence);
+        }
     } else {
         let frame = spec.plan.lumped_only.lumped.frame_time[0].as_ns();
         for i in 0..n {
@@ -80,8 +87,14 @@ pub fn apply(
         }
     }
     // The clock window: software stamps and commands read late, and what free-running clocks drift apart
-    // when the scenario turns clock sync off (as the simulator allows for it).
-    let tolerance = RT_TIMESTAMP_TOLERANCE.max(timestamp_tolerance(s));
+    // when the scenario turns clock sync off (as the simulator allows for it); and twice
+    // the measured ring's path, where a hop is a process's wake-up (a path the master's
+    // model of a broken ring misses by a few hops, after a second break, must not make the
+    // slaves refuse every sync).
+    let ring_path = ring_path_ns(cal.start_up.measured.link.as_ns(), median_residence(cal), n);
+    let tolerance = RT_TIMESTAMP_TOLERANCE
+        .max(timestamp_tolerance(s))
+        .max(Duration::from_ns(2 * ring_path));
     m.timestamp_tolerance = tolerance;
     let (plan, p2p) = (m.plan, m.p2p_start);
     for (c, path) in spec.slaves.iter_mut().zip(&cal.path) {
@@ -107,14 +120,25 @@ pub fn apply(
 /// [`MEASURED_RING_ASSUMPTION`] says so in the outputs.
 pub fn measured_ring(ran: &Spec, cal: &Calibration) -> Spec {
     let mut spec = ran.clone();
-    let m = &cal.start_up.measured;
-    spec.plan.hop = m.link;
-    let mut r: Vec<i64> = m.residence.iter().map(|d| d.as_ns()).collect();
-    r.sort_unstable();
-    if let Some(mid) = r.get(r.len() / 2) {
-        spec.scenario.ring.residence.0 = Duration::from_ns(*mid);
+    spec.plan.hop = cal.start_up.measured.link;
+    if let Some(r) = median_residence(cal) {
+        spec.scenario.ring.residence.0 = r;
     }
     spec
+}
+
+/// The first-bit path of the whole ring of `n` slaves, `link` [ns] a hop and `residence`
+/// a slave: (n + 1)·L + n·r [ns].
+pub fn ring_path_ns(link: i64, residence: Option<Duration>, n: usize) -> i64 {
+    let n = n as i64;
+    (n + 1) * link + n * residence.map_or(0, |r| r.as_ns())
+}
+
+/// The median of the slaves' measured residences (the upper one of an even count).
+fn median_residence(cal: &Calibration) -> Option<Duration> {
+    let mut r: Vec<Duration> = cal.start_up.measured.residence.clone();
+    r.sort_unstable();
+    r.get(r.len() / 2).copied()
 }
 
 /// What the simulator's prediction for the ring as measured ([`measured_ring`]) assumes.
