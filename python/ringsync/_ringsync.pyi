@@ -73,9 +73,12 @@ class SimRun:
 def simulate(text: str, origin: str, seed: int | None = None) -> SimRun:
     """Simulates the scenario (its seed replaced when given), keeping the trace."""
 
-def rt(text: str, origin: str, prediction_seeds: int = 8) -> SimRun:
-    """Runs the scenario in real time over UDP on loopback (``ringsync rt``); Ctrl-C ends
-    it early (KeyboardInterrupt)."""
+def rt(
+    text: str, origin: str, prediction_seeds: int = 8, transport: str = "udp", stamps: str = "phy"
+) -> SimRun:
+    """Runs the scenario in real time (``ringsync rt``) over ``transport`` ("udp" or
+    "veth") with ``stamps`` ("phy" or "software"); Ctrl-C ends it early
+    (KeyboardInterrupt)."""
 
 def check(
     text: str, origin: str, points: int = 4001

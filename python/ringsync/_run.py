@@ -310,13 +310,24 @@ def simulate(scenario: ScenarioLike, *, seed: int | None = None, **overrides: An
     return Run(_rs.simulate(s.to_toml(), s.origin, seed), s)
 
 
-def rt(scenario: ScenarioLike = "paper-2015", *, prediction_seeds: int = 8, **overrides: Any) -> Run:
-    """Runs a scenario in real time over UDP on loopback, as ``ringsync rt SCENARIO``
+def rt(
+    scenario: ScenarioLike = "paper-2015",
+    *,
+    prediction_seeds: int = 8,
+    transport: str = "udp",
+    stamps: str = "phy",
+    **overrides: Any,
+) -> Run:
+    """Runs a scenario in real time, as ``ringsync rt SCENARIO --transport T --stamps S``
     does: the master and one slave per axis exchange real frames on their own threads for
     the scenario's ``duration`` of wall-clock time (plus a short calibration), the servo
-    plants stepped in real time. No privileges are needed (real-time scheduling is used when
-    allowed, and ``summary["realtime"]`` says what was applied). The GIL is released; Ctrl-C
-    ends the run early (KeyboardInterrupt once it has stopped).
+    plants stepped in real time. ``transport`` is ``"udp"`` (loopback, no privileges
+    needed) or ``"veth"`` (a ring of network namespaces and veth pairs, raw Ethernet; needs
+    root); ``stamps`` is how the slaves stamp the lumped frames their clocks follow:
+    ``"phy"`` (as a PHY would) or ``"software"`` (when their loop reads them).
+    Real-time scheduling is used when allowed, and ``summary["realtime"]`` says what was
+    applied. The GIL is released; Ctrl-C ends the run early (KeyboardInterrupt once it has
+    stopped).
 
     Returns a :class:`Run` (``realtime`` True): the same arrays and metrics as a
     simulation, ``summary`` is what ``ringsync rt`` writes (the simulator's fields plus the
@@ -335,8 +346,12 @@ def rt(scenario: ScenarioLike = "paper-2015", *, prediction_seeds: int = 8, **ov
     """
     if isinstance(prediction_seeds, bool) or not isinstance(prediction_seeds, int) or prediction_seeds < 0:
         raise ValueError(f"prediction_seeds must be a whole number >= 0, not {prediction_seeds!r}")
+    if transport not in ("udp", "veth"):
+        raise ValueError(f'unknown transport {transport!r}: use "udp" or "veth"')
+    if stamps not in ("phy", "software"):
+        raise ValueError(f'unknown stamps {stamps!r}: use "phy" or "software"')
     s = _with(scenario, overrides)
-    return Run(_rs.rt(s.to_toml(), s.origin, prediction_seeds), s)
+    return Run(_rs.rt(s.to_toml(), s.origin, prediction_seeds, transport, stamps), s)
 
 
 class Check:

@@ -69,3 +69,20 @@ except KeyboardInterrupt:
     out = p.stdout.strip()
     assert out.startswith("interrupted after"), out
     assert float(out.split()[2]) < 10.0, out
+
+
+def test_rt_takes_the_transport_and_the_stamps() -> None:
+    with pytest.raises(ValueError, match="unknown transport 'tcp'"):
+        ringsync.rt("paper-2015", duration="0.1s", transport="tcp")
+    with pytest.raises(ValueError, match="unknown stamps 'gps'"):
+        ringsync.rt("paper-2015", duration="0.1s", stamps="gps")
+    r = ringsync.rt(
+        "paper-2015", duration="0.2s", prediction_seeds=0, stamps="software", **{"faults.watchdog_cycles": 50}
+    )
+    assert r.summary["transport"] == "udp" and r.summary["stamps"] == "software"
+    # A ring of veth pairs needs root (CI and this project's machines run as root).
+    import os
+
+    if os.geteuid() == 0:
+        v = ringsync.rt("paper-2015", duration="0.2s", prediction_seeds=0, transport="veth", **{"faults.watchdog_cycles": 50})
+        assert v.summary["transport"] == "veth" and v.summary["cycles_planned"] == 200

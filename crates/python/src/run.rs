@@ -7,6 +7,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use numpy::{PyArray1, PyArrayMethods};
+use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
@@ -66,14 +67,32 @@ impl SimRun {
     }
 }
 
-/// Runs the scenario `text` in real time over UDP on loopback (`ringsync rt`: the master
-/// and a process-internal slave per axis exchanging real frames on their own threads, no
-/// privileges needed), with the simulator's prediction from `prediction_seeds` seeds (0:
-/// none). Ctrl-C (KeyboardInterrupt) ends the run early; it is raised when the run has
-/// stopped and cleaned up.
+/// Runs the scenario `text` in real time (`ringsync rt`: the master and a
+/// process-internal slave per axis exchanging real frames on their own threads) over
+/// `transport` ("udp" on loopback, no privileges needed; "veth", a ring of network
+/// namespaces, as root) with `stamps` ("phy" or "software"), and the simulator's
+/// predictions from `prediction_seeds` seeds (0: none). Ctrl-C (KeyboardInterrupt) ends the
+/// run early; it is raised when the run has stopped and cleaned up.
 #[pyfunction]
-#[pyo3(signature = (text, origin, prediction_seeds=8))]
-fn rt(py: Python<'_>, text: String, origin: String, prediction_seeds: u64) -> PyResult<SimRun> {
+#[pyo3(signature = (text, origin, prediction_seeds=8, transport="udp", stamps="phy"))]
+fn rt(
+    py: Python<'_>,
+    text: String,
+    origin: String,
+    prediction_seeds: u64,
+    transport: &str,
+    stamps: &str,
+) -> PyResult<SimRun> {
+    let transport = match transport {
+        "udp" => ringsync::TransportKind::Udp,
+        "veth" => ringsync::TransportKind::Veth,
+        other => {
+            return Err(PyValueError::new_err(format!(
+                "unknown transport {other:?}: use \"udp\" or \"veth\""
+            )));
+        }
+    };
+    let stamps: ringsync::Stamps = stamps.parse().map_err(PyValueError::new_err)?;
     let stop = Arc::new(AtomicBool::new(false));
     let flag = Arc::clone(&stop);
     let worker = std::thread::Builder::new()
@@ -82,7 +101,8 @@ fn rt(py: Python<'_>, text: String, origin: String, prediction_seeds: u64) -> Py
             catch_unwind(AssertUnwindSafe(|| -> ringsync::Result<SimRun> {
                 let loaded = ringsync::parse(&text, &origin)?;
                 let opts = ringsync::RtOptions {
-                    transport: ringsync::TransportKind::Udp,
+                    transport,
+                    stamps,
                     trace: true,
                     ..ringsync::RtOptions::default()
                 };
