@@ -39,7 +39,7 @@ pub struct SimArgs {
     scope: crate::scope_opt::SimScopeArgs,
 }
 
-fn key_value(kv: &str) -> Result<(String, String), String> {
+pub(crate) fn key_value(kv: &str) -> Result<(String, String), String> {
     ringsync::key_value(kv).map_err(|e| e.to_string())
 }
 

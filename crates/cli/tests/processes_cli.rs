@@ -471,3 +471,178 @@ fn a_ring_of_node_processes_survives_a_broken_link() {
         },
     );
 }
+
+/// Veth pairs in the host's own namespace, standing in for a user's network cards; removed
+/// on drop.
+struct HostLinks(Vec<String>);
+
+impl Drop for HostLinks {
+    fn drop(&mut self) {
+        for name in &self.0 {
+            let _ = Command::new("ip").args(["link", "del", name]).status();
+        }
+    }
+}
+
+fn ringsync(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_ringsync"))
+        .args(args)
+        .env("RUST_BACKTRACE", "0")
+        .output()
+        .expect("run ringsync")
+}
+
+/// A ring started by hand, as a user with real network cards starts one: `ringsync node
+/// plan` on interfaces of the host's own namespace, each node process started from the
+/// plan, then `ringsync node gather` makes one run of their records. And what it refuses:
+/// a list of links that does not fit the ring, a start too soon, a record missing.
+#[test]
+fn a_ring_started_by_hand_on_the_hosts_interfaces_gathers_into_one_run() {
+    let _one = ONE_AT_A_TIME.lock();
+    let p = format!("rs{}", std::process::id());
+    let n = 4;
+    let mut made = HostLinks(Vec::new());
+    for i in 0..=n {
+        let (t, r) = (format!("{p}t{i}"), format!("{p}r{i}"));
+        let ok = Command::new("ip")
+            .args(["link", "add", &t, "type", "veth", "peer", "name", &r])
+            .status()
+            .expect("ip link add (iproute2)")
+            .success();
+        assert!(ok, "ip link add {t}");
+        made.0.push(t.clone());
+        for name in [&t, &r] {
+            let up = Command::new("ip")
+                .args(["link", "set", name, "up"])
+                .status();
+            assert!(up.is_ok_and(|s| s.success()), "ip link set {name} up");
+        }
+    }
+    // Node j reads from the link of node j − 1 and sends on its own.
+    let links: Vec<String> = (0..=n)
+        .map(|j| format!("{p}r{}:{p}t{j}", (j + n) % (n + 1)))
+        .collect();
+    let dir = std::env::temp_dir().join(format!("ringsync-byhand-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("dir");
+    let plan = dir.join("ring.json");
+    let scenario = scenario();
+    let sc = scenario.to_str().expect("utf-8");
+    let plan_s = plan.to_str().expect("utf-8");
+    // Refused: one link too few; a start the start-up phase cannot fit before.
+    let few = ringsync(&[
+        "node",
+        "plan",
+        sc,
+        "--links",
+        &links[..n].join(","),
+        "--out",
+        plan_s,
+    ]);
+    let err = String::from_utf8_lossy(&few.stderr);
+    assert_eq!(few.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("--links has 4 items") && err.lines().count() == 1,
+        "{err}"
+    );
+    let soon = ringsync(&[
+        "node",
+        "plan",
+        sc,
+        "--links",
+        &links.join(","),
+        "--start-in",
+        "500ms",
+        "--out",
+        plan_s,
+    ]);
+    let err = String::from_utf8_lossy(&soon.stderr);
+    assert_eq!(soon.status.code(), Some(2), "{err}");
+    assert!(err.contains("--start-in 0.5 s leaves no time"), "{err}");
+    assert!(!plan.exists());
+    let made_plan = ringsync(&[
+        "node",
+        "plan",
+        sc,
+        "--links",
+        &links.join(","),
+        "--start-in",
+        "3s",
+        "--out",
+        plan_s,
+    ]);
+    assert!(made_plan.status.success(), "{made_plan:?}");
+    // The slaves first, then the master, each from the plan alone.
+    let record = |i: usize| dir.join(format!("node-{i}.json"));
+    let mut nodes: Vec<std::process::Child> = (1..=n)
+        .chain([0])
+        .map(|i| {
+            let mut c = Command::new(env!("CARGO_BIN_EXE_ringsync"));
+            c.arg("node");
+            if i == 0 {
+                c.arg("master");
+            } else {
+                c.args(["slave", "--index", &i.to_string()]);
+            }
+            c.args(["--plan", plan_s, "--out"])
+                .arg(record(i))
+                .stdout(Stdio::null())
+                .stderr(Stdio::piped())
+                .spawn()
+                .expect("start a node")
+        })
+        .collect();
+    for c in &mut nodes {
+        let out = c.wait().expect("wait");
+        assert!(out.success(), "a node ended with {out}");
+    }
+    let run = dir.join("run");
+    let mut gather: Vec<String> = vec![
+        "node".into(),
+        "gather".into(),
+        "--plan".into(),
+        plan_s.into(),
+        "--no-sim-prediction".into(),
+        "--out".into(),
+        run.to_str().expect("utf-8").into(),
+    ];
+    // Refused: a record missing (slave 3's).
+    let missing: Vec<String> = (0..=n)
+        .filter(|i| *i != 3)
+        .map(|i| record(i).to_str().expect("utf-8").to_string())
+        .collect();
+    let args: Vec<&str> = gather.iter().chain(&missing).map(String::as_str).collect();
+    let no3 = ringsync(&args);
+    let err = String::from_utf8_lossy(&no3.stderr);
+    assert_eq!(no3.status.code(), Some(2), "{err}");
+    assert!(err.contains("no record of slave 3"), "{err}");
+    gather.extend((0..=n).map(|i| record(i).to_str().expect("utf-8").to_string()));
+    let args: Vec<&str> = gather.iter().map(String::as_str).collect();
+    let done = ringsync(&args);
+    // 0: done; 3: the host cut the run short (a group stop): still a run of every node.
+    assert!(matches!(done.status.code(), Some(0 | 3)), "{done:?}");
+    let summary: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(run.join("summary.json")).expect("summary.json"),
+    )
+    .expect("json");
+    assert_eq!(summary["transport"], "raw");
+    assert_eq!(summary["cycles_planned"], 40);
+    for node in summary["nodes"].as_array().expect("nodes") {
+        assert!(node["frames_read"].as_u64().unwrap_or(0) > 0, "{node}");
+    }
+    let taken = summary["start_up"]["taken_by_slaves_ns"]
+        .as_array()
+        .expect("taken");
+    assert!(
+        taken.iter().all(|d| d.as_i64().is_some_and(|d| d > 0)),
+        "{taken:?}"
+    );
+    let trace = std::fs::read_to_string(run.join("trace.csv")).expect("trace.csv");
+    assert!(
+        trace.lines().count() > 4 * 30,
+        "{} rows",
+        trace.lines().count()
+    );
+    drop(made);
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -74,6 +74,61 @@ pub fn write_node_record(rec: &ringsync_rt::node::NodeRecord, path: &Path) -> Re
     Ok(ringsync_rt::node::write_record(rec, path)?)
 }
 
+/// The plan of a ring of node processes started by hand (docs/runtime.md, "Real
+/// interfaces"): the scenario `loaded` run with `opts`, node i on `links[i]` (0 the
+/// master), the run's time 0 `start_in` from now on this host's `CLOCK_MONOTONIC`. Fails
+/// when `start_in` leaves the master's start-up phase too little time (it begins
+/// [`ringsync_rt::launch::start_up_ns`] before time 0, and every node must be running by
+/// then).
+pub fn node_plan(
+    loaded: &crate::Loaded,
+    opts: &RtOptions,
+    links: Vec<ringsync_rt::node::NodeLink>,
+    start_in: crate::Duration,
+) -> Result<ringsync_rt::node::NodePlan> {
+    let s = ringsync_rt::run::as_run(&loaded.scenario, opts);
+    let start_up = ringsync_rt::launch::start_up_ns(opts, s.ring.cycle.0.as_ns());
+    // A second to start the processes, at least.
+    let least = start_up + 1_000_000_000;
+    if start_in.as_ns() < least {
+        return Err(Error::Input(format!(
+            "--start-in {:.1} s leaves no time to start the nodes: the master's start-up phase begins {:.1} s before the run, give at least {:.1} s",
+            start_in.as_ns() as f64 * 1e-9,
+            start_up as f64 * 1e-9,
+            least as f64 * 1e-9
+        )));
+    }
+    let epoch = ringsync_rt::launch::monotonic_now_ns() + start_in.as_ns();
+    Ok(ringsync_rt::launch::node_plan(
+        &loaded.text,
+        &loaded.origin,
+        opts,
+        links,
+        epoch,
+    )?)
+}
+
+/// Writes a node plan as JSON to `path`, whole or not at all (a temporary file renamed).
+pub fn write_node_plan(plan: &ringsync_rt::node::NodePlan, path: &Path) -> Result<()> {
+    Ok(ringsync_rt::node::write_plan(plan, path)?)
+}
+
+/// One run's result from the records its node processes wrote (`ringsync node gather`):
+/// the ring of the plan at `plan`, a record per node (any order). Also the scenario as
+/// loaded from the plan.
+pub fn gather_nodes(
+    plan: &Path,
+    records: &[std::path::PathBuf],
+) -> Result<(RtResult, crate::Loaded)> {
+    let plan = ringsync_rt::node::NodePlan::read(plan)?;
+    let records = records
+        .iter()
+        .map(|p| ringsync_rt::node::read_record(p))
+        .collect::<std::result::Result<Vec<_>, _>>()?;
+    let r = ringsync_rt::launch::gather(&plan, &records, false, true)?;
+    Ok((r, crate::parse(&plan.scenario, &plan.origin)?))
+}
+
 /// The simulator's prediction for `s`: means over `seeds` seeds from its own (one run's
 /// Sync-RMSE moves by about ±10 % with the seed; a real-time run is one more draw).
 ///

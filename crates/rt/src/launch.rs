@@ -88,6 +88,11 @@ pub fn run_processes(
     };
     // The links.
     let (links, veth) = match opts.transport {
+        TransportKind::Raw => {
+            return Err(RtError::Config(
+                "--processes runs its ring on UDP or veth; a ring on the host's own interfaces is started by hand: `ringsync node plan` (docs/runtime.md, \"Real interfaces\")".into(),
+            ));
+        }
         TransportKind::Udp => {
             // Free ports on loopback: bound here, then let go for the nodes to bind.
             let socks = (0..=n)
@@ -125,26 +130,9 @@ pub fn run_processes(
         }
     };
     let t_cyc = spec.scenario.ring.cycle.0.as_ns();
-    let probes = opts.calibration_rounds.max(2);
-    let interval = t_cyc.min(crate::node::PROBE_INTERVAL.as_ns());
-    let start_up = probes as i64 * interval + START_UP_MARGIN;
+    let start_up = start_up_ns(opts, t_cyc);
     let epoch = sys::now_ns() + SPAWN + start_up;
-    let plan = NodePlan {
-        scenario: text.to_string(),
-        origin: origin.to_string(),
-        duration_ns: opts.duration.map(|d| d.as_ns()),
-        cycle_ns: opts.cycle.map(|d| d.as_ns()),
-        watchdog_cycles: opts.watchdog_cycles,
-        sample_lead_ns: Some(run_scenario.clock.sample_lead.0.as_ns()),
-        response_timeout_ns: opts.response_timeout.as_ns(),
-        probes,
-        epoch_ns: epoch,
-        start_up_ns: start_up,
-        priority: opts.realtime.priority,
-        spin_ns: opts.realtime.spin.as_ns(),
-        lock_memory: opts.realtime.lock_memory,
-        links,
-    };
+    let plan = node_plan(text, origin, opts, links, epoch)?;
     let scratch = Scratch(std::env::temp_dir().join(format!(
         "ringsync-nodes-{}-{}",
         std::process::id(),
@@ -153,10 +141,7 @@ pub fn run_processes(
     std::fs::create_dir_all(&scratch.0)
         .map_err(io_err(&format!("creating {}", scratch.0.display())))?;
     let plan_path = scratch.0.join("plan.json");
-    let plan_text = serde_json::to_vec_pretty(&plan)
-        .map_err(|e| RtError::Config(format!("cannot write the node plan: {e}")))?;
-    std::fs::write(&plan_path, plan_text)
-        .map_err(io_err(&format!("writing {}", plan_path.display())))?;
+    crate::node::write_plan(&plan, &plan_path)?;
     let record = |i: usize| scratch.0.join(format!("node-{i}.json"));
     // The slaves first, so that they listen when the master's probes come.
     let child = |i: usize| {
@@ -254,9 +239,111 @@ pub fn run_processes(
     let records = (0..=n)
         .map(|i| read_record(&record(i)))
         .collect::<Result<Vec<_>, _>>()?;
-    let interrupted = sup.stopped || records.iter().any(|r| r.interrupted);
+    gather(&plan, &records, sup.stopped, opts.trace)
+}
+
+/// The host's `CLOCK_MONOTONIC` now [ns]: the clock a plan's epoch is on.
+pub fn monotonic_now_ns() -> i64 {
+    sys::now_ns()
+}
+
+/// How long the master's start-up phase takes on a cycle of `t_cyc` [ns] with `opts`'
+/// probes (each [`crate::node::PROBE_INTERVAL`] apart, or a cycle when shorter, and a
+/// margin) [ns].
+pub fn start_up_ns(opts: &RtOptions, t_cyc: i64) -> i64 {
+    let probes = opts.calibration_rounds.max(2) as i64;
+    probes * t_cyc.min(crate::node::PROBE_INTERVAL.as_ns()) + START_UP_MARGIN
+}
+
+/// The plan of a ring of node processes: the scenario of TOML `text` (from `origin`) run
+/// with `opts`, node i on `links[i]` (0 the master), the run's time 0 at `epoch_ns` on the
+/// host's `CLOCK_MONOTONIC` (the master's start-up phase begins [`start_up_ns`] before).
+pub fn node_plan(
+    text: &str,
+    origin: &str,
+    opts: &RtOptions,
+    links: Vec<NodeLink>,
+    epoch_ns: i64,
+) -> Result<NodePlan, RtError> {
+    let scenario = crate::run::as_run(&Scenario::from_toml(text, origin)?, opts);
+    let t_cyc = scenario.ring.cycle.0.as_ns();
+    let plan = NodePlan {
+        scenario: text.to_string(),
+        origin: origin.to_string(),
+        duration_ns: opts.duration.map(|d| d.as_ns()),
+        cycle_ns: opts.cycle.map(|d| d.as_ns()),
+        watchdog_cycles: opts.watchdog_cycles,
+        sample_lead_ns: Some(scenario.clock.sample_lead.0.as_ns()),
+        response_timeout_ns: opts.response_timeout.as_ns(),
+        probes: opts.calibration_rounds.max(2),
+        epoch_ns,
+        start_up_ns: start_up_ns(opts, t_cyc),
+        priority: opts.realtime.priority,
+        spin_ns: opts.realtime.spin.as_ns(),
+        lock_memory: opts.realtime.lock_memory,
+        links,
+    };
+    // Checks the links against the ring.
+    plan.spec()?;
+    Ok(plan)
+}
+
+/// One run's result from what its node processes saw (`records`, one per node, any order)
+/// on the ring `plan` describes: the launcher's, or a ring started by hand (`ringsync node
+/// gather`). `stopped`: the run was told to stop early. `trace`: keep the per-cycle trace.
+pub fn gather(
+    plan: &NodePlan,
+    records: &[NodeRecord],
+    stopped: bool,
+    trace: bool,
+) -> Result<RtResult, RtError> {
+    let spec = plan.spec()?;
+    let n = spec.axes();
+    // Exactly one record per node, in node order.
+    let mut by_node: Vec<Option<&NodeRecord>> = vec![None; n + 1];
+    for r in records {
+        match by_node.get_mut(r.node) {
+            Some(slot @ None) => *slot = Some(r),
+            Some(Some(_)) => {
+                return Err(RtError::Config(format!(
+                    "two records of node {} (0 the master)",
+                    r.node
+                )));
+            }
+            None => {
+                return Err(RtError::Config(format!(
+                    "a record of node {}, on a ring of {} nodes (0 the master)",
+                    r.node,
+                    n + 1
+                )));
+            }
+        }
+    }
+    let records: Vec<NodeRecord> = by_node
+        .iter()
+        .enumerate()
+        .map(|(i, r)| {
+            r.cloned().ok_or_else(|| {
+                RtError::Config(format!(
+                    "no record of {}",
+                    if i == 0 {
+                        "the master".to_string()
+                    } else {
+                        format!("slave {i}")
+                    }
+                ))
+            })
+        })
+        .collect::<Result<_, _>>()?;
+    let transport = match &plan.links[0] {
+        NodeLink::Udp { .. } => TransportKind::Udp,
+        NodeLink::Raw { netns: Some(_), .. } => TransportKind::Veth,
+        NodeLink::Raw { netns: None, .. } => TransportKind::Raw,
+    };
+    let response_timeout = ringsync_proto::Duration::from_ns(plan.response_timeout_ns);
+    let interrupted = stopped || records.iter().any(|r| r.interrupted);
     let master = &records[0];
-    let run = merge(&spec, &records, opts.trace);
+    let run = merge(&spec, &records, trace);
     let mut realtime = master.realtime.clone();
     realtime.push(format!(
         "one process per node ({} processes), each its own loop; slaves sleep to their deadlines",
@@ -279,11 +366,11 @@ pub fn run_processes(
     run.start_up = Some(calibration.start_up.clone());
     // The master's configuration: the same schedule from the same figures.
     let mut ran = spec.clone();
-    crate::schedule::apply(&mut ran, &calibration, opts.response_timeout)?;
+    crate::schedule::apply(&mut ran, &calibration, response_timeout)?;
     Ok(RtResult {
-        scenario: run_scenario,
+        scenario: spec.scenario.clone(),
         spec: ran,
-        transport: opts.transport,
+        transport,
         stamps: Stamps::Software,
         run,
         timing: Timing {
@@ -295,7 +382,7 @@ pub fn run_processes(
         schedule: master.schedule.unwrap_or(crate::schedule::Schedule {
             p2p_start: 0,
             slice: 0,
-            response_timeout: opts.response_timeout.as_ns(),
+            response_timeout: response_timeout.as_ns(),
         }),
         calibration,
         realtime,

@@ -846,9 +846,18 @@ fn wait_fds(port: &dyn Port, both: bool, paused: &[Option<i64>; 2]) -> Vec<libc:
 
 /// Writes `rec` as JSON to `path`, whole or not at all (a temporary file renamed).
 pub fn write_record(rec: &NodeRecord, path: &Path) -> Result<(), RtError> {
+    write_json(serde_json::to_vec(rec), path, "the node's record")
+}
+
+/// Writes `plan` as JSON to `path`, whole or not at all (a temporary file renamed).
+pub fn write_plan(plan: &NodePlan, path: &Path) -> Result<(), RtError> {
+    write_json(serde_json::to_vec_pretty(plan), path, "the node plan")
+}
+
+/// `json` (`what`, for messages) in `path`, written to a temporary file renamed.
+fn write_json(json: serde_json::Result<Vec<u8>>, path: &Path, what: &str) -> Result<(), RtError> {
     let tmp = path.with_extension("json.part");
-    let text = serde_json::to_vec(rec)
-        .map_err(|e| RtError::Config(format!("cannot write the node's record: {e}")))?;
+    let text = json.map_err(|e| RtError::Config(format!("cannot write {what}: {e}")))?;
     std::fs::write(&tmp, text).map_err(io_err(&format!("writing {}", tmp.display())))?;
     std::fs::rename(&tmp, path).map_err(io_err(&format!("writing {}", path.display())))
 }

@@ -55,6 +55,10 @@ pub enum TransportKind {
     Udp,
     /// Raw Ethernet on a ring of veth pairs, each node in its own network namespace.
     Veth,
+    /// Raw Ethernet on the host's own interfaces: a ring of node processes started by hand
+    /// from a plan (`ringsync node`, docs/runtime.md "Real interfaces"); not opened by the
+    /// runtime itself.
+    Raw,
 }
 
 impl TransportKind {
@@ -63,6 +67,7 @@ impl TransportKind {
         match self {
             TransportKind::Udp => "udp",
             TransportKind::Veth => "veth",
+            TransportKind::Raw => "raw",
         }
     }
 
@@ -75,6 +80,11 @@ impl TransportKind {
             move |source| RtError::Io { context, source }
         };
         Ok(match self {
+            TransportKind::Raw => {
+                return Err(RtError::Config(
+                    "a ring on the host's own interfaces runs as node processes started from a plan: `ringsync node plan`, then `ringsync node slave|master` (docs/runtime.md, \"Real interfaces\")".into(),
+                ));
+            }
             TransportKind::Veth => {
                 let ring = Arc::new(VethRing::create(nodes)?);
                 let ports = (0..nodes)
