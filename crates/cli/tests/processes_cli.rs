@@ -646,3 +646,48 @@ fn a_ring_started_by_hand_on_the_hosts_interfaces_gathers_into_one_run() {
     drop(made);
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A cycle the ring of processes cannot hold: the master refuses the measured ring, the
+/// launcher measures again with fresh processes (twice), then gives up with the master's
+/// one line and exit status 2, as one process does; nothing is left behind.
+#[test]
+fn a_cycle_the_processes_cannot_hold_is_measured_three_times_then_refused() {
+    let _one = ONE_AT_A_TIME.lock();
+    let dir = std::env::temp_dir().join(format!("ringsync-proc-short-{}", std::process::id()));
+    let child = Command::new(env!("CARGO_BIN_EXE_ringsync"))
+        .args([
+            "rt",
+            "paper-2015",
+            "--processes",
+            "--transport",
+            "udp",
+            "--duration",
+            "1s",
+            "--cycle",
+            "700us",
+            "--no-sim-prediction",
+            "--out",
+        ])
+        .arg(&dir)
+        .env("RUST_BACKTRACE", "0")
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("start ringsync");
+    let pid = child.id();
+    let out = child.wait_with_output().expect("wait");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    for k in 1..=2 {
+        assert!(err.contains(&format!("start-up phase {k} of 3: ")), "{err}");
+    }
+    let last = err.lines().last().unwrap_or("");
+    assert!(
+        last.starts_with("ringsync: error: the measured ring needs")
+            && last.contains("the cycle is 700.0 µs"),
+        "{last}"
+    );
+    assert!(!dir.exists(), "no results for a run that never began");
+    let left = wait_clean(pid);
+    assert!(left.is_empty(), "left behind: {left:?}");
+}

@@ -17,6 +17,10 @@ use crate::run::RtError;
 /// host stall is refused as stale).
 pub const RT_TIMESTAMP_TOLERANCE: Duration = Duration::from_us(200);
 
+/// How the refusal of a measured ring that does not fit its cycle begins (a launcher
+/// measures again when its master says so).
+pub const DOES_NOT_FIT: &str = "the measured ring needs";
+
 /// The master's P2P schedule on the measured ring [ns].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct Schedule {
@@ -53,7 +57,7 @@ pub fn apply(
         let need = p2p_start + n as i64 * slice + timeout;
         if need > t_cyc {
             return Err(RtError::Config(format!(
-                "the measured ring needs {:.1} µs per cycle (P2P start {:.1} µs + {n} slices of {:.1} µs + a response timeout of {:.1} µs); the cycle is {:.1} µs: use a longer --cycle or a shorter --response-timeout",
+                "{DOES_NOT_FIT} {:.1} µs per cycle (P2P start {:.1} µs + {n} slices of {:.1} µs + a response timeout of {:.1} µs); the cycle is {:.1} µs: use a longer --cycle or a shorter --response-timeout",
                 need as f64 * 1e-3,
                 p2p_start as f64 * 1e-3,
                 slice as f64 * 1e-3,
