@@ -11,8 +11,13 @@ fn dir(name: &str) -> PathBuf {
     d
 }
 
+/// The short scenario, in a directory of its own per call: tests run in parallel, and one
+/// that removed a shared directory while another read from it made that one fail ("no such
+/// file").
 fn short_scenario() -> PathBuf {
-    let d = dir("scenario");
+    static CALLS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    let k = CALLS.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+    let d = dir(&format!("scenario-{k}"));
     std::fs::create_dir_all(&d).expect("dir");
     let p = d.join("short.toml");
     std::fs::write(
