@@ -494,8 +494,9 @@ fn ringsync(args: &[&str]) -> std::process::Output {
 
 /// A ring started by hand, as a user with real network cards starts one: `ringsync node
 /// plan` on interfaces of the host's own namespace, each node process started from the
-/// plan, then `ringsync node gather` makes one run of their records. And what it refuses:
-/// a list of links that does not fit the ring, a start too soon, a record missing.
+/// plan, then `ringsync node gather` makes one run of their records; a cable pulled
+/// mid-run and put back is found from the carrier. And what it refuses: a list of links
+/// that does not fit the ring, a start too soon, a record missing.
 #[test]
 fn a_ring_started_by_hand_on_the_hosts_interfaces_gathers_into_one_run() {
     let _one = ONE_AT_A_TIME.lock();
@@ -560,89 +561,129 @@ fn a_ring_started_by_hand_on_the_hosts_interfaces_gathers_into_one_run() {
     assert_eq!(soon.status.code(), Some(2), "{err}");
     assert!(err.contains("--start-in 0.5 s leaves no time"), "{err}");
     assert!(!plan.exists());
-    let made_plan = ringsync(&[
-        "node",
-        "plan",
-        sc,
-        "--links",
-        &links.join(","),
-        "--start-in",
-        "3s",
-        "--out",
-        plan_s,
-    ]);
-    assert!(made_plan.status.success(), "{made_plan:?}");
-    // The slaves first, then the master, each from the plan alone.
-    let record = |i: usize| dir.join(format!("node-{i}.json"));
-    let mut nodes: Vec<std::process::Child> = (1..=n)
-        .chain([0])
-        .map(|i| {
-            let mut c = Command::new(env!("CARGO_BIN_EXE_ringsync"));
-            c.arg("node");
-            if i == 0 {
-                c.arg("master");
-            } else {
-                c.args(["slave", "--index", &i.to_string()]);
-            }
-            c.args(["--plan", plan_s, "--out"])
-                .arg(record(i))
-                .stdout(Stdio::null())
-                .stderr(Stdio::piped())
-                .spawn()
-                .expect("start a node")
-        })
-        .collect();
-    for c in &mut nodes {
-        let out = c.wait().expect("wait");
-        assert!(out.success(), "a node ended with {out}");
-    }
-    let run = dir.join("run");
-    let mut gather: Vec<String> = vec![
-        "node".into(),
-        "gather".into(),
-        "--plan".into(),
-        plan_s.into(),
-        "--no-sim-prediction".into(),
-        "--out".into(),
-        run.to_str().expect("utf-8").into(),
-    ];
-    // Refused: a record missing (slave 3's).
-    let missing: Vec<String> = (0..=n)
-        .filter(|i| *i != 3)
-        .map(|i| record(i).to_str().expect("utf-8").to_string())
-        .collect();
-    let args: Vec<&str> = gather.iter().chain(&missing).map(String::as_str).collect();
-    let no3 = ringsync(&args);
-    let err = String::from_utf8_lossy(&no3.stderr);
-    assert_eq!(no3.status.code(), Some(2), "{err}");
-    assert!(err.contains("no record of slave 3"), "{err}");
-    gather.extend((0..=n).map(|i| record(i).to_str().expect("utf-8").to_string()));
-    let args: Vec<&str> = gather.iter().map(String::as_str).collect();
-    let done = ringsync(&args);
-    // 0: done; 3: the host cut the run short (a group stop): still a run of every node.
-    assert!(matches!(done.status.code(), Some(0 | 3)), "{done:?}");
-    let summary: serde_json::Value = serde_json::from_str(
-        &std::fs::read_to_string(run.join("summary.json")).expect("summary.json"),
-    )
-    .expect("json");
-    assert_eq!(summary["transport"], "raw");
-    assert_eq!(summary["cycles_planned"], 40);
-    for node in summary["nodes"].as_array().expect("nodes") {
-        assert!(node["frames_read"].as_u64().unwrap_or(0) > 0, "{node}");
-    }
-    let taken = summary["start_up"]["taken_by_slaves_ns"]
-        .as_array()
-        .expect("taken");
-    assert!(
-        taken.iter().all(|d| d.as_i64().is_some_and(|d| d > 0)),
-        "{taken:?}"
-    );
-    let trace = std::fs::read_to_string(run.join("trace.csv")).expect("trace.csv");
-    assert!(
-        trace.lines().count() > 4 * 30,
-        "{} rows",
-        trace.lines().count()
-    );
+    // A run: planned to start in 3 s; 1.5 s into it the cable of link 2 (slave 1 to slave
+    // 2) is pulled (its veth end taken down) and 1 s later put back.
+    let by_hand = || {
+        let made_plan = ringsync(&[
+            "node",
+            "plan",
+            sc,
+            "--links",
+            &links.join(","),
+            "--start-in",
+            "3s",
+            "--watchdog-cycles",
+            "10",
+            "--out",
+            plan_s,
+        ]);
+        let planned = Instant::now();
+        assert!(made_plan.status.success(), "{made_plan:?}");
+        // The slaves first, then the master, each from the plan alone.
+        let record = |i: usize| dir.join(format!("node-{i}.json"));
+        let mut nodes: Vec<std::process::Child> = (1..=n)
+            .chain([0])
+            .map(|i| {
+                let mut c = Command::new(env!("CARGO_BIN_EXE_ringsync"));
+                c.arg("node");
+                if i == 0 {
+                    c.arg("master");
+                } else {
+                    c.args(["slave", "--index", &i.to_string()]);
+                }
+                c.args(["--plan", plan_s, "--out"])
+                    .arg(record(i))
+                    .stdout(Stdio::null())
+                    .stderr(Stdio::piped())
+                    .spawn()
+                    .expect("start a node")
+            })
+            .collect();
+        let cable = format!("{p}t1");
+        for (at, state) in [(4_500, "down"), (5_500, "up")] {
+            std::thread::sleep(Duration::from_millis(at).saturating_sub(planned.elapsed()));
+            let set = Command::new("ip")
+                .args(["link", "set", &cable, state])
+                .status();
+            assert!(
+                set.is_ok_and(|s| s.success()),
+                "ip link set {cable} {state}"
+            );
+        }
+        for c in &mut nodes {
+            let out = c.wait().expect("wait");
+            assert!(out.success(), "a node ended with {out}");
+        }
+        let run = dir.join("run");
+        let mut gather: Vec<String> = vec![
+            "node".into(),
+            "gather".into(),
+            "--plan".into(),
+            plan_s.into(),
+            "--no-sim-prediction".into(),
+            "--out".into(),
+            run.to_str().expect("utf-8").into(),
+        ];
+        // Refused: a record missing (slave 3's).
+        let missing: Vec<String> = (0..=n)
+            .filter(|i| *i != 3)
+            .map(|i| record(i).to_str().expect("utf-8").to_string())
+            .collect();
+        let args: Vec<&str> = gather.iter().chain(&missing).map(String::as_str).collect();
+        let no3 = ringsync(&args);
+        let err = String::from_utf8_lossy(&no3.stderr);
+        assert_eq!(no3.status.code(), Some(2), "{err}");
+        assert!(err.contains("no record of slave 3"), "{err}");
+        gather.extend((0..=n).map(|i| record(i).to_str().expect("utf-8").to_string()));
+        let args: Vec<&str> = gather.iter().map(String::as_str).collect();
+        let done = ringsync(&args);
+        // 0: done; 3: the host cut the run short (a group stop): still a run of every node.
+        assert!(matches!(done.status.code(), Some(0 | 3)), "{done:?}");
+        let summary: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(run.join("summary.json")).expect("summary.json"),
+        )
+        .expect("json");
+        assert_eq!(summary["transport"], "raw");
+        assert_eq!(summary["cycles_planned"], 40);
+        for node in summary["nodes"].as_array().expect("nodes") {
+            assert!(node["frames_read"].as_u64().unwrap_or(0) > 0, "{node}");
+        }
+        let taken = summary["start_up"]["taken_by_slaves_ns"]
+            .as_array()
+            .expect("taken");
+        assert!(
+            taken.iter().all(|d| d.as_i64().is_some_and(|d| d > 0)),
+            "{taken:?}"
+        );
+        let trace = std::fs::read_to_string(run.join("trace.csv")).expect("trace.csv");
+        assert!(
+            trace.lines().count() > 4 * 30,
+            "{} rows",
+            trace.lines().count()
+        );
+        summary
+    };
+    // The nodes beside the pulled cable sense it from their interfaces' carrier (nothing
+    // in the plan says when): the master finds the break naming link 2, and the heal.
+    one_of_three("a cable pulled", by_hand, |s| {
+        let changes = s["ring"]["changes"].as_array().ok_or("no ring changes")?;
+        let found = |event: &str, from: f64| {
+            changes.iter().any(|c| {
+                c["event"] == event
+                    && c["time_s"]
+                        .as_f64()
+                        .is_some_and(|t| (from..from + 1.0).contains(&t))
+                    && (event == "healed" || c["broken_link"] == 2)
+            })
+        };
+        if !found("broken", 1.3) || !found("healed", 2.3) {
+            return Err(format!("ring changes: {changes:?}"));
+        }
+        if !s["faults"]["group_stop"].is_null() {
+            return Err(format!("group stop: {}", s["faults"]["group_stop"]));
+        }
+        Ok(())
+    });
     drop(made);
     let _ = std::fs::remove_dir_all(&dir);
 }

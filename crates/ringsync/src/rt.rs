@@ -99,13 +99,11 @@ pub fn node_plan(
         )));
     }
     let epoch = ringsync_rt::launch::monotonic_now_ns() + start_in.as_ns();
-    Ok(ringsync_rt::launch::node_plan(
-        &loaded.text,
-        &loaded.origin,
-        opts,
-        links,
-        epoch,
-    )?)
+    let mut plan =
+        ringsync_rt::launch::node_plan(&loaded.text, &loaded.origin, opts, links, epoch)?;
+    // A ring on the host's interfaces knows a broken link from the cards' carrier.
+    plan.sense_carrier = true;
+    Ok(plan)
 }
 
 /// Writes a node plan as JSON to `path`, whole or not at all (a temporary file renamed).

@@ -316,6 +316,7 @@ pub fn node_plan(
         spin_ns: opts.realtime.spin.as_ns(),
         lock_memory: opts.realtime.lock_memory,
         links,
+        sense_carrier: false,
     };
     // Checks the links against the ring.
     plan.spec()?;

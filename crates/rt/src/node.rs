@@ -43,7 +43,7 @@ use ringsync_proto::node::{
 };
 use ringsync_proto::{Duration, Instant};
 
-use crate::breaks::Breaks;
+use crate::breaks::{Breaks, NodeLinks};
 use crate::calibrate::Calibration;
 use crate::clock::Clock;
 use crate::realtime::{Pin, Realtime};
@@ -109,6 +109,11 @@ pub struct NodePlan {
     pub lock_memory: bool,
     /// Each node's link, index 0 the master.
     pub links: Vec<NodeLink>,
+    /// The nodes read their interfaces' carrier to know a broken link (a ring on the
+    /// host's own interfaces, `ringsync node plan`); otherwise they know it from the
+    /// scenario's `faults.break_link` schedule (the launcher's rings).
+    #[serde(default)]
+    pub sense_carrier: bool,
 }
 
 impl NodePlan {
@@ -352,6 +357,7 @@ pub fn run_node(plan: &NodePlan, node: usize, stop: &AtomicBool) -> Result<NodeR
         run_slave(
             &mut spec,
             node - 1,
+            plan.sense_carrier,
             port.as_mut(),
             &mut clock,
             stop,
@@ -482,15 +488,26 @@ fn run_master(
     let port_b = dev.port_b_node();
     // A broken ring: the master senses its ports' links (as a PHY does) and sends out of
     // both; frames come back to either port.
-    let breaks = Breaks::new(spec.scenario.faults.break_link.clone(), n);
-    let mut port_events: std::collections::VecDeque<_> =
-        LinkBreak::port_changes(&spec.scenario.faults.break_link, n).into();
+    let links = if plan.sense_carrier {
+        NodeLinks::sensed(0)
+    } else {
+        NodeLinks::scheduled(0, Breaks::new(spec.scenario.faults.break_link.clone(), n))
+    };
+    let mut port_events: std::collections::VecDeque<_> = if plan.sense_carrier {
+        Default::default()
+    } else {
+        LinkBreak::port_changes(&spec.scenario.faults.break_link, n).into()
+    };
     // Reading paused after a receive error, per direction (forward, backward).
     let mut paused = [None; 2];
     let send =
         |port: &mut dyn Port, log: &mut TimingLog, t: i64, (b_side, bytes): (bool, Vec<u8>)| {
-            let link = if b_side { n + 1 } else { 1 };
-            if breaks.down(link, t) {
+            // Port B is the link behind, port A the link ahead.
+            if if b_side {
+                links.behind_down(t)
+            } else {
+                links.ahead_down(t)
+            } {
                 log.timing.broken_dropped += 1;
             } else if if b_side {
                 port.send_back(&bytes)
@@ -517,6 +534,15 @@ fn run_master(
                 dev.master_link(now, p, up);
             }
         }
+        for (side, change) in [MasterPort::B, MasterPort::A]
+            .into_iter()
+            .zip(links.sense(port, now))
+        {
+            if let Some(up) = change {
+                tap.at(now);
+                dev.master_link(now, side, up);
+            }
+        }
         if probe_k < cycles && probe_k * t_cyc <= now {
             tap.at(probe_k * t_cyc);
             dev.probe(probe_k, probe_k * t_cyc);
@@ -527,7 +553,7 @@ fn run_master(
         // Frames back at port B (round the ring), then at port A (turned back beside a
         // broken link).
         for side in [MasterPort::B, MasterPort::A] {
-            if side == MasterPort::A && breaks.is_empty() {
+            if side == MasterPort::A && !links.may_break() {
                 break;
             }
             while let Some(len) = read_dir(
@@ -585,10 +611,11 @@ fn run_master(
             .min(probe_k * t_cyc)
             .min(end)
             .min(port_events.front().map_or(i64::MAX, |e| e.0))
+            .min(links.next_sense())
             .min(paused.iter().flatten().copied().min().unwrap_or(i64::MAX));
         if wake - now > spin {
             if dev.master.awaiting_frames() {
-                let mut fds = wait_fds(port, !breaks.is_empty(), &paused);
+                let mut fds = wait_fds(port, links.may_break(), &paused);
                 clock
                     .wait_readable_until(&mut fds, wake - spin)
                     .map_err(io_err("waiting for frames"))?;
@@ -610,6 +637,7 @@ fn run_master(
 fn run_slave(
     spec: &mut Spec,
     i: usize,
+    plan_sense_carrier: bool,
     port: &mut dyn Port,
     clock: &mut Clock,
     stop: &AtomicBool,
@@ -676,14 +704,21 @@ fn run_slave(
     // A broken ring: the slave senses its two links (as its PHYs do), turns back what its
     // broken link ahead would carry, and takes what comes back to it beside a broken link
     // behind.
-    let breaks = Breaks::new(spec.scenario.faults.break_link.clone(), spec.axes());
     let me = i + 1;
+    let links = if plan_sense_carrier {
+        NodeLinks::sensed(me)
+    } else {
+        NodeLinks::scheduled(
+            me,
+            Breaks::new(spec.scenario.faults.break_link.clone(), spec.axes()),
+        )
+    };
     let mut paused = [None; 2];
     let mut receive_errors = 0u64;
     let forward = |port: &mut dyn Port, t: i64, bytes: &[u8], dropped: &mut u64| {
-        if !breaks.down(me + 1, t) {
+        if !links.ahead_down(t) {
             let _ = port.send(bytes);
-        } else if !breaks.cut_off(me, t) {
+        } else if !links.cut_off(t) {
             let _ = port.send_back(bytes);
         } else {
             *dropped += 1;
@@ -739,6 +774,8 @@ fn run_slave(
         if now >= end + TAIL {
             break;
         }
+        // The carrier, when the links are known from it.
+        let _ = links.sense(port, now);
         let next = timers(
             &mut dev,
             &mut pending,
@@ -750,7 +787,7 @@ fn run_slave(
         let mut got = false;
         // Frames coming round the ring, then (a broken ring) frames coming backward.
         for back in [false, true] {
-            if back && breaks.is_empty() {
+            if back && !links.may_break() {
                 break;
             }
             while let Some(len) = read_dir(
@@ -768,12 +805,12 @@ fn run_slave(
                 rec.frames_read += 1;
                 rec.last_read_s = Some(t as f64 * 1e-9);
                 let bytes = &mut buf[..len];
-                if back && !breaks.down(me, t) {
+                if back && !links.behind_down(t) {
                     // A relay backward: the link behind is whole.
                     let _ = port.send_back(bytes);
                     continue;
                 }
-                if back && breaks.cut_off(me, t) {
+                if back && (links.cut_off(t) || links.turned_before(bytes)) {
                     dropped += 1;
                     continue;
                 }
@@ -792,8 +829,9 @@ fn run_slave(
         }
         let wake = next
             .min(end + TAIL)
+            .min(links.next_sense())
             .min(paused.iter().flatten().copied().min().unwrap_or(i64::MAX));
-        let mut fds = wait_fds(port, !breaks.is_empty(), &paused);
+        let mut fds = wait_fds(port, links.may_break(), &paused);
         clock
             .wait_readable_until(&mut fds, wake)
             .map_err(io_err("waiting for frames"))?;

@@ -382,10 +382,18 @@ pub fn control_socket() -> io::Result<OwnedFd> {
     Ok(unsafe { OwnedFd::from_raw_fd(fd) })
 }
 
-/// Sets interface `ifname` (in `ctl`'s namespace) administratively up or down, as `ip link
-/// set dev IFNAME up|down` does, in two system calls (microseconds, where `ip` takes
-/// milliseconds, tens of them on a busy host).
-pub fn set_interface_up(ctl: &OwnedFd, ifname: &str, up: bool) -> io::Result<()> {
+/// Whether interface `ifname` (in `ctl`'s namespace) is up and has its carrier (IFF_UP and
+/// IFF_RUNNING: `ip link` shows `state UP`), as its PHY reports: a veth end whose peer went
+/// down, or a card whose cable was pulled, has no carrier.
+pub fn interface_running(ctl: &OwnedFd, ifname: &str) -> io::Result<bool> {
+    let (_, flags) = interface_flags(ctl, ifname)?;
+    let want = (libc::IFF_UP | libc::IFF_RUNNING) as libc::c_short;
+    Ok(flags & want == want)
+}
+
+/// An ifreq naming `ifname`, with the interface's flags read into it (SIOCGIFFLAGS on
+/// `ctl`), and the flags.
+fn interface_flags(ctl: &OwnedFd, ifname: &str) -> io::Result<(libc::ifreq, libc::c_short)> {
     let bytes = ifname.as_bytes();
     // SAFETY: ifreq is plain data; zeroed, then the name is copied in below.
     let mut req: libc::ifreq = unsafe { std::mem::zeroed() };
@@ -404,6 +412,14 @@ pub fn set_interface_up(ctl: &OwnedFd, ifname: &str, up: bool) -> io::Result<()>
     }
     // SAFETY: SIOCGIFFLAGS filled the flags member of the union.
     let flags = unsafe { req.ifr_ifru.ifru_flags };
+    Ok((req, flags))
+}
+
+/// Sets interface `ifname` (in `ctl`'s namespace) administratively up or down, as `ip link
+/// set dev IFNAME up|down` does, in two system calls (microseconds, where `ip` takes
+/// milliseconds, tens of them on a busy host).
+pub fn set_interface_up(ctl: &OwnedFd, ifname: &str, up: bool) -> io::Result<()> {
+    let (mut req, flags) = interface_flags(ctl, ifname)?;
     let up_flag = libc::IFF_UP as libc::c_short;
     req.ifr_ifru.ifru_flags = if up {
         flags | up_flag

@@ -46,6 +46,12 @@ pub trait Port: Send {
     fn back_fd(&self) -> Option<RawFd> {
         None
     }
+    /// Whether the link behind (frames arrive on it) and the link ahead (frames leave on
+    /// it) are up with their carrier, as the interfaces' PHYs report; `None`: this
+    /// transport cannot tell.
+    fn links_up(&self) -> Option<[bool; 2]> {
+        None
+    }
 }
 
 /// Which transport.
@@ -292,6 +298,10 @@ pub struct VethPort {
     tx: OwnedFd,
     src: [u8; 6],
     frame: Vec<u8>,
+    /// A control socket in the interfaces' namespace, and their names: to read their link
+    /// state.
+    ctl: OwnedFd,
+    names: [String; 2],
 }
 
 impl VethPort {
@@ -310,14 +320,15 @@ impl VethPort {
         tx_if: &str,
         i: usize,
     ) -> io::Result<VethPort> {
-        let (rx, tx) = std::thread::scope(|s| {
-            s.spawn(|| -> io::Result<(OwnedFd, OwnedFd)> {
+        let (rx, tx, ctl) = std::thread::scope(|s| {
+            s.spawn(|| -> io::Result<(OwnedFd, OwnedFd, OwnedFd)> {
                 if let Some(ns) = netns {
                     sys::enter_netns(ns)?;
                 }
                 Ok((
                     sys::packet_socket(rx_if, ETHERTYPE)?,
                     sys::packet_socket(tx_if, ETHERTYPE)?,
+                    sys::control_socket()?,
                 ))
             })
             .join()
@@ -328,6 +339,8 @@ impl VethPort {
             tx,
             src: mac(i),
             frame: vec![0; ETH_HEADER_LEN + MAX_PDU],
+            ctl,
+            names: [rx_if.to_string(), tx_if.to_string()],
         })
     }
 
@@ -387,6 +400,14 @@ impl VethPort {
 }
 
 impl Port for VethPort {
+    fn links_up(&self) -> Option<[bool; 2]> {
+        // An interface that cannot be read (gone) counts as down.
+        Some(
+            self.names
+                .each_ref()
+                .map(|n| sys::interface_running(&self.ctl, n).unwrap_or(false)),
+        )
+    }
     fn send(&mut self, pdu: &[u8]) -> io::Result<()> {
         let len = ethernet_frame(&mut self.frame, self.src, pdu)?;
         sys::send(self.tx.as_raw_fd(), &self.frame[..len]).map(|_| ())
