@@ -695,8 +695,17 @@ fn run_slave(
     // 2. The run: the same node, running, with the delay it took (a fresh `Slave` of the
     //    devices, configured with it).
     let mut dev = Devices::new(spec, cycles, false)?;
+    // The runtime's clock servo, with its outlier limit at least twice this slave's path:
+    // a software stamp here carries a process wake-up per hop (tens of µs each on this
+    // machine), and with the one-process limit of 50 µs most syncs of the far slaves were
+    // taken as outliers, their rate never measured, and their clocks ran off at their
+    // oscillators' drift (160-210 µs/s).
+    let mut filter = RT_CLOCK_FILTER;
+    filter.outlier_limit = filter
+        .outlier_limit
+        .map(|l| l.max(Duration::from_ns(delay.as_ns().saturating_mul(2))));
     for sl in &mut dev.slaves {
-        sl.clock_mut().set_filter(RT_CLOCK_FILTER);
+        sl.clock_mut().set_filter(filter);
     }
     let tap = tap(&mut dev, Some(i));
     let mut pending: Vec<(i64, Vec<u8>)> = Vec::new();
