@@ -184,20 +184,8 @@ fn plan(args: &PlanArgs) -> Result<Outcome, CliError> {
 /// `ringsync node gather`: one run's results from the nodes' records.
 fn gather(args: &GatherArgs) -> Result<Outcome, CliError> {
     let (r, loaded) = ringsync::rt::gather_nodes(&args.plan, &args.records)?;
-    let mut dir = out_dir(&args.out, &loaded)?;
-    let prediction = if args.no_sim_prediction {
-        None
-    } else {
-        Some(ringsync::predict_rt(&r, 8)?)
-    };
-    ringsync::rt::write_rt(&mut dir, &r, loaded.hash, prediction, None)?;
-    ringsync::identify::write_scenario(&dir, &loaded, None)?;
-    dir.commit()?;
-    out(&format!(
-        "{}  wrote {}/summary.json and trace.csv\n",
-        ringsync::rt::rt_text(&r, prediction),
-        args.out.display()
-    ))?;
+    let dir = out_dir(&args.out, &loaded)?;
+    crate::rt_cmd::write_run(dir, &r, &loaded, !args.no_sim_prediction, None, &args.out)?;
     if r.interrupted {
         return Err(CliError::Failure(
             "a node was interrupted; its partial results are written".into(),

@@ -241,25 +241,45 @@ pub(crate) fn rt(args: &RtArgs) -> Result<Outcome, CliError> {
     };
     #[cfg(feature = "scope")]
     scope.finish(&r.scenario, loaded.hash, &r.run);
-    // The simulator's predictions: the scenario as run (after the overrides), and the
-    // ring as measured.
-    let prediction = if args.no_sim_prediction {
-        None
-    } else {
-        Some(ringsync::predict_rt(&r, 8)?)
-    };
-    ringsync::rt::write_rt(&mut dir, &r, loaded.hash, prediction, args.pcap.as_deref())?;
-    ringsync::identify::write_scenario(&dir, &loaded, None)?;
-    dir.commit()?;
-    out(&format!(
-        "{}  wrote {}/summary.json and trace.csv\n",
-        ringsync::rt::rt_text(&r, prediction),
-        args.out.display()
-    ))?;
+    write_run(
+        dir,
+        &r,
+        &loaded,
+        !args.no_sim_prediction,
+        args.pcap.as_deref(),
+        &args.out,
+    )?;
     if r.interrupted {
         return Err(CliError::Failure(
             "interrupted; partial results written, namespaces and links removed".into(),
         ));
     }
     Ok(Outcome::flagged_if(r.run.group_stop.is_some()))
+}
+
+/// Writes a real-time run into `dir` (shown as `shown`) and commits it: summary.json (with
+/// the simulator's predictions, the scenario as run and the ring as measured, when
+/// `predict`), trace.csv, scenario.toml, the capture to `pcap`; then prints the run's text.
+pub(crate) fn write_run(
+    mut dir: ringsync::OutDir,
+    r: &ringsync::RtResult,
+    loaded: &ringsync::Loaded,
+    predict: bool,
+    pcap: Option<&std::path::Path>,
+    shown: &std::path::Path,
+) -> Result<(), CliError> {
+    let prediction = if predict {
+        Some(ringsync::predict_rt(r, 8)?)
+    } else {
+        None
+    };
+    ringsync::rt::write_rt(&mut dir, r, loaded.hash, prediction, pcap)?;
+    ringsync::identify::write_scenario(&dir, loaded, None)?;
+    dir.commit()?;
+    out(&format!(
+        "{}  wrote {}/summary.json and trace.csv\n",
+        ringsync::rt::rt_text(r, prediction),
+        shown.display()
+    ))?;
+    Ok(())
 }

@@ -87,6 +87,11 @@ pub fn node_plan(
     start_in: crate::Duration,
 ) -> Result<ringsync_rt::node::NodePlan> {
     let s = ringsync_rt::run::as_run(&loaded.scenario, opts);
+    if !s.faults.break_link.is_empty() {
+        return Err(Error::Input(
+            "faults.break_link: a ring on the host's own interfaces knows a broken link from the cards' carrier, and nothing here takes a link down on a schedule: pull the cable (or set faults.break_link = [] and run the schedule with `ringsync rt --processes --transport veth`)".into(),
+        ));
+    }
     let start_up = ringsync_rt::launch::start_up_ns(opts, s.ring.cycle.0.as_ns());
     // A second to start the processes, at least.
     let least = start_up + 1_000_000_000;
@@ -98,7 +103,9 @@ pub fn node_plan(
             least as f64 * 1e-9
         )));
     }
-    let epoch = ringsync_rt::launch::monotonic_now_ns() + start_in.as_ns();
+    let epoch = ringsync_rt::launch::monotonic_now_ns()
+        .checked_add(start_in.as_ns())
+        .ok_or_else(|| Error::Input(format!("--start-in {start_in:?} is out of range")))?;
     let mut plan =
         ringsync_rt::launch::node_plan(&loaded.text, &loaded.origin, opts, links, epoch)?;
     // A ring on the host's interfaces knows a broken link from the cards' carrier.

@@ -62,8 +62,8 @@ pub(crate) struct NodeLinks {
     schedule: Breaks,
     /// Carrier sensing: the state [behind, ahead] as last read, and when to read next.
     carrier: Option<(Cell<[bool; 2]>, Cell<i64>)>,
-    /// Frames this node turned beside its broken link behind (kind, cycle, sequence), the
-    /// latest last: one turned again has gone round a segment cut off at both ends.
+    /// Frames this node turned beside its broken link behind (kind, cycle, sequence
+    /// number, retry), the latest last: one turned again has gone round a segment cut off at both ends.
     turned: RefCell<VecDeque<(u8, u32, u16, u8)>>,
 }
 

@@ -87,32 +87,13 @@ pub fn run_processes(
         }
     };
     // The links.
-    let (links, veth) = match opts.transport {
+    let (mut links, veth) = match opts.transport {
         TransportKind::Raw => {
             return Err(RtError::Config(
                 "--processes runs its ring on UDP or veth; a ring on the host's own interfaces is started by hand: `ringsync node plan` (docs/runtime.md, \"Real interfaces\")".into(),
             ));
         }
-        TransportKind::Udp => {
-            // Free ports on loopback: bound here, then let go for the nodes to bind.
-            let socks = (0..=n)
-                .map(|_| UdpSocket::bind("127.0.0.1:0"))
-                .collect::<std::io::Result<Vec<_>>>()
-                .map_err(io_err("finding free UDP ports on 127.0.0.1"))?;
-            let addrs = socks
-                .iter()
-                .map(UdpSocket::local_addr)
-                .collect::<std::io::Result<Vec<_>>>()
-                .map_err(io_err("finding free UDP ports on 127.0.0.1"))?;
-            drop(socks);
-            let links: Vec<NodeLink> = (0..=n)
-                .map(|i| NodeLink::Udp {
-                    listen: addrs[i],
-                    next: addrs[(i + 1) % (n + 1)],
-                })
-                .collect();
-            (links, None)
-        }
+        TransportKind::Udp => (udp_links(n)?, None),
         TransportKind::Veth => {
             say(&format!(
                 "creating {} network namespaces and veth links",
@@ -215,15 +196,24 @@ pub fn run_processes(
         let sup = sup.map_err(io_err("starting the node processes"))?;
         // The master found the measured ring too slow for the cycle: a host that held the
         // nodes off their CPUs while the probes went round makes the round trips' p99 a host
-        // figure. Measure again with a fresh ring of processes (as one process measures again).
+        // figure. Measure again with a fresh ring of processes (as one process measures
+        // again), if the run has not begun (no link of a broken-link schedule has gone
+        // down): fresh UDP ports, no record of this attempt left.
         if let Some(f) = sup.first_failure
             && sup.children[f].name == "master"
             && sup.children[f]
                 .stderr_tail
                 .contains(crate::schedule::DOES_NOT_FIT)
             && tries < crate::run::START_UP_TRIES
+            && sys::now_ns() < epoch
             && !stop.load(std::sync::atomic::Ordering::SeqCst)
         {
+            for i in 0..=n {
+                let _ = std::fs::remove_file(record(i));
+            }
+            if opts.transport == TransportKind::Udp {
+                links = udp_links(n)?;
+            }
             say(&format!(
                 "start-up phase {tries} of {}: {}; measuring again",
                 crate::run::START_UP_TRIES,
@@ -274,6 +264,26 @@ pub fn run_processes(
         .map(|i| read_record(&record(i)))
         .collect::<Result<Vec<_>, _>>()?;
     gather(&plan, &records, sup.stopped, opts.trace)
+}
+
+/// UDP links for a ring of n slaves on free ports of loopback (bound here, then let go
+/// for the nodes to bind).
+fn udp_links(n: usize) -> Result<Vec<NodeLink>, RtError> {
+    let socks = (0..=n)
+        .map(|_| UdpSocket::bind("127.0.0.1:0"))
+        .collect::<std::io::Result<Vec<_>>>()
+        .map_err(io_err("finding free UDP ports on 127.0.0.1"))?;
+    let addrs = socks
+        .iter()
+        .map(UdpSocket::local_addr)
+        .collect::<std::io::Result<Vec<_>>>()
+        .map_err(io_err("finding free UDP ports on 127.0.0.1"))?;
+    Ok((0..=n)
+        .map(|i| NodeLink::Udp {
+            listen: addrs[i],
+            next: addrs[(i + 1) % (n + 1)],
+        })
+        .collect())
 }
 
 /// The host's `CLOCK_MONOTONIC` now [ns]: the clock a plan's epoch is on.
@@ -402,6 +412,12 @@ pub fn gather(
     // The master's configuration: the same schedule from the same figures.
     let mut ran = spec.clone();
     crate::schedule::apply(&mut ran, &calibration, response_timeout)?;
+    // Each slave's clock window as it ran (its own estimate of the ring's path).
+    for (c, r) in ran.slaves.iter_mut().zip(records.iter().skip(1)) {
+        if let Some(w) = r.clock_window_ns {
+            c.clock_window = ringsync_proto::Duration::from_ns(w);
+        }
+    }
     Ok(RtResult {
         scenario: spec.scenario.clone(),
         spec: ran,

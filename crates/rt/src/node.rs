@@ -228,13 +228,16 @@ pub struct NodeRecord {
     /// The node was told to stop before the end.
     pub interrupted: bool,
     /// Frames it had to drop beside a broken link: its link ahead broken and it cut off
-    /// from both of the master's ports (a slave), or the port's own link broken (the
-    /// master).
+    /// from both of the master's ports, or a frame it turned a second time (a slave); or
+    /// the port's own link broken (the master).
     #[serde(default)]
     pub broken_dropped: u64,
     /// Receive errors (a link gone down: its direction is read again [`RX_RETRY`] later).
     #[serde(default)]
     pub receive_errors: u64,
+    /// The clock window a slave ran with [ns].
+    #[serde(default)]
+    pub clock_window_ns: Option<i64>,
 }
 
 /// An observer that keeps the events of one node.
@@ -411,7 +414,7 @@ fn run_master(
     let n = spec.axes();
     let t_cyc = spec.scenario.ring.cycle.0;
     let mut buf = vec![0u8; MAX_PDU];
-    let mut fds = vec![sys::pollfd(port.rx_fd())];
+    let mut fds = [sys::pollfd(port.rx_fd())];
     // 1. The start-up phase: one probe per cycle from `start_up_ns` before time 0.
     let origin = -plan.start_up_ns;
     let mut cfg = CalibrationConfig::new(n, t_cyc, u32::try_from(plan.probes).unwrap_or(u32::MAX));
@@ -615,9 +618,7 @@ fn run_master(
             .min(paused.iter().flatten().copied().min().unwrap_or(i64::MAX));
         if wake - now > spin {
             if dev.master.awaiting_frames() {
-                let mut fds = wait_fds(port, links.may_break(), &paused);
-                clock
-                    .wait_readable_until(&mut fds, wake - spin)
+                wait_frames(clock, port, links.may_break(), &paused, wake - spin)
                     .map_err(io_err("waiting for frames"))?;
             } else {
                 clock.sleep_until(wake - spin);
@@ -651,7 +652,7 @@ fn run_slave(
         .copied()
         .ok_or_else(|| RtError::Config(format!("slave {} is not on this ring", i + 1)))?;
     let mut buf = vec![0u8; MAX_PDU];
-    let mut fds = vec![sys::pollfd(port.rx_fd())];
+    let mut fds = [sys::pollfd(port.rx_fd())];
     // 1. The start-up phase: answer the probes until the master's closing frame gives the
     //    slave its path delay (it must come before the run's start).
     let mut node = Slave::calibrating(spec.slaves[i].clone());
@@ -684,12 +685,15 @@ fn run_slave(
         }
     };
     spec.slaves[i].path_delay = delay;
-    // The clock window as the master's schedule sets it (`schedule::apply`): at least twice
-    // the ring's path, which this slave knows as its own over its share of the hops.
+    // The clock window at least twice the ring's path, as the master's schedule sets its
+    // own (`schedule::apply`): the slave's estimate of that path, from its own path delay
+    // over its share of the hops (slave 1's counts no residence). What it used goes into
+    // its record.
     let n = spec.axes() as i64;
     let ring_path = delay.as_ns().saturating_mul(n + 1) / (i as i64 + 1);
     let window = &mut spec.slaves[i].clock_window;
     *window = (*window).max(Duration::from_ns(2 * ring_path));
+    rec.clock_window_ns = Some(window.as_ns());
     rec.path_delay_ns = Some(delay.as_ns());
     rec.start_up_rejected = node.counters().rejected.total();
     // 2. The run: the same node, running, with the delay it took (a fresh `Slave` of the
@@ -840,9 +844,7 @@ fn run_slave(
             .min(end + TAIL)
             .min(links.next_sense())
             .min(paused.iter().flatten().copied().min().unwrap_or(i64::MAX));
-        let mut fds = wait_fds(port, links.may_break(), &paused);
-        clock
-            .wait_readable_until(&mut fds, wake)
+        wait_frames(clock, port, links.may_break(), &paused, wake)
             .map_err(io_err("waiting for frames"))?;
     }
     rec.slave = Some(dev.slaves[i].counters());
@@ -883,12 +885,28 @@ fn read_dir(
     }
 }
 
-/// The descriptors a node's loop waits on: each direction it reads (backward only on a
-/// ring that breaks) that is not paused.
-fn wait_fds(port: &dyn Port, both: bool, paused: &[Option<i64>; 2]) -> Vec<libc::pollfd> {
-    let fwd = paused[0].is_none().then(|| port.rx_fd());
-    let back = port.back_fd().filter(|_| both && paused[1].is_none());
-    fwd.into_iter().chain(back).map(sys::pollfd).collect()
+/// Waits on `clock` until `wake` [ns] or a frame on a direction a node's loop reads (the
+/// backward one only on a ring that may break) that is not paused; no allocation.
+fn wait_frames(
+    clock: &mut Clock,
+    port: &dyn Port,
+    both: bool,
+    paused: &[Option<i64>; 2],
+    wake: i64,
+) -> io::Result<i64> {
+    let mut fds = [sys::pollfd(port.rx_fd()); 2];
+    let mut len = 0;
+    for fd in [
+        paused[0].is_none().then(|| port.rx_fd()),
+        port.back_fd().filter(|_| both && paused[1].is_none()),
+    ]
+    .into_iter()
+    .flatten()
+    {
+        fds[len] = sys::pollfd(fd);
+        len += 1;
+    }
+    clock.wait_readable_until(&mut fds[..len], wake)
 }
 
 /// Writes `rec` as JSON to `path`, whole or not at all (a temporary file renamed).
