@@ -360,6 +360,18 @@ pub fn spawn_flap(
 
 /// A broken link (`faults.break_link`, `--break-link`) on a veth ring: link `b.link` (from
 /// node `b.link` − 1) goes down at `b.at` and, if it heals, up again at `b.heal`; returns
+/// The line a run says of a scheduled break: `link I breaks at T s[ and heals at T2 s]`.
+pub fn break_line(b: &LinkBreak) -> String {
+    format!(
+        "link {} breaks at {:.3} s{}",
+        b.link,
+        b.at.as_ns() as f64 * 1e-9,
+        b.heal
+            .map(|h| format!(" and heals at {:.3} s", h.as_ns() as f64 * 1e-9))
+            .unwrap_or_default(),
+    )
+}
+
 /// how long it was down as [`spawn_flap`] does (`None`: it was still down at the end).
 pub fn spawn_break(
     veth: Arc<VethRing>,

@@ -173,14 +173,7 @@ pub fn run_processes(
                 .break_link
                 .iter()
                 .map(|b| {
-                    say(&format!(
-                        "link {} breaks at {:.3} s{}",
-                        b.link,
-                        b.at.as_ns() as f64 * 1e-9,
-                        b.heal
-                            .map(|h| format!(" and heals at {:.3} s", h.as_ns() as f64 * 1e-9))
-                            .unwrap_or_default(),
-                    ));
+                    say(&crate::inject::break_line(b));
                     crate::inject::spawn_break(v.clone(), *b, t0.clone(), stop_breaks.clone())
                 })
                 .collect(),

@@ -509,12 +509,8 @@ pub fn run_streamed(
     };
     for b in &s.faults.break_link {
         say(&format!(
-            "link {} breaks at {:.3} s{}{}",
-            b.link,
-            b.at.as_ns() as f64 * 1e-9,
-            b.heal
-                .map(|h| format!(" and heals at {:.3} s", h.as_ns() as f64 * 1e-9))
-                .unwrap_or_default(),
+            "{}{}",
+            inject::break_line(b),
             if veth.is_some() {
                 ""
             } else {
