@@ -110,10 +110,11 @@ pub struct RtArgs {
     no_sim_prediction: bool,
     /// Run every node as its own process (`ringsync node master`, `ringsync node slave
     /// --index I`), each with its own port, clock and loop, and gather their results (the
-    /// nodes stamp frames in software, unpinned). A broken link (--break-link) on veth
-    /// only; not yet with faults injected, --pcap, --scope, --stamps or --cpu.
+    /// nodes stamp frames in software; all pinned to one CPU, --cpu or the last free one,
+    /// unless --no-pin). A broken link (--break-link) on veth only; not yet with faults
+    /// injected, --pcap, --scope or --stamps.
     #[arg(long, conflicts_with_all = [
-        "cpu", "stamps", "pcap", "kill_slave", "flap_link", "forge", "inject_garbage",
+        "stamps", "pcap", "kill_slave", "flap_link", "forge", "inject_garbage",
     ])]
     processes: bool,
     #[cfg(feature = "scope")]

@@ -49,6 +49,16 @@ fn nodes_of(launcher: u32) -> Vec<(u32, String)> {
     found
 }
 
+/// The CPUs process `pid` may run on (`Cpus_allowed_list`, e.g. `1` or `0-1`).
+fn allowed_cpus(pid: u32) -> String {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).unwrap_or_default();
+    status
+        .lines()
+        .find_map(|l| l.strip_prefix("Cpus_allowed_list:"))
+        .map(|v| v.trim().to_string())
+        .unwrap_or_default()
+}
+
 /// What a launcher `pid` may leave: node processes, namespaces, plan directories.
 fn leftovers(pid: u32) -> Vec<String> {
     let mut left: Vec<String> = nodes_of(pid).into_iter().map(|(_, c)| c).collect();
@@ -178,6 +188,10 @@ fn runs_as_one(transport: &str) {
             "{nodes:?}"
         );
     }
+    // Every node on the one CPU its launcher claimed (read once each has pinned itself:
+    // the start-up phase is under way once the master runs).
+    std::thread::sleep(Duration::from_millis(300));
+    let cpus: Vec<String> = nodes.iter().map(|(p, _)| allowed_cpus(*p)).collect();
     let status = child.wait().expect("wait");
     let err = rest.join().expect("stderr").join("\n");
     // 0: done; 3: the host cut the run short (a group stop): still a run of every node.
@@ -202,6 +216,27 @@ fn runs_as_one(transport: &str) {
     );
     assert_eq!(summary["stamps"], "software");
     assert_eq!(summary["cycles_planned"], 40);
+    let realtime = summary["realtime"].to_string();
+    match realtime.find("pinned to CPU ") {
+        // Claimed: every node on that one CPU, and no slave said otherwise.
+        Some(at) => {
+            let cpu: String = realtime[at + "pinned to CPU ".len()..]
+                .chars()
+                .take_while(char::is_ascii_digit)
+                .collect();
+            assert!(
+                realtime.contains(&format!("pinned to CPU {cpu} with the ring's other nodes")),
+                "{realtime}"
+            );
+            assert!(cpus.iter().all(|c| *c == cpu), "{cpus:?} {realtime}");
+            assert!(!realtime.contains("slave "), "{realtime}");
+        }
+        // Every CPU held by another run: the launcher said so, and the nodes run anywhere.
+        None => {
+            assert!(err.contains("warning:"), "{err}");
+            assert!(cpus.iter().all(|c| c.contains(['-', ','])), "{cpus:?}");
+        }
+    }
     let trace = std::fs::read_to_string(dir.join("trace.csv")).expect("trace.csv");
     assert!(
         trace.lines().count() > 4 * 30,

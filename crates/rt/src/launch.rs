@@ -146,10 +146,19 @@ pub fn run_processes(
             env: Vec::new(),
         }
     };
+    // One CPU for every node (claimed here, for the whole run): a frame's hop is then a
+    // wake-up on the same CPU, not a cross-CPU one (docs/runtime.md, "One process per node").
+    let (cpu, line) = crate::realtime::claim_cpu(opts.realtime.cpu);
+    match line {
+        Some(w) if w.starts_with("warning") => eprintln!("ringsync rt: {w}"),
+        Some(l) => say(&format!("nodes {l}")),
+        None => {}
+    }
     let mut tries = 1;
     let (plan, sup) = loop {
         let epoch = sys::now_ns() + SPAWN + start_up;
-        let plan = node_plan(text, origin, opts, links.clone(), epoch)?;
+        let mut plan = node_plan(text, origin, opts, links.clone(), epoch)?;
+        plan.cpu = cpu.as_ref().map(|c| c.cpu());
         crate::node::write_plan(&plan, &plan_path)?;
         let children: Vec<ChildSpec> = (1..=n).chain([0]).map(child).collect();
         say(&format!(
@@ -320,6 +329,7 @@ pub fn node_plan(
         lock_memory: opts.realtime.lock_memory,
         links,
         sense_carrier: false,
+        cpu: None,
     };
     // Checks the links against the ring.
     plan.spec()?;
@@ -387,6 +397,13 @@ pub fn gather(
         "one process per node ({} processes), each its own loop; slaves sleep to their deadlines",
         n + 1
     ));
+    // A slave whose CPU differs from the master's (a pin refused, or a ring by hand).
+    let pin_of = |r: &NodeRecord| r.realtime.iter().find(|l| l.contains("pin")).cloned();
+    for r in records.iter().skip(1) {
+        if let Some(l) = pin_of(r).filter(|l| Some(l) != pin_of(master).as_ref()) {
+            realtime.push(format!("slave {}: {l}", r.node));
+        }
+    }
     let Some(mut calibration) = master.calibration.clone() else {
         return Err(RtError::Node(if interrupted {
             "interrupted in the start-up phase, before the run began: no results".into()

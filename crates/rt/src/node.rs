@@ -101,7 +101,11 @@ pub struct NodePlan {
     pub epoch_ns: i64,
     /// The master starts its probes this long before time 0 [ns].
     pub start_up_ns: i64,
-    /// SCHED_FIFO priority of every node's loop (0: the normal scheduler).
+    /// SCHED_FIFO priority of every node's loop (0: the normal scheduler). Equal: on one
+    /// shared CPU the master's busy-wait before its cycle start then holds the CPU, and the
+    /// slaves' latches due meanwhile run just after its send (a latch takes the axis at
+    /// its own instant however late it runs); slaves one above the master made it send
+    /// 40 µs late in the median (docs/runtime.md).
     pub priority: i32,
     /// The master's busy-wait before its deadlines [ns] (the slaves sleep).
     pub spin_ns: i64,
@@ -114,6 +118,10 @@ pub struct NodePlan {
     /// scenario's `faults.break_link` schedule (the launcher's rings).
     #[serde(default)]
     pub sense_carrier: bool,
+    /// The one CPU every node process is pinned to (the launcher claims it against other
+    /// runs); None: the nodes run unpinned.
+    #[serde(default)]
+    pub cpu: Option<usize>,
 }
 
 impl NodePlan {
@@ -338,7 +346,7 @@ pub fn run_node(plan: &NodePlan, node: usize, stop: &AtomicBool) -> Result<NodeR
     let realtime = Realtime {
         spin: Duration::from_ns(if node == 0 { plan.spin_ns } else { 0 }),
         priority: plan.priority,
-        cpu: Pin::Off,
+        cpu: plan.cpu.map_or(Pin::Off, Pin::Shared),
         lock_memory: plan.lock_memory,
     };
     let applied = realtime.apply();

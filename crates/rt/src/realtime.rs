@@ -27,6 +27,9 @@ pub enum Pin {
     Auto,
     /// This CPU. When another run has claimed it, the loop runs unpinned, with a warning.
     Cpu(usize),
+    /// This CPU, shared with the other node processes of one ring, whose launcher holds
+    /// the claim ([`claim_cpu`]): pinned without claiming.
+    Shared(usize),
 }
 
 /// Real-time settings of a loop thread.
@@ -73,6 +76,12 @@ impl Realtime {
     /// Keep the returned claim until the loop ends.
     pub fn apply(&self) -> Applied {
         let mut lines = Vec::new();
+        if let Pin::Shared(cpu) = self.cpu {
+            lines.push(match sys::pin_to_cpu(cpu) {
+                Ok(()) => format!("pinned to CPU {cpu} with the ring's other nodes"),
+                Err(e) => format!("warning: cannot pin to CPU {cpu} ({e}); running unpinned"),
+            });
+        }
         let (claim, line) = choose_cpu(self.cpu, &sys::allowed_cpus(), &lock_dirs());
         let claim = match claim.map(|c| (sys::pin_to_cpu(c.cpu), c)) {
             Some((Err(e), c)) => {
@@ -280,11 +289,19 @@ fn by(pid: Option<u32>) -> String {
     })
 }
 
+/// Chooses and claims a CPU as [`Realtime::apply`] does, without pinning the caller to it:
+/// for a launcher whose node processes share the CPU ([`Pin::Shared`]). Returns the claim
+/// (None: the nodes run unpinned) and the one line that says so (none when it went as
+/// asked).
+pub fn claim_cpu(pin: Pin) -> (Option<CpuClaim>, Option<String>) {
+    choose_cpu(pin, &sys::allowed_cpus(), &lock_dirs())
+}
+
 /// Chooses and claims the loop's CPU among `allowed` with lock files in `dirs`: the claim
 /// (None: run unpinned) and the one line that says so; no line when it went as asked.
 fn choose_cpu(pin: Pin, allowed: &[usize], dirs: &[PathBuf]) -> (Option<CpuClaim>, Option<String>) {
     let wanted: Vec<usize> = match pin {
-        Pin::Off => return (None, None),
+        Pin::Off | Pin::Shared(_) => return (None, None),
         Pin::Cpu(c) => vec![c],
         Pin::Auto => allowed.iter().rev().copied().collect(),
     };
