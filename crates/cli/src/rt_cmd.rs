@@ -111,10 +111,11 @@ pub struct RtArgs {
     /// Run every node as its own process (`ringsync node master`, `ringsync node slave
     /// --index I`), each with its own port, clock and loop, and gather their results (the
     /// nodes stamp frames in software; all pinned to one CPU, --cpu or the last free one,
-    /// unless --no-pin). A broken link (--break-link) on veth only; not yet with faults
-    /// injected, --pcap, --scope or --stamps.
+    /// unless --no-pin; --pcap: every frame each node sent, merged once they are done). A
+    /// broken link (--break-link) on veth only; not yet with faults injected, --scope or
+    /// --stamps.
     #[arg(long, conflicts_with_all = [
-        "stamps", "pcap", "kill_slave", "flap_link", "forge", "inject_garbage",
+        "stamps", "kill_slave", "flap_link", "forge", "inject_garbage",
     ])]
     processes: bool,
     #[cfg(feature = "scope")]
@@ -236,7 +237,7 @@ pub(crate) fn rt(args: &RtArgs) -> Result<Outcome, CliError> {
     // trace.csv and the capture are written as the run goes: its memory does not grow
     // with its duration.
     let r = if args.processes {
-        ringsync::rt::run_rt_processes(&loaded, &opts, stop)?
+        ringsync::rt::run_rt_processes(&mut dir, &loaded, &opts, stop, args.pcap.as_deref())?
     } else {
         ringsync::rt::run_rt_streamed(&mut dir, s, &opts, stop, observers, args.pcap.as_deref())?
     };

@@ -488,6 +488,81 @@ fn an_rt_capture_decodes_frame_by_frame() {
     let _ = std::fs::remove_dir_all(&d);
 }
 
+/// A ring of node processes keeps what each node sends; the launcher merges the nodes'
+/// frames into one capture, in time order, each frame on its sender's interface.
+#[test]
+fn a_capture_of_node_processes_decodes_frame_by_frame() {
+    let d = dir("processes");
+    let cap = d.join("processes.pcapng");
+    let out = d.join("out");
+    // A 5 ms cycle: the ring of processes fits it on a busy host too.
+    let o = ringsync(&[
+        "rt",
+        "paper-2015",
+        "--processes",
+        "--transport",
+        "udp",
+        "--cycle",
+        "5ms",
+        "--duration",
+        "1s",
+        "--no-sim-prediction",
+        "--out",
+        out.to_str().expect("utf-8"),
+        "--pcap",
+        cap.to_str().expect("utf-8"),
+    ]);
+    assert!(
+        matches!(o.status.code(), Some(0 | 3)),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let c = check_ring_capture(&cap);
+    assert!(
+        master_cycles(&c).len() >= 190,
+        "{} cycles",
+        master_cycles(&c).len()
+    );
+    // Every node sent frames, each on its own interface.
+    for node in 0..=4 {
+        assert!(c.senders.contains(&node), "node {node}: {:?}", c.senders);
+    }
+    let per = frames_per_cycle(&c.decoded);
+    let full = per.values().filter(|&&n| n == 25).count();
+    assert!(
+        full * 2 > per.len(),
+        "{full} of {} cycles hold 25 frames",
+        per.len()
+    );
+    // In time order, and nothing the nodes' queues dropped.
+    let times = times(&std::fs::read(&cap).expect("capture"));
+    assert!(times.windows(2).all(|w| w[0] <= w[1]));
+    let summary: Value = serde_json::from_str(
+        &std::fs::read_to_string(out.join("summary.json")).expect("summary.json"),
+    )
+    .expect("json");
+    assert_eq!(
+        summary["streamed"]["frames_dropped"], 0,
+        "{}",
+        summary["streamed"]
+    );
+    let _ = std::fs::remove_dir_all(&d);
+}
+
+/// The timestamps of a pcapng file's packets (the raw 64-bit stamps).
+fn times(file: &[u8]) -> Vec<u64> {
+    let word = |at: usize| u32::from_le_bytes(file[at..at + 4].try_into().expect("4 bytes"));
+    let (mut at, mut out) = (0, Vec::new());
+    while at < file.len() {
+        let (kind, len) = (word(at), word(at + 4) as usize);
+        if kind == 6 {
+            out.push((u64::from(word(at + 12)) << 32) | u64::from(word(at + 16)));
+        }
+        at += len;
+    }
+    out
+}
+
 /// Writes `frames` as a pcapng of Ethernet frames (one per ms) to `d/<name>.pcapng`; returns
 /// its path and each frame's Ethernet payload as the file holds it (padded to 46 bytes).
 fn ethernet_capture(

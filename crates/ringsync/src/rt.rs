@@ -41,21 +41,52 @@ pub fn run_rt(
 }
 
 /// Runs the scenario `loaded` as one process per node (`ringsync node …`, started from this
-/// executable): docs/runtime.md, "One process per node".
+/// executable): docs/runtime.md, "One process per node". With `pcap` (inside `dir` or
+/// beside it, committed with it), the frames every node sent, merged in time order once the
+/// nodes are done, go there as pcapng (the result's capture is then empty, as a streamed
+/// run's).
 pub fn run_rt_processes(
+    dir: &mut OutDir,
     loaded: &crate::Loaded,
     opts: &RtOptions,
     stop: &AtomicBool,
+    pcap: Option<&Path>,
 ) -> Result<RtResult> {
     let program = std::env::current_exe()
         .map_err(|e| Error::io("finding the ringsync executable to start the nodes", e))?;
-    Ok(ringsync_rt::launch::run_processes(
+    let Some(p) = pcap.filter(|_| opts.capture) else {
+        return Ok(ringsync_rt::launch::run_processes(
+            &loaded.text,
+            &loaded.origin,
+            opts,
+            &program,
+            stop,
+            None,
+        )?);
+    };
+    use std::io::Write as _;
+    let shown = format!("cannot write {}", p.display());
+    let file = std::fs::File::create(dir.stream_file(p)?).map_err(|e| Error::io(&shown, e))?;
+    let mut w = std::io::BufWriter::with_capacity(1 << 16, file);
+    let axes = loaded.scenario.axes_count();
+    w.write_all(&ringsync_report::pcap::pcapng_header(axes))
+        .map_err(|e| Error::io(&shown, e))?;
+    let mut buf = Vec::with_capacity(256);
+    let mut each = |f: &ringsync_model::result::Captured| {
+        buf.clear();
+        ringsync_report::pcap::push_pcapng_frame(&mut buf, f, axes);
+        w.write_all(&buf)
+    };
+    let r = ringsync_rt::launch::run_processes(
         &loaded.text,
         &loaded.origin,
         opts,
         &program,
         stop,
-    )?)
+        Some(&mut each),
+    )?;
+    w.flush().map_err(|e| Error::io(&shown, e))?;
+    Ok(r)
 }
 
 /// Runs node `index` (0 the master, i slave i) of the ring the plan at `plan` describes,

@@ -46,8 +46,6 @@ fn unsupported(s: &Scenario, opts: &RtOptions) -> Option<&'static str> {
         Some("--flap-link")
     } else if !s.faults.break_link.is_empty() && opts.transport == TransportKind::Udp {
         Some("a broken link over UDP (--break-link, faults.break_link; use --transport veth)")
-    } else if opts.capture {
-        Some("--pcap")
     } else {
         None
     }
@@ -64,13 +62,16 @@ impl Drop for Scratch {
 
 /// Runs the scenario of TOML `text` (from `origin`) as one process per node, `program`
 /// being the `ringsync` executable the nodes run as (`ringsync node …`). `stop` ends the
-/// run early.
+/// run early. With `capture`, every node keeps the frames it sends ([`crate::frames`]) and
+/// `capture` is handed them all in time order once the nodes are done (the result's
+/// `streamed` says so, and how many the nodes' queues dropped).
 pub fn run_processes(
     text: &str,
     origin: &str,
     opts: &RtOptions,
     program: &Path,
     stop: &AtomicBool,
+    capture: Option<&mut crate::frames::FrameSink<'_>>,
 ) -> Result<RtResult, RtError> {
     let scenario = Scenario::from_toml(text, origin)?;
     if let Some(what) = unsupported(&scenario, opts) {
@@ -159,6 +160,9 @@ pub fn run_processes(
         let epoch = sys::now_ns() + SPAWN + start_up;
         let mut plan = node_plan(text, origin, opts, links.clone(), epoch)?;
         plan.cpu = cpu.as_ref().map(|c| c.cpu());
+        if capture.is_some() {
+            plan.capture_dir = Some(scratch.0.to_string_lossy().into_owned());
+        }
         crate::node::write_plan(&plan, &plan_path)?;
         let children: Vec<ChildSpec> = (1..=n).chain([0]).map(child).collect();
         say(&format!(
@@ -265,7 +269,17 @@ pub fn run_processes(
     let records = (0..=n)
         .map(|i| read_record(&record(i)))
         .collect::<Result<Vec<_>, _>>()?;
-    gather(&plan, &records, sup.stopped, opts.trace)
+    let mut r = gather(&plan, &records, sup.stopped, opts.trace)?;
+    // The capture: every node's frames, merged in time order.
+    if let Some(each) = capture {
+        let files: Vec<_> = (0..=n)
+            .map(|i| (i, scratch.0.join(crate::frames::file_name(i))))
+            .collect();
+        crate::frames::merge(&files, each).map_err(io_err("merging the nodes' frames"))?;
+        r.streamed.capture = true;
+        r.streamed.frames_dropped = records.iter().map(|rec| rec.frames_not_kept).sum();
+    }
+    Ok(r)
 }
 
 /// UDP links for a ring of n slaves on free ports of loopback (bound here, then let go
@@ -330,6 +344,7 @@ pub fn node_plan(
         links,
         sense_carrier: false,
         cpu: None,
+        capture_dir: None,
     };
     // Checks the links against the ring.
     plan.spec()?;

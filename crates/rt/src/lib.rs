@@ -12,6 +12,7 @@
 mod breaks;
 pub mod calibrate;
 pub mod clock;
+pub mod frames;
 pub mod host;
 pub mod inject;
 pub mod launch;

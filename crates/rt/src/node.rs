@@ -46,6 +46,7 @@ use ringsync_proto::{Duration, Instant};
 use crate::breaks::{Breaks, NodeLinks};
 use crate::calibrate::Calibration;
 use crate::clock::Clock;
+use crate::frames::{self, CapturingPort};
 use crate::realtime::{Pin, Realtime};
 use crate::ring::{RT_CLOCK_FILTER, RX_RETRY};
 use crate::run::{RtError, RtOptions, io_err};
@@ -122,6 +123,10 @@ pub struct NodePlan {
     /// runs); None: the nodes run unpinned.
     #[serde(default)]
     pub cpu: Option<usize>,
+    /// Where each node keeps the frames it sends, for the run's capture
+    /// ([`crate::frames`]); None: not kept.
+    #[serde(default)]
+    pub capture_dir: Option<String>,
 }
 
 impl NodePlan {
@@ -246,6 +251,12 @@ pub struct NodeRecord {
     /// The clock window a slave ran with [ns].
     #[serde(default)]
     pub clock_window_ns: Option<i64>,
+    /// Frames it kept for the capture, and those its full queue dropped.
+    #[serde(default)]
+    pub frames_kept: u64,
+    /// Frames its capture queue could not take.
+    #[serde(default)]
+    pub frames_not_kept: u64,
 }
 
 /// An observer that keeps the events of one node.
@@ -342,7 +353,16 @@ pub fn run_node(plan: &NodePlan, node: usize, stop: &AtomicBool) -> Result<NodeR
             n + 1
         ))
     })?;
-    let mut port = open_port(link, node).map_err(io_err("opening the node's port"))?;
+    let port = open_port(link, node).map_err(io_err("opening the node's port"))?;
+    let (mut port, frames) = match &plan.capture_dir {
+        Some(dir) => {
+            let (tx, writer) = frames::frame_file(&Path::new(dir).join(frames::file_name(node)))
+                .map_err(io_err("creating the node's frame file"))?;
+            let kept: Box<dyn Port> = Box::new(CapturingPort::new(port, tx, plan.epoch_ns));
+            (kept, Some(writer))
+        }
+        None => (port, None),
+    };
     let realtime = Realtime {
         spin: Duration::from_ns(if node == 0 { plan.spin_ns } else { 0 }),
         priority: plan.priority,
@@ -376,6 +396,12 @@ pub fn run_node(plan: &NodePlan, node: usize, stop: &AtomicBool) -> Result<NodeR
         )?;
     }
     drop(applied);
+    // Every frame sent is in the writer's queue: the file is written whole.
+    drop(port);
+    if let Some(w) = frames {
+        (rec.frames_kept, rec.frames_not_kept) =
+            w.finish().map_err(io_err("writing the node's frames"))?;
+    }
     Ok(rec)
 }
 
