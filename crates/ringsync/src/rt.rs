@@ -52,39 +52,41 @@ pub fn run_rt_processes(
     stop: &AtomicBool,
     pcap: Option<&Path>,
 ) -> Result<RtResult> {
+    use std::io::Write as _;
     let program = std::env::current_exe()
         .map_err(|e| Error::io("finding the ringsync executable to start the nodes", e))?;
-    let Some(p) = pcap.filter(|_| opts.capture) else {
-        return Ok(ringsync_rt::launch::run_processes(
+    let run = |capture| {
+        ringsync_rt::launch::run_processes(
             &loaded.text,
             &loaded.origin,
             opts,
             &program,
             stop,
-            None,
-        )?);
+            capture,
+        )
     };
-    use std::io::Write as _;
+    let Some(p) = pcap.filter(|_| opts.capture) else {
+        return Ok(run(None)?);
+    };
     let shown = format!("cannot write {}", p.display());
-    let file = std::fs::File::create(dir.stream_file(p)?).map_err(|e| Error::io(&shown, e))?;
+    let staged = dir.stream_file(p)?;
+    let file = std::fs::File::create(&staged).map_err(|e| Error::io(&shown, e))?;
     let mut w = std::io::BufWriter::with_capacity(1 << 16, file);
     let axes = loaded.scenario.axes_count();
+    let named = |e: std::io::Error| std::io::Error::new(e.kind(), format!("{shown}: {e}"));
     w.write_all(&ringsync_report::pcap::pcapng_header(axes))
         .map_err(|e| Error::io(&shown, e))?;
     let mut buf = Vec::with_capacity(256);
     let mut each = |f: &ringsync_model::result::Captured| {
         buf.clear();
         ringsync_report::pcap::push_pcapng_frame(&mut buf, f, axes);
-        w.write_all(&buf)
+        w.write_all(&buf).map_err(named)
     };
-    let r = ringsync_rt::launch::run_processes(
-        &loaded.text,
-        &loaded.origin,
-        opts,
-        &program,
-        stop,
-        Some(&mut each),
-    )?;
+    let beside = staged.parent().unwrap_or(Path::new("."));
+    let r = run(Some(ringsync_rt::launch::Capture {
+        beside,
+        sink: &mut each,
+    }))?;
     w.flush().map_err(|e| Error::io(&shown, e))?;
     Ok(r)
 }

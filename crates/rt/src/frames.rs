@@ -30,10 +30,10 @@ use std::thread::JoinHandle;
 use ringsync_model::result::Captured;
 
 use crate::sys;
-use crate::transport::Port;
+use crate::transport::{MAX_PDU, Port};
 
-/// Frames a node's queue holds: 2.6 s of the reference master's frames at 1 ms, the most a
-/// node sends (the bytes besides; allocated as they come).
+/// Frames a node's queue holds: 1.6 s of one node's frames on the reference ring at 1 ms
+/// (each node sends 5 a cycle; the bytes besides, allocated as they come).
 pub const QUEUE_FRAMES: usize = 1 << 13;
 
 /// The name of node `node`'s frame file in a plan's capture directory.
@@ -126,8 +126,15 @@ impl CapturingPort {
         }
     }
 
-    fn keep(&mut self, pdu: &[u8]) {
-        let t = sys::now_ns() - self.epoch_ns;
+    /// The run's time now [ns]: a frame's send instant, read before it is sent (first bit
+    /// out, as the in-process ring stamps it; after the send, a relayed frame could stamp
+    /// before the frame it relays).
+    fn now(&self) -> i64 {
+        sys::now_ns() - self.epoch_ns
+    }
+
+    /// Keeps a frame sent at `t` [ns] from the run's time 0 on.
+    fn keep(&self, t: i64, pdu: &[u8]) {
         if t >= 0 {
             self.file.push(t, pdu);
         }
@@ -136,8 +143,9 @@ impl CapturingPort {
 
 impl Port for CapturingPort {
     fn send(&mut self, pdu: &[u8]) -> io::Result<()> {
+        let t = self.now();
         self.inner.send(pdu)?;
-        self.keep(pdu);
+        self.keep(t, pdu);
         Ok(())
     }
 
@@ -154,8 +162,9 @@ impl Port for CapturingPort {
     }
 
     fn send_back(&mut self, pdu: &[u8]) -> io::Result<()> {
+        let t = self.now();
         self.inner.send_back(pdu)?;
-        self.keep(pdu);
+        self.keep(t, pdu);
         Ok(())
     }
 
@@ -179,18 +188,20 @@ struct Reader {
 }
 
 impl Reader {
-    /// The next record, or None at the end (or inside a record cut short).
+    /// The next record, or None at the end (or inside a record cut short, or at a length
+    /// no frame has: the file is not what a node wrote).
     fn next(&mut self) -> io::Result<Option<(i64, Vec<u8>)>> {
-        let mut head = [0u8; 12];
-        if !read_all(&mut self.file, &mut head)? {
+        let mut t = [0u8; 8];
+        let mut len = [0u8; 4];
+        if !fill(&mut self.file, &mut t)? || !fill(&mut self.file, &mut len)? {
             return Ok(None);
         }
-        let mut t = [0u8; 8];
-        t.copy_from_slice(&head[..8]);
-        let mut len = [0u8; 4];
-        len.copy_from_slice(&head[8..]);
-        let mut bytes = vec![0u8; u32::from_le_bytes(len) as usize];
-        if !read_all(&mut self.file, &mut bytes)? {
+        let len = u32::from_le_bytes(len) as usize;
+        if len > MAX_PDU {
+            return Ok(None);
+        }
+        let mut bytes = vec![0u8; len];
+        if !fill(&mut self.file, &mut bytes)? {
             return Ok(None);
         }
         Ok(Some((i64::from_le_bytes(t), bytes)))
@@ -198,17 +209,12 @@ impl Reader {
 }
 
 /// Fills `buf`: false when the file ends first.
-fn read_all(r: &mut impl io::Read, buf: &mut [u8]) -> io::Result<bool> {
-    let mut got = 0;
-    while got < buf.len() {
-        match r.read(&mut buf[got..]) {
-            Ok(0) => return Ok(false),
-            Ok(k) => got += k,
-            Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
-            Err(e) => return Err(e),
-        }
+fn fill(r: &mut impl io::Read, buf: &mut [u8]) -> io::Result<bool> {
+    match r.read_exact(buf) {
+        Ok(()) => Ok(true),
+        Err(e) if e.kind() == io::ErrorKind::UnexpectedEof => Ok(false),
+        Err(e) => Err(e),
     }
-    Ok(true)
 }
 
 /// What takes the merged frames, one at a time ([`merge`]).

@@ -60,18 +60,29 @@ impl Drop for Scratch {
     }
 }
 
+/// Where a ring of node processes keeps the frames its nodes send, and what takes them
+/// merged ([`run_processes`]).
+pub struct Capture<'a, 'b> {
+    /// The directory the nodes' frame files go in (in a directory of their own, removed
+    /// once merged): beside the capture's file, so that they do not grow in a temporary
+    /// directory that may be memory (about 75 MB a minute on the reference ring at 1 ms).
+    pub beside: &'a Path,
+    /// What takes every frame, in time order.
+    pub sink: &'a mut crate::frames::FrameSink<'b>,
+}
+
 /// Runs the scenario of TOML `text` (from `origin`) as one process per node, `program`
 /// being the `ringsync` executable the nodes run as (`ringsync node …`). `stop` ends the
 /// run early. With `capture`, every node keeps the frames it sends ([`crate::frames`]) and
-/// `capture` is handed them all in time order once the nodes are done (the result's
-/// `streamed` says so, and how many the nodes' queues dropped).
+/// the capture's sink is handed them all in time order once the nodes are done (the
+/// result's `streamed` says so, and how many the nodes' queues dropped).
 pub fn run_processes(
     text: &str,
     origin: &str,
     opts: &RtOptions,
     program: &Path,
     stop: &AtomicBool,
-    capture: Option<&mut crate::frames::FrameSink<'_>>,
+    capture: Option<Capture<'_, '_>>,
 ) -> Result<RtResult, RtError> {
     let scenario = Scenario::from_toml(text, origin)?;
     if let Some(what) = unsupported(&scenario, opts) {
@@ -150,19 +161,39 @@ pub fn run_processes(
     // One CPU for every node (claimed here, for the whole run): a frame's hop is then a
     // wake-up on the same CPU, not a cross-CPU one (docs/runtime.md, "One process per node").
     let (cpu, line) = crate::realtime::claim_cpu(opts.realtime.cpu);
+    let mut pin_warning = None;
     match line {
-        Some(w) if w.starts_with("warning") => eprintln!("ringsync rt: {w}"),
+        Some(w) if w.starts_with("warning") => {
+            eprintln!("ringsync rt: {w}");
+            pin_warning = Some(w);
+        }
         Some(l) => say(&format!("nodes {l}")),
         None => {}
     }
+    let frames_dir = match &capture {
+        Some(c) => {
+            let d = Scratch(c.beside.join(format!(
+                ".ringsync-frames-{}-{}",
+                std::process::id(),
+                sys::now_ns()
+            )));
+            std::fs::create_dir_all(&d.0)
+                .map_err(io_err(&format!("creating {}", d.0.display())))?;
+            Some(d)
+        }
+        None => None,
+    };
+    let frame_file = |i: usize| {
+        frames_dir
+            .as_ref()
+            .map(|d| d.0.join(crate::frames::file_name(i)))
+    };
     let mut tries = 1;
     let (plan, sup) = loop {
         let epoch = sys::now_ns() + SPAWN + start_up;
         let mut plan = node_plan(text, origin, opts, links.clone(), epoch)?;
         plan.cpu = cpu.as_ref().map(|c| c.cpu());
-        if capture.is_some() {
-            plan.capture_dir = Some(scratch.0.to_string_lossy().into_owned());
-        }
+        plan.capture_dir = frames_dir.as_ref().map(|d| d.0.clone());
         crate::node::write_plan(&plan, &plan_path)?;
         let children: Vec<ChildSpec> = (1..=n).chain([0]).map(child).collect();
         say(&format!(
@@ -216,6 +247,9 @@ pub fn run_processes(
         {
             for i in 0..=n {
                 let _ = std::fs::remove_file(record(i));
+                if let Some(f) = frame_file(i) {
+                    let _ = std::fs::remove_file(f);
+                }
             }
             if opts.transport == TransportKind::Udp {
                 links = udp_links(n)?;
@@ -270,14 +304,21 @@ pub fn run_processes(
         .map(|i| read_record(&record(i)))
         .collect::<Result<Vec<_>, _>>()?;
     let mut r = gather(&plan, &records, sup.stopped, opts.trace)?;
-    // The capture: every node's frames, merged in time order.
-    if let Some(each) = capture {
+    // The capture: every node's frames, merged in time order; a frame a node kept and the
+    // merge did not find (a file cut short) is counted with those its queue dropped.
+    if let Some(c) = capture {
         let files: Vec<_> = (0..=n)
-            .map(|i| (i, scratch.0.join(crate::frames::file_name(i))))
+            .filter_map(|i| frame_file(i).map(|f| (i, f)))
             .collect();
-        crate::frames::merge(&files, each).map_err(io_err("merging the nodes' frames"))?;
+        let merged =
+            crate::frames::merge(&files, c.sink).map_err(io_err("merging the nodes' frames"))?;
+        let kept: u64 = records.iter().map(|rec| rec.frames_kept).sum();
         r.streamed.capture = true;
-        r.streamed.frames_dropped = records.iter().map(|rec| rec.frames_not_kept).sum();
+        r.streamed.frames_dropped = records.iter().map(|rec| rec.frames_not_kept).sum::<u64>()
+            + kept.saturating_sub(merged);
+    }
+    if let Some(w) = pin_warning {
+        r.realtime.push(format!("nodes: {w}"));
     }
     Ok(r)
 }

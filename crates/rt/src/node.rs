@@ -126,7 +126,7 @@ pub struct NodePlan {
     /// Where each node keeps the frames it sends, for the run's capture
     /// ([`crate::frames`]); None: not kept.
     #[serde(default)]
-    pub capture_dir: Option<String>,
+    pub capture_dir: Option<std::path::PathBuf>,
 }
 
 impl NodePlan {
@@ -251,7 +251,7 @@ pub struct NodeRecord {
     /// The clock window a slave ran with [ns].
     #[serde(default)]
     pub clock_window_ns: Option<i64>,
-    /// Frames it kept for the capture, and those its full queue dropped.
+    /// Frames it kept for the capture.
     #[serde(default)]
     pub frames_kept: u64,
     /// Frames its capture queue could not take.
@@ -354,9 +354,11 @@ pub fn run_node(plan: &NodePlan, node: usize, stop: &AtomicBool) -> Result<NodeR
         ))
     })?;
     let port = open_port(link, node).map_err(io_err("opening the node's port"))?;
+    // (The writer thread starts before the real-time settings, which are the calling
+    // thread's alone: it stays at the normal priority, on any CPU.)
     let (mut port, frames) = match &plan.capture_dir {
         Some(dir) => {
-            let (tx, writer) = frames::frame_file(&Path::new(dir).join(frames::file_name(node)))
+            let (tx, writer) = frames::frame_file(&dir.join(frames::file_name(node)))
                 .map_err(io_err("creating the node's frame file"))?;
             let kept: Box<dyn Port> = Box::new(CapturingPort::new(port, tx, plan.epoch_ns));
             (kept, Some(writer))

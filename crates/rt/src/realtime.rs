@@ -76,19 +76,19 @@ impl Realtime {
     /// Keep the returned claim until the loop ends.
     pub fn apply(&self) -> Applied {
         let mut lines = Vec::new();
+        let cannot_pin = |cpu: usize, e: io::Error| {
+            format!("warning: cannot pin to CPU {cpu} ({e}); running unpinned")
+        };
         if let Pin::Shared(cpu) = self.cpu {
             lines.push(match sys::pin_to_cpu(cpu) {
                 Ok(()) => format!("pinned to CPU {cpu} with the ring's other nodes"),
-                Err(e) => format!("warning: cannot pin to CPU {cpu} ({e}); running unpinned"),
+                Err(e) => cannot_pin(cpu, e),
             });
         }
         let (claim, line) = choose_cpu(self.cpu, &sys::allowed_cpus(), &lock_dirs());
         let claim = match claim.map(|c| (sys::pin_to_cpu(c.cpu), c)) {
             Some((Err(e), c)) => {
-                lines.push(format!(
-                    "warning: cannot pin to CPU {} ({e}); running unpinned",
-                    c.cpu
-                ));
+                lines.push(cannot_pin(c.cpu, e));
                 None
             }
             claimed => {

@@ -51,18 +51,25 @@ pub fn apply(
     let p2p_start = (2 * cal.round_trip.p99 + 20_000).max(m.p2p_start.as_ns());
     let timeout = response_timeout.as_ns();
     if m.plan == PlanKind::P2pLumped {
-        let need = cycle_need(cal, p2p_start, t_ti, timeout);
+        let need = cycle_need(cal, p2p_start, t_ti, m.turnaround.as_ns(), timeout);
         if need.total() > t_cyc {
+            let us = |ns: i64| ns as f64 * 1e-3;
+            let before = match n {
+                0 | 1 => String::new(),
+                _ => format!(
+                    " + {} slices of typically {:.1} µs in all, one of them {:.1} µs longer at its p99,",
+                    n - 1,
+                    us(need.typical),
+                    us(need.worst_extra)
+                ),
+            };
             return Err(RtError::Config(format!(
-                "{DOES_NOT_FIT} {:.1} µs per cycle (P2P start {:.1} µs + {} slices of typically {:.1} µs in all, one of them {:.1} µs longer at its p99, + the last slice's {:.1} µs + a response timeout of {:.1} µs); the cycle is {:.1} µs: use a longer --cycle or a shorter --response-timeout",
-                need.total() as f64 * 1e-3,
-                p2p_start as f64 * 1e-3,
-                n.saturating_sub(1),
-                need.typical as f64 * 1e-3,
-                need.worst_extra as f64 * 1e-3,
-                need.last as f64 * 1e-3,
-                timeout as f64 * 1e-3,
-                t_cyc as f64 * 1e-3
+                "{DOES_NOT_FIT} {:.1} µs per cycle (P2P start {:.1} µs{before} + the last slice's {:.1} µs + a response timeout of {:.1} µs); the cycle is {:.1} µs: use a longer --cycle or a shorter --response-timeout",
+                us(need.total()),
+                us(p2p_start),
+                us(need.last),
+                us(timeout),
+                us(t_cyc)
             )));
         }
         let measured = MeasuredSchedule {
@@ -119,10 +126,10 @@ pub fn apply(
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 struct CycleNeed {
     p2p_start: i64,
-    /// The slices before the last, each at the slowest slave's median (command to
-    /// response, + T_ti), summed.
+    /// The slices before the last, each at its slave's median (command to response, + T_ti,
+    /// + the master's turnaround to the next command), summed.
     typical: i64,
-    /// One of them at its p99: the largest p99 − median of a slice.
+    /// One of them at its p99: the largest p99 − median of those slices.
     worst_extra: i64,
     /// The last slice's deadline: the slowest p99 + T_ti.
     last: i64,
@@ -147,19 +154,22 @@ impl CycleNeed {
 /// and stopped after 80 ms). Every slice at its p99 (the rule before) refused rings whose
 /// P2P phase measured 270-290 µs at its p99 for four slices, at 1 ms, because one slice's
 /// p99 was 150 µs: one process per node on one CPU (docs/runtime.md).
-fn cycle_need(cal: &Calibration, p2p_start: i64, t_ti: i64, timeout: i64) -> CycleNeed {
-    let before = cal.slice.len().saturating_sub(1) as i64;
-    let typical = cal.slice.iter().map(|p| p.p50).max().unwrap_or(0) + t_ti;
-    let worst_extra = cal
-        .slice
-        .iter()
-        .map(|p| (p.p99 - p.p50).max(0))
-        .max()
-        .unwrap_or(0);
+fn cycle_need(
+    cal: &Calibration,
+    p2p_start: i64,
+    t_ti: i64,
+    turnaround: i64,
+    timeout: i64,
+) -> CycleNeed {
+    let before = &cal.slice[..cal.slice.len().saturating_sub(1)];
     CycleNeed {
         p2p_start,
-        typical: before * typical,
-        worst_extra: if before > 0 { worst_extra } else { 0 },
+        typical: before.iter().map(|p| p.p50 + t_ti + turnaround).sum(),
+        worst_extra: before
+            .iter()
+            .map(|p| (p.p99 - p.p50).max(0))
+            .max()
+            .unwrap_or(0),
         last: cal.slice.iter().map(|p| p.p99).max().unwrap_or(0) + t_ti,
         timeout,
     }
@@ -288,13 +298,18 @@ mod tests {
             pct(50_000, 200_000),
             pct(45_000, 150_000),
         ];
-        let need = cycle_need(&cal, 320_000, t_ti, 100_000);
-        assert_eq!(need.typical, 3 * (50_000 + t_ti));
+        let need = cycle_need(&cal, 320_000, t_ti, 0, 100_000);
+        assert_eq!(need.typical, 2 * 45_000 + 50_000 + 3 * t_ti);
         assert_eq!(need.worst_extra, 150_000);
         assert_eq!(need.last, 200_000 + t_ti);
         assert_eq!(
             need.total(),
-            320_000 + 3 * (50_000 + t_ti) + 150_000 + 200_000 + t_ti + 100_000
+            320_000 + 140_000 + 3 * t_ti + 150_000 + 200_000 + t_ti + 100_000
+        );
+        // The master's turnaround follows each slice before the last.
+        assert_eq!(
+            cycle_need(&cal, 320_000, t_ti, 1_000, 100_000).total(),
+            need.total() + 3_000
         );
         let mut fits = spec.clone();
         fits.scenario.ring.cycle.0 = Duration::from_ms(1);
@@ -304,10 +319,26 @@ mod tests {
         assert_eq!(sched.slice, need.last);
         // Every slice at its p99 would need 320 + 4 · 200 + 100 µs: the old rule refused it.
         assert!(320_000 + 4 * sched.slice + 100_000 > 1_000_000);
-        // One ring, one slave: no slow slice before the last.
+        // One ring, one slave: no slice before the last.
         let mut one = calibration();
         one.slice.truncate(1);
-        assert_eq!(cycle_need(&one, 0, 0, 0).worst_extra, 0);
+        let alone = cycle_need(&one, 0, 0, 0, 0);
+        assert_eq!((alone.typical, alone.worst_extra), (0, 0));
+        // Never more than every slice at its p99 (the rule before), however the medians
+        // and spreads of the slaves differ.
+        let mut r = ringsync_model::rng::Rng::stream(1, 2);
+        for _ in 0..1000 {
+            let mut uneven = calibration();
+            uneven.slice = (0..4)
+                .map(|_| {
+                    let p50 = (r.unit() * 200_000.0) as i64;
+                    pct(p50, p50 + (r.unit() * 200_000.0) as i64)
+                })
+                .collect();
+            let slice = uneven.slice.iter().map(|p| p.p99).max().unwrap_or(0) + t_ti;
+            let need = cycle_need(&uneven, 320_000, t_ti, 0, 100_000);
+            assert!(need.total() <= 320_000 + 4 * slice + 100_000, "{need:?}");
+        }
         // With a 200 µs timeout the last slice no longer opens after a slow one: refused,
         // naming the terms.
         let mut refused = spec.clone();
