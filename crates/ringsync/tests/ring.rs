@@ -34,12 +34,31 @@ fn run_ref(opts: RtOptions) -> RtResult {
     run_on(&Scenario::default(), opts)
 }
 
-/// A run of `s` (see [`run_ref`]).
+/// A run of `s` (see [`run_ref`]). A start-up phase that measured the ring too slow for its
+/// cycle three times (a host that held the loop off its CPU in bursts shorter than a stall
+/// while the probes went round: one CI run beside `tools/busy-host.sh` measured 1 274 µs
+/// needed of 1 ms) is a host's doing too: the run is started again, three times at most.
 fn run_on(s: &Scenario, opts: RtOptions) -> RtResult {
     let _g = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
     let stop = AtomicBool::new(false);
-    let r = run(s, &opts, &stop)
-        .unwrap_or_else(|e| panic!("the {} ring did not run: {e}", opts.transport.name()));
+    let mut launches = 1;
+    let r = loop {
+        match run(s, &opts, &stop) {
+            Ok(r) => break r,
+            Err(e)
+                if launches < 3
+                    && e.to_string()
+                        .contains(ringsync::layers::runtime::schedule::DOES_NOT_FIT) =>
+            {
+                eprintln!(
+                    "the {} ring's start-up refused the cycle, launched again: {e}",
+                    opts.transport.name()
+                );
+                launches += 1;
+            }
+            Err(e) => panic!("the {} ring did not run: {e}", opts.transport.name()),
+        }
+    };
     assert!(
         ours_left().is_empty(),
         "namespaces left behind: {:?}",
