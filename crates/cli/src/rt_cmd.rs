@@ -110,8 +110,9 @@ pub struct RtArgs {
     no_sim_prediction: bool,
     /// Run every node as its own process (`ringsync node master`, `ringsync node slave
     /// --index I`), each with its own port, clock and loop, and gather their results (the
-    /// nodes stamp frames in software; all pinned to one CPU, --cpu or the last free one,
-    /// unless --no-pin; --pcap: every frame each node sent, merged once they are done). A
+    /// nodes stamp frames in software, unpinned; --cpu N pins them all to CPU N, which the
+    /// 1 ms cycle needs on a small host; --pcap: every frame each node sent, merged once
+    /// they are done). A
     /// broken link (--break-link) on veth only; not yet with faults injected, --scope or
     /// --stamps.
     #[arg(long, conflicts_with_all = [

@@ -158,9 +158,14 @@ pub fn run_processes(
             env: Vec::new(),
         }
     };
-    // One CPU for every node (claimed here, for the whole run): a frame's hop is then a
-    // wake-up on the same CPU, not a cross-CPU one (docs/runtime.md, "One process per node").
-    let (cpu, line) = crate::realtime::claim_cpu(opts.realtime.cpu);
+    // With `--cpu N`, one CPU for every node (claimed here, for the whole run): a frame's hop
+    // is then a wake-up on the same CPU, not a cross-CPU one. Not the default: a second
+    // broken link is misjudged on one CPU (docs/runtime.md, "One process per node").
+    let pin = match opts.realtime.cpu {
+        crate::realtime::Pin::Cpu(c) => crate::realtime::Pin::Cpu(c),
+        _ => crate::realtime::Pin::Off,
+    };
+    let (cpu, line) = crate::realtime::claim_cpu(pin);
     let mut pin_warning = None;
     match line {
         Some(w) if w.starts_with("warning") => {
