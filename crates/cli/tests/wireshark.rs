@@ -300,19 +300,26 @@ fn one<'a>(f: &'a Fields, key: &str) -> &'a str {
         .map_or("", String::as_str)
 }
 
-/// The packets of a pcapng file: (interface, link-layer bytes).
-fn packets(file: &[u8]) -> Vec<(u32, Vec<u8>)> {
+/// The enhanced packet blocks of a pcapng file: (interface, raw 64-bit timestamp,
+/// link-layer bytes).
+fn blocks(file: &[u8]) -> Vec<(u32, u64, Vec<u8>)> {
     let word = |at: usize| u32::from_le_bytes(file[at..at + 4].try_into().expect("4 bytes"));
     let (mut at, mut out) = (0, Vec::new());
     while at < file.len() {
         let (kind, len) = (word(at), word(at + 4) as usize);
         if kind == 6 {
             let caplen = word(at + 20) as usize;
-            out.push((word(at + 8), file[at + 28..at + 28 + caplen].to_vec()));
+            let t = (u64::from(word(at + 12)) << 32) | u64::from(word(at + 16));
+            out.push((word(at + 8), t, file[at + 28..at + 28 + caplen].to_vec()));
         }
         at += len;
     }
     out
+}
+
+/// The packets of a pcapng file: (interface, link-layer bytes).
+fn packets(file: &[u8]) -> Vec<(u32, Vec<u8>)> {
+    blocks(file).into_iter().map(|(i, _, b)| (i, b)).collect()
 }
 
 /// A capture of a ring: tshark's fields per frame and the frames' senders (the pcapng
@@ -452,32 +459,55 @@ fn a_sim_capture_decodes_frame_by_frame() {
 fn an_rt_capture_decodes_frame_by_frame() {
     let d = dir("rt");
     let cap = d.join("rt.pcapng");
-    let o = ringsync(&[
-        "rt",
-        "paper-2015",
-        "--transport",
-        "udp",
-        "--duration",
-        "300ms",
+    rt_capture(
+        &[
+            "--transport",
+            "udp",
+            "--duration",
+            "300ms",
+            "--out",
+            d.join("out").to_str().expect("utf-8"),
+        ],
+        &cap,
+        250,
+    );
+    let _ = std::fs::remove_dir_all(&d);
+}
+
+/// Runs `ringsync rt paper-2015 ARGS --no-sim-prediction --pcap CAP` (a group stop the host
+/// caused is still a run; a start-up phase that measured the ring too slow for its cycle
+/// three times, a busy host's doing, is launched again, three times at most), checks the
+/// capture under tshark ([`check_ring_capture`]) with at least `cycles` of the master's
+/// lumped frames, and returns it. rt records every hop: most cycles hold the 25 frames the
+/// simulator records (a late loop may add a retry now and then).
+fn rt_capture(args: &[&str], cap: &Path, cycles: usize) -> RingCapture {
+    let mut all = vec!["rt", "paper-2015"];
+    all.extend_from_slice(args);
+    all.extend([
         "--no-sim-prediction",
-        "--out",
-        d.join("out").to_str().expect("utf-8"),
         "--pcap",
         cap.to_str().expect("utf-8"),
     ]);
+    let mut o = ringsync(&all);
+    for _ in 1..3 {
+        if o.status.code() != Some(2)
+            || !String::from_utf8_lossy(&o.stderr).contains("the measured ring needs")
+        {
+            break;
+        }
+        o = ringsync(&all);
+    }
     assert!(
         matches!(o.status.code(), Some(0 | 3)),
         "{}",
         String::from_utf8_lossy(&o.stderr)
     );
-    let c = check_ring_capture(&cap);
+    let c = check_ring_capture(cap);
     assert!(
-        master_cycles(&c).len() >= 250,
+        master_cycles(&c).len() >= cycles,
         "{} cycles",
         master_cycles(&c).len()
     );
-    // rt records every hop: most cycles hold the 25 frames the simulator records (a late
-    // loop may add a retry now and then).
     let per = frames_per_cycle(&c.decoded);
     let full = per.values().filter(|&&n| n == 25).count();
     assert!(
@@ -485,7 +515,7 @@ fn an_rt_capture_decodes_frame_by_frame() {
         "{full} of {} cycles hold 25 frames",
         per.len()
     );
-    let _ = std::fs::remove_dir_all(&d);
+    c
 }
 
 /// A ring of node processes keeps what each node sends; the launcher merges the nodes'
@@ -495,45 +525,37 @@ fn a_capture_of_node_processes_decodes_frame_by_frame() {
     let d = dir("processes");
     let cap = d.join("processes.pcapng");
     let out = d.join("out");
-    // A 5 ms cycle: the ring of processes fits it on a busy host too.
-    let o = ringsync(&[
-        "rt",
-        "paper-2015",
-        "--processes",
-        "--transport",
-        "udp",
-        "--cycle",
-        "5ms",
-        "--duration",
-        "1s",
-        "--no-sim-prediction",
-        "--out",
-        out.to_str().expect("utf-8"),
-        "--pcap",
-        cap.to_str().expect("utf-8"),
-    ]);
-    assert!(
-        matches!(o.status.code(), Some(0 | 3)),
-        "{}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    let c = check_ring_capture(&cap);
-    assert!(
-        master_cycles(&c).len() >= 190,
-        "{} cycles",
-        master_cycles(&c).len()
+    // A 10 ms cycle, every node on one CPU: the ring of processes fits it on a busy host
+    // too (one that held the nodes off their CPUs for milliseconds measured 8.8-14.4 ms
+    // needed of 5 ms, unpinned).
+    let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
+    let last = status
+        .lines()
+        .find_map(|l| l.strip_prefix("Cpus_allowed_list:"))
+        .and_then(|v| v.trim().rsplit([',', '-']).next())
+        .unwrap_or("0")
+        .to_string();
+    let c = rt_capture(
+        &[
+            "--processes",
+            "--cpu",
+            &last,
+            "--transport",
+            "udp",
+            "--cycle",
+            "10ms",
+            "--duration",
+            "2s",
+            "--out",
+            out.to_str().expect("utf-8"),
+        ],
+        &cap,
+        190,
     );
     // Every node sent frames, each on its own interface.
     for node in 0..=4 {
         assert!(c.senders.contains(&node), "node {node}: {:?}", c.senders);
     }
-    let per = frames_per_cycle(&c.decoded);
-    let full = per.values().filter(|&&n| n == 25).count();
-    assert!(
-        full * 2 > per.len(),
-        "{full} of {} cycles hold 25 frames",
-        per.len()
-    );
     // In time order, and nothing the nodes' queues dropped.
     let times = times(&std::fs::read(&cap).expect("capture"));
     assert!(times.windows(2).all(|w| w[0] <= w[1]));
@@ -551,16 +573,7 @@ fn a_capture_of_node_processes_decodes_frame_by_frame() {
 
 /// The timestamps of a pcapng file's packets (the raw 64-bit stamps).
 fn times(file: &[u8]) -> Vec<u64> {
-    let word = |at: usize| u32::from_le_bytes(file[at..at + 4].try_into().expect("4 bytes"));
-    let (mut at, mut out) = (0, Vec::new());
-    while at < file.len() {
-        let (kind, len) = (word(at), word(at + 4) as usize);
-        if kind == 6 {
-            out.push((u64::from(word(at + 12)) << 32) | u64::from(word(at + 16)));
-        }
-        at += len;
-    }
-    out
+    blocks(file).into_iter().map(|(_, t, _)| t).collect()
 }
 
 /// Writes `frames` as a pcapng of Ethernet frames (one per ms) to `d/<name>.pcapng`; returns
