@@ -324,7 +324,9 @@ def rt(
     plants stepped in real time. ``transport`` is ``"udp"`` (loopback, no privileges
     needed) or ``"veth"`` (a ring of network namespaces and veth pairs, raw Ethernet; needs
     root); ``stamps`` is how the slaves stamp the lumped frames their clocks follow:
-    ``"phy"`` (as a PHY would) or ``"software"`` (when their loop reads them).
+    ``"phy"`` (as a PHY would) or ``"software"`` (when their loop reads them); the CLI's
+    ``"kernel"`` stamps belong to its ring of node processes (``ringsync rt --processes``)
+    and are refused here (``ValueError``).
     Real-time scheduling is used when allowed, and ``summary["realtime"]`` says what was
     applied. The GIL is released; Ctrl-C ends the run early (KeyboardInterrupt once it has
     stopped).

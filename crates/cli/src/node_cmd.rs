@@ -61,6 +61,11 @@ pub struct PlanArgs {
     /// W instead of the scenario's faults.watchdog_cycles.
     #[arg(long, value_name = "W")]
     watchdog_cycles: Option<u32>,
+    /// How the nodes stamp the frames they receive: software (the instant a node's loop
+    /// reads the frame) or kernel (the instant it reached the node's socket: on a real
+    /// network card, when its driver took it in).
+    #[arg(long, value_name = "KIND", default_value = "software")]
+    stamps: ringsync::Stamps,
     /// Set a scenario key (repeatable), as `ringsync sim --set`.
     #[arg(long = "set", value_name = "KEY=VALUE", value_parser = key_value)]
     set: Vec<(String, String)>,
@@ -163,10 +168,16 @@ fn plan(args: &PlanArgs) -> Result<Outcome, CliError> {
             n + 1
         )));
     }
+    if args.stamps == ringsync::Stamps::Phy {
+        return Err(CliError::Usage(
+            "--stamps phy needs the one loop that sees the master's sends: a ring of node processes stamps software or kernel".into(),
+        ));
+    }
     let opts = RtOptions {
         duration: args.duration,
         cycle: args.cycle,
         watchdog_cycles: args.watchdog_cycles,
+        stamps: args.stamps,
         ..RtOptions::default()
     };
     let plan = ringsync::rt::node_plan(&loaded, &opts, links, args.start_in)?;

@@ -99,24 +99,25 @@ pub struct RtArgs {
     /// the lumped frame has passed sends last cycle's sample.
     #[arg(long, value_parser = duration)]
     sample_lead: Option<Duration>,
-    /// How the slaves stamp the lumped frames their clocks follow: phy (the instant the
-    /// master sent the frame plus the slave's path delay, as the scenario's hardware stamps
-    /// on links of constant delay) or software (the instant the loop reads the frame: the
-    /// clocks then see the loop's forwarding jitter, µs to tens of µs).
-    #[arg(long, value_name = "KIND", default_value = "phy")]
-    stamps: ringsync::Stamps,
+    /// How the slaves stamp the lumped frames their clocks follow: phy (the default in one
+    /// process: the instant the master sent the frame plus the slave's path delay, as the
+    /// scenario's hardware stamps on links of constant delay), software (the instant the
+    /// loop reads the frame, the default with --processes: the clocks then see the loop's
+    /// forwarding jitter, µs to tens of µs) or kernel (--processes only: the instant the
+    /// frame reached the node's socket, before its process woke).
+    #[arg(long, value_name = "KIND")]
+    stamps: Option<ringsync::Stamps>,
     /// Skip the simulator's prediction for the same scenario.
     #[arg(long)]
     no_sim_prediction: bool,
     /// Run every node as its own process (`ringsync node master`, `ringsync node slave
     /// --index I`), each with its own port, clock and loop, and gather their results (the
-    /// nodes stamp frames in software, unpinned; --cpu N pins them all to CPU N, which the
-    /// 1 ms cycle needs on a small host; --pcap: every frame each node sent, merged once
-    /// they are done). A
-    /// broken link (--break-link) on veth only; not yet with faults injected, --scope or
-    /// --stamps.
+    /// nodes stamp frames in software, or --stamps kernel, unpinned; --cpu N pins them all to CPU N,
+    /// which the 1 ms cycle needs on a small host; --pcap: every frame each node sent,
+    /// merged once they are done). A broken link (--break-link) on veth only; not yet with
+    /// faults injected or --scope.
     #[arg(long, conflicts_with_all = [
-        "stamps", "kill_slave", "flap_link", "forge", "inject_garbage",
+        "kill_slave", "flap_link", "forge", "inject_garbage",
     ])]
     processes: bool,
     #[cfg(feature = "scope")]
@@ -201,6 +202,21 @@ pub(crate) fn rt(args: &RtArgs) -> Result<Outcome, CliError> {
     };
     // Before the ring runs: an --out that cannot be written fails now, not after the run.
     let mut dir = out_dir(&args.out, &loaded)?;
+    let stamps = match (args.processes, args.stamps) {
+        (false, None) => ringsync::Stamps::Phy,
+        (true, None) => ringsync::Stamps::Software,
+        (false, Some(ringsync::Stamps::Kernel)) => {
+            return Err(CliError::Usage(
+                "--stamps kernel is for a ring of node processes: add --processes, or use phy or software".into(),
+            ));
+        }
+        (true, Some(ringsync::Stamps::Phy)) => {
+            return Err(CliError::Usage(
+                "--stamps phy needs the one loop that sees the master's sends: with --processes use kernel or software".into(),
+            ));
+        }
+        (_, Some(s)) => s,
+    };
     let opts = RtOptions {
         transport: match args.transport {
             Transport::Udp => TransportKind::Udp,
@@ -220,7 +236,7 @@ pub(crate) fn rt(args: &RtArgs) -> Result<Outcome, CliError> {
         forge: args.forge.clone(),
         flap,
         sample_lead: args.sample_lead,
-        stamps: args.stamps,
+        stamps,
         verbose: true,
         ..RtOptions::default()
     };

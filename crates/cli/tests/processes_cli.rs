@@ -170,8 +170,9 @@ fn runs_as_one(transport: &str) {
         .next()
         .unwrap_or("0")
         .to_string();
+    // On veth, the kernel's receive stamps too (software stamps, the default, on UDP).
     let pin: Vec<&str> = if transport == "veth" {
-        vec!["--cpu", &last]
+        vec!["--cpu", &last, "--stamps", "kernel"]
     } else {
         Vec::new()
     };
@@ -233,7 +234,12 @@ fn runs_as_one(transport: &str) {
         taken.iter().all(|d| d.as_i64().is_some_and(|d| d > 0)),
         "{taken:?}"
     );
-    assert_eq!(summary["stamps"], "software");
+    let stamps = if transport == "veth" {
+        "kernel"
+    } else {
+        "software"
+    };
+    assert_eq!(summary["stamps"], stamps);
     assert_eq!(summary["cycles_planned"], 40);
     let realtime = summary["realtime"].to_string();
     match realtime.find("pinned to CPU ") {
@@ -637,6 +643,8 @@ fn a_ring_started_by_hand_on_the_hosts_interfaces_gathers_into_one_run() {
             "3s",
             "--watchdog-cycles",
             "10",
+            "--stamps",
+            "kernel",
             "--out",
             plan_s,
         ]);
@@ -715,6 +723,7 @@ fn a_ring_started_by_hand_on_the_hosts_interfaces_gathers_into_one_run() {
         )
         .expect("json");
         assert_eq!(summary["transport"], "raw");
+        assert_eq!(summary["stamps"], "kernel");
         assert_eq!(summary["cycles_planned"], 40);
         for node in summary["nodes"].as_array().expect("nodes") {
             assert!(node["frames_read"].as_u64().unwrap_or(0) > 0, "{node}");

@@ -160,6 +160,18 @@ fn bad_rt_options_give_one_line_and_exit_2() {
             [&base[..], &["--break-link", "2@x"]].concat(),
             "'2@x' is not a link break",
         ),
+        (
+            [&base[..], &["--stamps", "kernel"]].concat(),
+            "--stamps kernel is for a ring of node processes",
+        ),
+        (
+            [&base[..], &["--processes", "--stamps", "phy"]].concat(),
+            "with --processes use kernel or software",
+        ),
+        (
+            [&base[..], &["--stamps", "ptp"]].concat(),
+            "use phy, software or kernel",
+        ),
     ] {
         let out = ringsync(&args);
         let err = String::from_utf8_lossy(&out.stderr);

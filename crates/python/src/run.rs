@@ -93,6 +93,11 @@ fn rt(
         }
     };
     let stamps: ringsync::Stamps = stamps.parse().map_err(PyValueError::new_err)?;
+    if stamps == ringsync::Stamps::Kernel {
+        return Err(PyValueError::new_err(
+            "stamps 'kernel' are for a ring of node processes (ringsync rt --processes): use phy or software",
+        ));
+    }
     let stop = Arc::new(AtomicBool::new(false));
     let flag = Arc::clone(&stop);
     let worker = std::thread::Builder::new()

@@ -27,6 +27,8 @@ pub struct Clock {
     t0: i64,
     last: i64,
     stall: i64,
+    /// `CLOCK_REALTIME` less `CLOCK_MONOTONIC` [ns] when last measured (kernel stamps).
+    realtime: i64,
 }
 
 impl Clock {
@@ -38,6 +40,7 @@ impl Clock {
             t0: now + lead,
             last: -lead,
             stall: 0,
+            realtime: sys::realtime_offset(),
         }
     }
 
@@ -48,6 +51,7 @@ impl Clock {
             t0,
             last: sys::now_ns() - t0,
             stall: 0,
+            realtime: sys::realtime_offset(),
         }
     }
 
@@ -62,6 +66,18 @@ impl Clock {
         self.stall = self.stall.max(t - self.last);
         self.last = t;
         t
+    }
+
+    /// A kernel receive stamp (`CLOCK_REALTIME` [ns], read with `SO_TIMESTAMPNS`) as a time of
+    /// this clock [ns from time 0].
+    pub fn from_realtime(&self, stamp: i64) -> i64 {
+        stamp.saturating_sub(self.realtime).saturating_sub(self.t0)
+    }
+
+    /// Measures again how far `CLOCK_REALTIME` is from `CLOCK_MONOTONIC` (a system clock
+    /// set during the run moves it).
+    pub fn measure_realtime(&mut self) {
+        self.realtime = sys::realtime_offset();
     }
 
     /// The last reading [ns from time 0], without reading the clock.

@@ -176,6 +176,12 @@ impl Port for CapturingPort {
         self.inner.back_fd()
     }
 
+    fn enable_kernel_stamps(&mut self) -> io::Result<()> {
+        self.inner.enable_kernel_stamps()
+    }
+    fn kernel_stamp(&self) -> Option<i64> {
+        self.inner.kernel_stamp()
+    }
     fn links_up(&self) -> Option<[bool; 2]> {
         self.inner.links_up()
     }

@@ -24,7 +24,7 @@ use ringsync_proto::node::{MasterCounters, SlaveCounters};
 
 use crate::netns::VethRing;
 use crate::node::{NodeLink, NodePlan, NodeRecord, Tap, read_record};
-use crate::run::{Injection, RtError, RtOptions, RtResult, Stamps, Streamed, io_err};
+use crate::run::{Injection, RtError, RtOptions, RtResult, Streamed, io_err};
 use crate::supervise::{ChildSpec, Ended, supervise};
 use crate::sys;
 use crate::timing::Timing;
@@ -391,6 +391,7 @@ pub fn node_plan(
         sense_carrier: false,
         cpu: None,
         capture_dir: None,
+        stamps: opts.stamps.in_processes(),
     };
     // Checks the links against the ring.
     plan.spec()?;
@@ -493,7 +494,7 @@ pub fn gather(
         scenario: spec.scenario.clone(),
         spec: ran,
         transport,
-        stamps: Stamps::Software,
+        stamps: plan.stamps.in_processes(),
         run,
         timing: Timing {
             // Every node's frames dropped beside a broken link.

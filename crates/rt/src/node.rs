@@ -12,7 +12,8 @@
 //! starts its probes `start_up_ns` before the epoch, each slave answers them in its start-up
 //! phase and takes the path delay the master sends it. Then the run: the master's cycles
 //! from time 0; each slave latches, follows the master's clock (software stamps: the
-//! instant its loop reads a frame) and drives its axis.
+//! instant its loop reads a frame; or the kernel's, the instant the frame reached its
+//! socket, [`NodePlan::stamps`]) and drives its axis.
 //!
 //! Each process writes a [`NodeRecord`]: what its node saw, as the events the recorder of an
 //! in-process run is told (cycle starts with the axis's true state, law runs, applied
@@ -49,7 +50,7 @@ use crate::clock::Clock;
 use crate::frames::{self, CapturingPort};
 use crate::realtime::{Pin, Realtime};
 use crate::ring::{RT_CLOCK_FILTER, RX_RETRY};
-use crate::run::{RtError, RtOptions, io_err};
+use crate::run::{RtError, RtOptions, Stamps, io_err};
 use crate::schedule::{self, RT_TIMESTAMP_TOLERANCE, Schedule};
 use crate::sys;
 use crate::timing::{Timing, TimingLog};
@@ -127,6 +128,11 @@ pub struct NodePlan {
     /// ([`crate::frames`]); None: not kept.
     #[serde(default)]
     pub capture_dir: Option<std::path::PathBuf>,
+    /// How every node stamps the frames it receives: [`Stamps::Software`] or
+    /// [`Stamps::Kernel`]; [`Stamps::Phy`] (the default), which needs one loop that sees
+    /// every send, is taken as software.
+    #[serde(default)]
+    pub stamps: Stamps,
 }
 
 impl NodePlan {
@@ -377,6 +383,13 @@ pub fn run_node(plan: &NodePlan, node: usize, stop: &AtomicBool) -> Result<NodeR
         realtime: applied.lines.clone(),
         ..NodeRecord::default()
     };
+    if plan.stamps.in_processes() == Stamps::Kernel {
+        port.enable_kernel_stamps().map_err(|e| {
+            RtError::Node(format!(
+                "the kernel will not stamp the frames this node receives (SO_TIMESTAMPNS): {e}; run with --stamps software"
+            ))
+        })?;
+    }
     let mut clock = Clock::starting_at(plan.epoch_ns);
     // The clock windows of the runtime (software stamps), as an in-process run sets them.
     let tolerance = RT_TIMESTAMP_TOLERANCE.max(timestamp_tolerance(&spec.scenario));
@@ -457,6 +470,8 @@ fn run_master(
     cfg.interval = t_cyc.min(PROBE_INTERVAL);
     let mut cal = Calibrator::new(cfg, Instant::from_ns(origin));
     sys::sleep_until(plan.epoch_ns + origin);
+    // The last instant the master acted at: frames are stamped no earlier.
+    let mut floor = origin;
     while let Some(due) = cal.poll_timeout() {
         if stop.load(Ordering::Relaxed) {
             rec.interrupted = true;
@@ -472,6 +487,7 @@ fn run_master(
             )));
         }
         if now >= due.as_ns() {
+            floor = now;
             cal.handle_timeout(Instant::from_ns(now));
             while let Some(tx) = cal.poll_transmit() {
                 port.send(&tx.bytes)
@@ -487,7 +503,8 @@ fn run_master(
             // runtime drops a probe whose pass the host stalled; here a send that wakes the
             // next node's process takes tens of µs itself, and a stall of another process
             // is not this one's to see.)
-            let t = clock.now();
+            let t = rx_time(clock, port, floor);
+            floor = t;
             cal.handle_frame(Instant::from_ns(t), &buf[..len]);
         }
     }
@@ -584,6 +601,8 @@ fn run_master(
         }
         if probe_k < cycles && probe_k * t_cyc <= now {
             tap.at(probe_k * t_cyc);
+            // Once a cycle: a system clock set during the run moves the kernel's stamps.
+            clock.measure_realtime();
             dev.probe(probe_k, probe_k * t_cyc);
             probe_k += 1;
             continue;
@@ -604,7 +623,8 @@ fn run_master(
                 &mut log.timing.receive_errors,
             ) {
                 got = true;
-                let t = clock.now();
+                let t = rx_time(clock, port, floor);
+                floor = t;
                 rec.frames_read += 1;
                 rec.last_read_s = Some(t as f64 * 1e-9);
                 log.master_rx(t);
@@ -632,6 +652,7 @@ fn run_master(
                 k += 1;
             }
             tap.at(now);
+            floor = now;
             let news = dev.master_timeout(now, &mut |from, _, f: WireFrame| {
                 out.push((from == port_b, f.into_bytes()))
             });
@@ -692,6 +713,8 @@ fn run_slave(
     // 1. The start-up phase: answer the probes until the master's closing frame gives the
     //    slave its path delay (it must come before the run's start).
     let mut node = Slave::calibrating(spec.slaves[i].clone());
+    // The last instant the slave acted at: frames are stamped no earlier.
+    let mut floor = i64::MIN;
     let delay = loop {
         if stop.load(Ordering::Relaxed) {
             rec.interrupted = true;
@@ -711,12 +734,16 @@ fn run_slave(
             .wait_readable_until(&mut fds, now + 10_000_000)
             .map_err(io_err("waiting for delay probes"))?;
         while let Some(len) = port.recv(&mut buf).map_err(io_err("reading"))? {
-            let t = clock.now();
+            let t = rx_time(clock, port, floor);
+            floor = t;
             rec.frames_read += 1;
             let bytes = &mut buf[..len];
             if node.handle_frame(osc.local(t), osc.local(t), bytes) == FrameOutcome::Forward {
+                // The frame leaves when the send begins (the next node's kernel stamps it
+                // within the call), as the master stamps its probes.
+                let sent = clock.now();
                 let _ = port.send(bytes);
-                node.handle_forwarded(osc.local(clock.now()));
+                node.handle_forwarded(osc.local(sent));
             }
         }
     };
@@ -750,6 +777,7 @@ fn run_slave(
     let tap = tap(&mut dev, Some(i));
     let mut pending: Vec<(i64, Vec<u8>)> = Vec::new();
     let mut probe_k = 0i64;
+    let mut probed = 0i64;
     // A broken ring: the slave senses its two links (as its PHYs do), turns back what its
     // broken link ahead would carry, and takes what comes back to it beside a broken link
     // behind.
@@ -825,14 +853,8 @@ fn run_slave(
         }
         // The carrier, when the links are known from it.
         let _ = links.sense(port, now);
-        let next = timers(
-            &mut dev,
-            &mut pending,
-            &mut probe_k,
-            port,
-            &mut dropped,
-            now,
-        );
+        // Frames first, each after the timers due before it reached the node (its kernel
+        // stamp may be well before the process woke), then the timers due by now.
         let mut got = false;
         // Frames coming round the ring, then (a broken ring) frames coming backward.
         for back in [false, true] {
@@ -848,7 +870,8 @@ fn run_slave(
                 &mut receive_errors,
             ) {
                 got = true;
-                let t = clock.now();
+                let t = rx_time(clock, port, floor);
+                floor = t;
                 // Everything due before the frame first (as in the in-process loop).
                 timers(&mut dev, &mut pending, &mut probe_k, port, &mut dropped, t);
                 rec.frames_read += 1;
@@ -872,6 +895,21 @@ fn run_slave(
                     forward(port, t, bytes, &mut dropped);
                 }
             }
+        }
+        let now = clock.now();
+        let next = timers(
+            &mut dev,
+            &mut pending,
+            &mut probe_k,
+            port,
+            &mut dropped,
+            now,
+        );
+        floor = now;
+        if probe_k != probed {
+            // Once a cycle: a system clock set during the run moves the kernel's stamps.
+            probed = probe_k;
+            clock.measure_realtime();
         }
         if got {
             continue;
@@ -918,6 +956,17 @@ fn read_dir(
             *p = Some(now + RX_RETRY);
             None
         }
+    }
+}
+
+/// When the frame `port` just gave reached this node [ns from time 0]: the kernel's
+/// receive stamp when the port has one, kept within [`floor`, now] (a node's events stay in
+/// time order whatever the two clocks' offset); now otherwise.
+fn rx_time(clock: &mut Clock, port: &dyn Port, floor: i64) -> i64 {
+    let now = clock.now();
+    match port.kernel_stamp() {
+        Some(stamp) => clock.from_realtime(stamp).clamp(floor.min(now), now),
+        None => now,
     }
 }
 

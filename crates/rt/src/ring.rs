@@ -875,6 +875,18 @@ mod tests {
     use super::*;
 
     #[test]
+    fn one_loop_refuses_kernel_stamps_before_it_builds_anything() {
+        let opts = crate::run::RtOptions {
+            stamps: Stamps::Kernel,
+            ..crate::run::RtOptions::default()
+        };
+        let stop = std::sync::atomic::AtomicBool::new(false);
+        let e = crate::run::run(&ringsync_model::scenario::Scenario::default(), &opts, &stop)
+            .expect_err("refused");
+        assert!(e.to_string().contains("--processes"), "{e}");
+    }
+
+    #[test]
     fn phy_stamps_come_from_the_masters_sends_never_from_a_frames_content() {
         let mut p = PhyStamps::new(vec![2_000, 4_000]);
         p.sent(1_000_000, 1_000_300);

@@ -99,7 +99,8 @@ pub struct RtOptions {
 
 /// How the slaves stamp the lumped frames they receive, from which their clocks follow the
 /// master's.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
 pub enum Stamps {
     /// Emulated PHY stamps, the scenario's hardware timestamps: the instant the loop sent
     /// the frame from the master plus the slave's path delay (the shortest the warm-up
@@ -110,17 +111,32 @@ pub enum Stamps {
     /// Software stamps: the instant the loop read the frame. The clocks then follow the
     /// master to within the loop's forwarding jitter (µs to tens of µs here).
     Software,
+    /// Kernel receive stamps (a ring of node processes, `--processes`): the instant the
+    /// frame reached the node's socket (`SO_TIMESTAMPNS`), before the node's process woke
+    /// to read it. The clocks then see the senders' jitter, not the receivers' wake-ups.
+    Kernel,
 }
 
 impl Stamps {
     /// Both kinds.
-    pub const ALL: [Stamps; 2] = [Stamps::Phy, Stamps::Software];
+    pub const ALL: [Stamps; 3] = [Stamps::Phy, Stamps::Software, Stamps::Kernel];
 
     /// The name used on the command line and in summary.json.
     pub fn name(self) -> &'static str {
         match self {
             Stamps::Phy => "phy",
             Stamps::Software => "software",
+            Stamps::Kernel => "kernel",
+        }
+    }
+
+    /// These stamps as a ring of node processes takes them: no process sees another's
+    /// sends, so emulated PHY stamps (the in-process default) become software stamps, the
+    /// processes' default.
+    pub fn in_processes(self) -> Stamps {
+        match self {
+            Stamps::Phy | Stamps::Software => Stamps::Software,
+            Stamps::Kernel => Stamps::Kernel,
         }
     }
 
@@ -133,6 +149,9 @@ impl Stamps {
             Stamps::Software => {
                 "slaves stamp the lumped frames they receive in software, at the instant the loop reads them (--stamps software): the clocks see the loop's forwarding jitter"
             }
+            Stamps::Kernel => {
+                "every node stamps the frames it receives with the kernel's receive time (--stamps kernel, SO_TIMESTAMPNS): the instant the frame reached its socket, before the node's process woke to read it; the clocks see the senders' jitter, not the receivers' wake-ups"
+            }
         }
     }
 }
@@ -143,7 +162,7 @@ impl std::str::FromStr for Stamps {
         Stamps::ALL
             .into_iter()
             .find(|k| k.name() == s)
-            .ok_or_else(|| format!("unknown stamps '{s}': use phy or software"))
+            .ok_or_else(|| format!("unknown stamps '{s}': use phy, software or kernel"))
     }
 }
 
@@ -328,6 +347,11 @@ pub fn run_streamed(
     observers: Vec<Box<dyn Observer>>,
     sinks: Sinks,
 ) -> Result<RtResult, RtError> {
+    if opts.stamps == Stamps::Kernel {
+        return Err(RtError::Config(
+            "stamps 'kernel' are for a ring of node processes (--processes): one loop reading every node's socket would stamp its own sends; use phy or software".into(),
+        ));
+    }
     let mut spec = as_run(scenario, opts).build()?;
     let n = spec.axes();
     if let Some(k) = opts.kill

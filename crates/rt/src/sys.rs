@@ -370,6 +370,101 @@ pub fn recv(fd: RawFd, buf: &mut [u8]) -> io::Result<Option<usize>> {
     Ok(Some(r as usize))
 }
 
+/// `SO_TIMESTAMPNS` and its control message (`SCM_TIMESTAMPNS`): the value of
+/// `asm-generic/socket.rs` (x86-64, arm64, riscv), spelled here because the `libc` crate
+/// does not export it for every target.
+const SO_TIMESTAMPNS: libc::c_int = 35;
+
+/// Asks the kernel to stamp every datagram `fd` receives with the instant it reached the
+/// socket (`SO_TIMESTAMPNS`: `CLOCK_REALTIME`, read by [`recv_stamped`]).
+pub fn enable_rx_stamps(fd: RawFd) -> io::Result<()> {
+    let one: libc::c_int = 1;
+    // SAFETY: the option value is a valid c_int and its size is passed.
+    let r = unsafe {
+        libc::setsockopt(
+            fd,
+            libc::SOL_SOCKET,
+            SO_TIMESTAMPNS,
+            (&one as *const libc::c_int).cast(),
+            std::mem::size_of::<libc::c_int>() as libc::socklen_t,
+        )
+    };
+    if r != 0 {
+        return Err(io::Error::last_os_error());
+    }
+    Ok(())
+}
+
+/// Receives one datagram into `buf` without blocking, as [`recv`], with the kernel's
+/// receive stamp when [`enable_rx_stamps`] asked for it [ns of `CLOCK_REALTIME`]; `None`
+/// when nothing is waiting.
+pub fn recv_stamped(fd: RawFd, buf: &mut [u8]) -> io::Result<Option<(usize, Option<i64>)>> {
+    let mut iov = libc::iovec {
+        iov_base: buf.as_mut_ptr().cast(),
+        iov_len: buf.len(),
+    };
+    // Room for one control message of a timespec (32 bytes on 64-bit Linux) and more,
+    // aligned as a cmsghdr.
+    let mut control = [0u64; 16];
+    // SAFETY: an all-zero msghdr is a valid empty one.
+    let mut msg: libc::msghdr = unsafe { std::mem::zeroed() };
+    msg.msg_iov = &mut iov;
+    msg.msg_iovlen = 1;
+    msg.msg_control = control.as_mut_ptr().cast();
+    msg.msg_controllen = std::mem::size_of_val(&control) as _;
+    // SAFETY: `msg` points at `iov` (valid for writes of `buf`'s length) and `control`,
+    // both alive for the call.
+    let r = unsafe { libc::recvmsg(fd, &mut msg, libc::MSG_DONTWAIT) };
+    if r < 0 {
+        let e = io::Error::last_os_error();
+        if e.kind() == io::ErrorKind::WouldBlock {
+            return Ok(None);
+        }
+        return Err(e);
+    }
+    let mut stamp = None;
+    // SAFETY: the kernel filled `msg`'s control buffer; the CMSG macros walk it within
+    // `msg_controllen`, and a timestamp message's data is one timespec (read unaligned).
+    unsafe {
+        let mut c = libc::CMSG_FIRSTHDR(&msg);
+        while !c.is_null() {
+            if (*c).cmsg_level == libc::SOL_SOCKET && (*c).cmsg_type == SO_TIMESTAMPNS {
+                let ts: libc::timespec = std::ptr::read_unaligned(libc::CMSG_DATA(c).cast());
+                stamp = ts
+                    .tv_sec
+                    .checked_mul(1_000_000_000)
+                    .and_then(|s| s.checked_add(ts.tv_nsec));
+            }
+            c = libc::CMSG_NXTHDR(&msg, c);
+        }
+    }
+    Ok(Some((r as usize, stamp)))
+}
+
+/// `CLOCK_REALTIME` less `CLOCK_MONOTONIC` [ns], read between two readings of the
+/// monotonic clock (the closest of three pairs): what turns a kernel receive stamp into
+/// the loop's time. It changes only when the system clock is set, not when it is slewed.
+pub fn realtime_offset() -> i64 {
+    let read = |clock| {
+        let mut ts = libc::timespec {
+            tv_sec: 0,
+            tv_nsec: 0,
+        };
+        // SAFETY: `ts` is a valid, writable timespec; both clocks exist on Linux.
+        unsafe { libc::clock_gettime(clock, &mut ts) };
+        ts.tv_sec * 1_000_000_000 + ts.tv_nsec
+    };
+    (0..3)
+        .map(|_| {
+            let m0 = read(libc::CLOCK_MONOTONIC);
+            let r = read(libc::CLOCK_REALTIME);
+            let m1 = read(libc::CLOCK_MONOTONIC);
+            (m1 - m0, r - m0 - (m1 - m0) / 2)
+        })
+        .min_by_key(|p| p.0)
+        .map_or(0, |p| p.1)
+}
+
 /// A socket for interface control requests (ioctl) in the calling thread's network
 /// namespace; it stays in that namespace whichever thread uses it later.
 pub fn control_socket() -> io::Result<OwnedFd> {
