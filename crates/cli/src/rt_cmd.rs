@@ -60,8 +60,9 @@ pub struct RtArgs {
     /// How long the master waits for a response beyond the measured time slice.
     #[arg(long, value_parser = duration, default_value = "200us")]
     response_timeout: Duration,
-    /// Take this slave (1-based) out of the ring mid-run: its sockets close and, on veth,
-    /// its links go down.
+    /// Take this slave (1-based) out of the ring mid-run: it reads and sends nothing more
+    /// (its sockets close; with --processes its process goes silent) and, on veth, its
+    /// links go down.
     #[arg(long, requires = "kill_at")]
     kill_slave: Option<usize>,
     /// When to take the slave out, from the start (e.g. 1s).
@@ -114,11 +115,10 @@ pub struct RtArgs {
     /// --index I`), each with its own port, clock and loop, and gather their results (the
     /// nodes stamp frames in software, or --stamps kernel, unpinned; --cpu N pins them all to CPU N,
     /// which the 1 ms cycle needs on a small host; --pcap: every frame each node sent,
-    /// merged once they are done). A broken link (--break-link) on veth only; not yet with
-    /// faults injected or --scope.
-    #[arg(long, conflicts_with_all = [
-        "kill_slave", "flap_link", "forge", "inject_garbage",
-    ])]
+    /// merged once they are done; --kill-slave: that slave's process goes silent). A
+    /// broken link (--break-link) on veth only; not yet with frames injected, --flap-link
+    /// or --scope.
+    #[arg(long, conflicts_with_all = ["flap_link", "forge", "inject_garbage"])]
     processes: bool,
     #[cfg(feature = "scope")]
     #[command(flatten)]

@@ -438,18 +438,24 @@ fn a_node_given_a_bad_plan_says_what_is_wrong_in_one_line() {
 /// One run of the slow ring on veth with `breaks` (`--break-link` values) and W =
 /// `watchdog`: its summary.json, after checking that it left nothing behind.
 fn broken_run(name: &str, watchdog: &str, breaks: &[&str]) -> Result<serde_json::Value, String> {
-    let dir = std::env::temp_dir().join(format!("ringsync-proc-{name}-{}", std::process::id()));
     let mut extra = Vec::new();
     for b in breaks {
         extra.extend(["--break-link", b]);
     }
+    fault_run(name, watchdog, &extra)
+}
+
+/// One run of the slow ring on veth with the options `extra` and W = `watchdog`: its
+/// summary.json, after checking that it left nothing behind.
+fn fault_run(name: &str, watchdog: &str, extra: &[&str]) -> Result<serde_json::Value, String> {
+    let dir = std::env::temp_dir().join(format!("ringsync-proc-{name}-{}", std::process::id()));
     let (mut child, _, rest) = start(
         "veth",
         &dir,
         "4s",
         watchdog,
         "starting 5 node processes",
-        &extra,
+        extra,
     );
     let pid = child.id();
     let status = child.wait().expect("wait");
@@ -535,6 +541,42 @@ fn a_ring_of_node_processes_survives_a_broken_link() {
                 || stop["isolated_slaves"] != serde_json::json!([2, 3])
             {
                 return Err(format!("group stop: {stop}"));
+            }
+            Ok(())
+        },
+    );
+}
+
+/// Slave 2's process taken out of the ring at 1 s (`--kill-slave`): the master stops the
+/// group within W cycles, and the report names slave 2 as the node that stopped, from what
+/// each node last read; the slaves behind it brake on their own.
+#[test]
+fn a_slave_process_taken_out_is_named_and_the_group_stops_within_w_cycles() {
+    let _one = ONE_AT_A_TIME.lock();
+    one_of_three(
+        "slave 2 taken out",
+        || fault_run("kill", "10", &["--kill-slave", "2", "--kill-at", "1s"]),
+        |s| {
+            let faults = &s["faults"];
+            let killed = &s["killed"];
+            let stop = faults["group_stop"]["time_s"]
+                .as_f64()
+                .ok_or("no group stop")?;
+            let at = killed["at_s"].as_f64().ok_or("not taken out")?;
+            let cycles = killed["detected_after_cycles"].as_i64().unwrap_or(-1);
+            if killed["slave"] != 2 || !(0.99..1.1).contains(&at) || !(1..=11).contains(&cycles) {
+                return Err(format!("killed: {killed}"));
+            }
+            if !(at..at + 1.2).contains(&stop) || faults["failed_slave"] != 2 {
+                return Err(format!("faults: {faults}"));
+            }
+            let braked = |slave: u64| {
+                faults["watchdog"]
+                    .as_array()
+                    .is_some_and(|w| w.iter().any(|x| x["slave"] == slave))
+            };
+            if !braked(3) || !braked(4) || braked(2) {
+                return Err(format!("watchdogs: {}", faults["watchdog"]));
             }
             Ok(())
         },

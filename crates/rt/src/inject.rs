@@ -400,15 +400,8 @@ fn spawn_link_switch(
         let fail = |what: &str, e: std::io::Error| format!("{what} {ifname} in {netns}: {e}");
         sys::enter_netns(&netns).map_err(|e| fail("entering the namespace of", e))?;
         let ctl = sys::control_socket().map_err(|e| fail("a control socket for", e))?;
-        loop {
-            if stop.load(Ordering::SeqCst) {
-                return Ok(None);
-            }
-            let t = t0.load(Ordering::SeqCst);
-            if t > 0 && sys::now_ns() >= t + at.as_ns() {
-                break;
-            }
-            sys::sleep_until(sys::now_ns() + 200_000);
+        if !wait_for(&t0, at, &stop) {
+            return Ok(None);
         }
         let start = sys::now_ns();
         sys::set_interface_up(&ctl, &ifname, false).map_err(|e| fail("taking down", e))?;
@@ -425,6 +418,51 @@ fn spawn_link_switch(
         }
         sys::set_interface_up(&ctl, &ifname, true).map_err(|e| fail("bringing up", e))?;
         Ok(Some(sys::now_ns() - start))
+    })
+}
+
+/// Waits until `at` from the run's start (`t0`, `CLOCK_MONOTONIC` [ns]; 0 until known):
+/// false when `stop` comes first.
+fn wait_for(t0: &AtomicI64, at: Duration, stop: &AtomicBool) -> bool {
+    loop {
+        if stop.load(Ordering::SeqCst) {
+            return false;
+        }
+        let t = t0.load(Ordering::SeqCst);
+        if t > 0 && sys::now_ns() >= t + at.as_ns() {
+            return true;
+        }
+        sys::sleep_until(sys::now_ns() + 200_000);
+    }
+}
+
+/// A ring of node processes loses slave `slave` at `at` from the run's start (`t0`): the
+/// slave's own process goes silent then ([`crate::node::NodeKill`]); here its veth links
+/// (when `veth`) go down with it, as one process takes a slave out, and `say` tells it.
+pub fn spawn_take_out(
+    veth: Option<Arc<VethRing>>,
+    slave: usize,
+    at: Duration,
+    t0: Arc<AtomicI64>,
+    stop: Arc<AtomicBool>,
+    say: bool,
+) -> JoinHandle<Result<Option<i64>, String>> {
+    std::thread::spawn(move || {
+        sys::set_normal();
+        if !wait_for(&t0, at, &stop) {
+            return Ok(None);
+        }
+        if say {
+            eprintln!(
+                "ringsync rt: slave {slave} taken out at {:.3} s",
+                at.as_ns() as f64 * 1e-9
+            );
+        }
+        if let Some(v) = veth {
+            v.take_down(slave)
+                .map_err(|e| format!("taking slave {slave}'s links down: {e}"))?;
+        }
+        Ok(None)
     })
 }
 

@@ -38,9 +38,7 @@ const START_UP_MARGIN: i64 = 300_000_000;
 
 /// What a process run does not do yet, named; `None` when `opts` asks for none of it.
 fn unsupported(s: &Scenario, opts: &RtOptions) -> Option<&'static str> {
-    if opts.kill.is_some() {
-        Some("--kill-slave")
-    } else if opts.garbage_rate > 0.0 || !opts.forge.is_empty() {
+    if opts.garbage_rate > 0.0 || !opts.forge.is_empty() {
         Some("--garbage-rate and --forge")
     } else if opts.flap.is_some() {
         Some("--flap-link")
@@ -228,6 +226,19 @@ pub fn run_processes(
                 .collect(),
             None => Vec::new(),
         };
+        let breakers: Vec<_> = breakers
+            .into_iter()
+            .chain(plan.kill.map(|k| {
+                crate::inject::spawn_take_out(
+                    veth.clone(),
+                    k.slave,
+                    ringsync_proto::Duration::from_ns(k.at_ns),
+                    t0.clone(),
+                    stop_breaks.clone(),
+                    opts.verbose,
+                )
+            }))
+            .collect();
         let sup = supervise(children, stop, deadline, std::time::Duration::from_secs(2));
         stop_breaks.store(true, std::sync::atomic::Ordering::SeqCst);
         for h in breakers {
@@ -392,9 +403,21 @@ pub fn node_plan(
         cpu: None,
         capture_dir: None,
         stamps: opts.stamps.in_processes(),
+        kill: opts.kill.map(|k| crate::node::NodeKill {
+            slave: k.slave,
+            at_ns: k.at.as_ns(),
+        }),
     };
-    // Checks the links against the ring.
-    plan.spec()?;
+    // Checks the links and the slave taken out against the ring.
+    let n = plan.spec()?.axes();
+    if let Some(k) = plan.kill
+        && (k.slave == 0 || k.slave > n)
+    {
+        return Err(RtError::Config(format!(
+            "--kill-slave {} is not a slave of this ring (1..={n})",
+            k.slave
+        )));
+    }
     Ok(plan)
 }
 
@@ -453,7 +476,20 @@ pub fn gather(
     let response_timeout = ringsync_proto::Duration::from_ns(plan.response_timeout_ns);
     let interrupted = stopped || records.iter().any(|r| r.interrupted);
     let master = &records[0];
-    let run = merge(&spec, &records, trace);
+    let mut run = merge(&spec, &records, trace);
+    if let Some((t, _)) = run.group_stop {
+        run.ring_break
+            .get_or_insert_with(|| ring_break(&spec, &records, t));
+    }
+    // A slave taken out (`--kill-slave`): when its process went silent, and how many
+    // cycles later the master stopped the group (cycles begun, as one process counts them).
+    let t_cyc = spec.scenario.ring.cycle.0.as_ns().max(1) as f64 * 1e-9;
+    let killed = plan
+        .kill
+        .and_then(|k| Some((k.slave, records.get(k.slave)?.taken_out_s?)));
+    let detection_cycles = killed
+        .zip(run.group_stop.as_ref())
+        .map(|((_, at), (t, _))| (t / t_cyc).floor() as i64 - (at / t_cyc).floor() as i64);
     let mut realtime = master.realtime.clone();
     realtime.push(format!(
         "one process per node ({} processes), each its own loop; slaves sleep to their deadlines",
@@ -479,7 +515,6 @@ pub fn gather(
         *t = r.path_delay_ns.map(ringsync_proto::Duration::from_ns);
     }
     su.slaves_rejected = records.iter().skip(1).map(|r| r.start_up_rejected).sum();
-    let mut run = run;
     run.start_up = Some(calibration.start_up.clone());
     // The master's configuration: the same schedule from the same figures.
     let mut ran = spec.clone();
@@ -515,10 +550,34 @@ pub fn gather(
             .map(|r| (r.frames_read, r.last_read_s))
             .collect(),
         interrupted,
-        killed: None,
-        detection_cycles: None,
+        killed,
+        detection_cycles,
         streamed: Streamed::default(),
     })
+}
+
+/// Where the ring of node processes broke at a group stop at `t` [s], from what each node
+/// last read (the processes keep no master's view of the slaves, as one process does):
+/// [`locate_break`](ringsync_model::locate::locate_break) with a node's last frame read for
+/// the last lumped frame it took (behind a break nothing reaches a node, and ahead of it
+/// the cycles go on after the stop), and a slave taken out (`--kill-slave`) as one that
+/// stopped running.
+fn ring_break(spec: &Spec, records: &[NodeRecord], t: f64) -> ringsync_model::locate::RingBreak {
+    let t_cyc = spec.scenario.ring.cycle.0.as_ns().max(1) as f64 * 1e-9;
+    let cycle = |s: f64| (s / t_cyc).floor() as i64;
+    let seen = |r: &NodeRecord| r.last_read_s.map(cycle);
+    let slaves = records.get(1..).unwrap_or_default();
+    let running: Vec<bool> = slaves
+        .iter()
+        .map(|r| r.taken_out_s.is_none_or(|out| out > t))
+        .collect();
+    let slaves_seen: Vec<Option<i64>> = slaves.iter().map(seen).collect();
+    ringsync_model::locate::locate_break(
+        cycle(t),
+        &slaves_seen,
+        records.first().and_then(seen),
+        &running,
+    )
 }
 
 /// One run's result from the records of its nodes: every cycle's probe made of the

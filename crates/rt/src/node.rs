@@ -133,6 +133,20 @@ pub struct NodePlan {
     /// every send, is taken as software.
     #[serde(default)]
     pub stamps: Stamps,
+    /// A slave taken out of the ring during the run (`--kill-slave`), if any.
+    #[serde(default)]
+    pub kill: Option<NodeKill>,
+}
+
+/// A slave taken out of a ring of node processes (`--kill-slave`): from `at_ns` on its
+/// process reads and sends nothing more (the launcher takes its veth links down too), while
+/// its axis and its watchdog go on, as one process takes a slave out.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct NodeKill {
+    /// The slave (1-based).
+    pub slave: usize,
+    /// When [ns from time 0].
+    pub at_ns: i64,
 }
 
 impl NodePlan {
@@ -263,6 +277,9 @@ pub struct NodeRecord {
     /// Frames its capture queue could not take.
     #[serde(default)]
     pub frames_not_kept: u64,
+    /// When this slave was taken out of the ring ([`NodeKill`]) [s from time 0].
+    #[serde(default)]
+    pub taken_out_s: Option<f64>,
 }
 
 /// An observer that keeps the events of one node.
@@ -403,7 +420,7 @@ pub fn run_node(plan: &NodePlan, node: usize, stop: &AtomicBool) -> Result<NodeR
         run_slave(
             &mut spec,
             node - 1,
-            plan.sense_carrier,
+            plan,
             port.as_mut(),
             &mut clock,
             stop,
@@ -695,7 +712,7 @@ fn run_master(
 fn run_slave(
     spec: &mut Spec,
     i: usize,
-    plan_sense_carrier: bool,
+    plan: &NodePlan,
     port: &mut dyn Port,
     clock: &mut Clock,
     stop: &AtomicBool,
@@ -782,7 +799,13 @@ fn run_slave(
     // broken link ahead would carry, and takes what comes back to it beside a broken link
     // behind.
     let me = i + 1;
-    let links = if plan_sense_carrier {
+    // Taken out of the ring (`--kill-slave`): when, and whether it has happened.
+    let kill_at = plan
+        .kill
+        .filter(|k| k.slave == i + 1)
+        .map_or(i64::MAX, |k| k.at_ns);
+    let mut dead = false;
+    let links = if plan.sense_carrier {
         NodeLinks::sensed(me)
     } else {
         NodeLinks::scheduled(
@@ -803,16 +826,20 @@ fn run_slave(
     };
     let mut dropped = 0u64;
     // The timers due by `now`, in time order: latches, cycle probes, responses.
+    // (A slave taken out sends nothing: `dead`.)
     let timers = |dev: &mut Devices,
                   pending: &mut Vec<(i64, Vec<u8>)>,
                   probe_k: &mut i64,
                   port: &mut dyn Port,
                   dropped: &mut u64,
-                  now: i64| loop {
+                  now: i64,
+                  dead: bool| loop {
         // Nothing of the axis happens from the run's end on (the master has stopped): the
         // tail only carries the last frames round.
+        // (A slave taken out no longer latches: its node has stopped; its axis goes on
+        // with its last command, as one process takes a slave out.)
         let latch = Some(dev.latch_at(i))
-            .filter(|&l| l < end)
+            .filter(|&l| l < end && !dead)
             .unwrap_or(i64::MAX);
         let probe = if *probe_k < cycles {
             *probe_k * t_cyc
@@ -839,7 +866,9 @@ fn run_slave(
             });
         } else {
             let (at, b) = pending.swap_remove(j);
-            forward(port, at, &b, dropped);
+            if !dead {
+                forward(port, at, &b, dropped);
+            }
         }
     };
     loop {
@@ -851,6 +880,12 @@ fn run_slave(
         if now >= end + TAIL {
             break;
         }
+        if !dead && now >= kill_at {
+            // Taken out: nothing read or sent from now on; the axis and its watchdog go on.
+            dead = true;
+            rec.taken_out_s = Some(now as f64 * 1e-9);
+            pending.clear();
+        }
         // The carrier, when the links are known from it.
         let _ = links.sense(port, now);
         // Frames first, each after the timers due before it reached the node (its kernel
@@ -858,7 +893,7 @@ fn run_slave(
         let mut got = false;
         // Frames coming round the ring, then (a broken ring) frames coming backward.
         for back in [false, true] {
-            if back && !links.may_break() {
+            if dead || (back && !links.may_break()) {
                 break;
             }
             while let Some(len) = read_dir(
@@ -873,7 +908,15 @@ fn run_slave(
                 let t = rx_time(clock, port, floor);
                 floor = t;
                 // Everything due before the frame first (as in the in-process loop).
-                timers(&mut dev, &mut pending, &mut probe_k, port, &mut dropped, t);
+                timers(
+                    &mut dev,
+                    &mut pending,
+                    &mut probe_k,
+                    port,
+                    &mut dropped,
+                    t,
+                    dead,
+                );
                 rec.frames_read += 1;
                 rec.last_read_s = Some(t as f64 * 1e-9);
                 let bytes = &mut buf[..len];
@@ -904,6 +947,7 @@ fn run_slave(
             port,
             &mut dropped,
             now,
+            dead,
         );
         floor = now;
         if probe_k != probed {
@@ -918,8 +962,12 @@ fn run_slave(
             .min(end + TAIL)
             .min(links.next_sense())
             .min(paused.iter().flatten().copied().min().unwrap_or(i64::MAX));
-        wait_frames(clock, port, links.may_break(), &paused, wake)
-            .map_err(io_err("waiting for frames"))?;
+        if dead {
+            clock.sleep_until(wake);
+        } else {
+            wait_frames(clock, port, links.may_break(), &paused, wake.min(kill_at))
+                .map_err(io_err("waiting for frames"))?;
+        }
     }
     rec.slave = Some(dev.slaves[i].counters());
     rec.broken_dropped = dropped;
