@@ -115,10 +115,10 @@ pub struct RtArgs {
     /// --index I`), each with its own port, clock and loop, and gather their results (the
     /// nodes stamp frames in software, or --stamps kernel, unpinned; --cpu N pins them all to CPU N,
     /// which the 1 ms cycle needs on a small host; --pcap: every frame each node sent,
-    /// merged once they are done; --kill-slave: that slave's process goes silent). A
-    /// broken link (--break-link) on veth only; not yet with frames injected, --flap-link
-    /// or --scope.
-    #[arg(long, conflicts_with_all = ["flap_link", "forge", "inject_garbage"])]
+    /// merged once they are done; --kill-slave: that slave's process goes silent; frames
+    /// injected by the launcher). A broken link (--break-link) on veth only; not yet with
+    /// --scope.
+    #[arg(long)]
     processes: bool,
     #[cfg(feature = "scope")]
     #[command(flatten)]

@@ -176,6 +176,10 @@ pub struct InjectorPlan {
     pub seed: u64,
     /// CLOCK_MONOTONIC at the run's true time 0 [ns] (0 until the run starts).
     pub t0: Arc<AtomicI64>,
+    /// Inject only while the run goes, from time 0 for this long, then stop (a ring of node
+    /// processes: its start-up phase and its tail are not the run's); `None`: from now
+    /// until told to stop.
+    pub run_for: Option<Duration>,
 }
 
 /// One sender onto each link: `senders[i]` puts frames on the link into node i + 1 (the
@@ -238,6 +242,15 @@ pub fn spawn(
             }
             // Forgeries are aimed at the running ring: none before it starts.
             let t0 = plan.t0.load(Ordering::SeqCst);
+            if let Some(d) = plan.run_for {
+                if t0 > 0 && sys::now_ns() >= t0 + d.as_ns() {
+                    return;
+                }
+                if t0 == 0 || sys::now_ns() < t0 {
+                    next[which] = next[which].max(t0);
+                    continue;
+                }
+            }
             if which < 3 && (t0 == 0 || sys::now_ns() < t0) {
                 next[which] += (1e9 / Forgery::ALL[which].rate()) as i64;
                 continue;
@@ -360,6 +373,22 @@ pub fn spawn_flap(
 
 /// A broken link (`faults.break_link`, `--break-link`) on a veth ring: link `b.link` (from
 /// node `b.link` − 1) goes down at `b.at` and, if it heals, up again at `b.heal`; returns
+/// The line a run says of a link flap: `link A → B goes down at T s for D ms`, and over
+/// UDP (`veth` false) who drops what it would carry.
+pub fn flap_line(f: &Flap, n: usize, veth: bool) -> String {
+    format!(
+        "link {} goes down at {:.3} s for {:.1} ms{}",
+        f.name(n),
+        f.at.as_ns() as f64 * 1e-9,
+        f.down_for.as_ns() as f64 * 1e-6,
+        if veth {
+            ""
+        } else {
+            " (UDP: the runtime drops what it would carry)"
+        }
+    )
+}
+
 /// The line a run says of a scheduled break: `link I breaks at T s[ and heals at T2 s]`.
 pub fn break_line(b: &LinkBreak) -> String {
     format!(

@@ -22,6 +22,7 @@ use ringsync_model::result::{LinkCounters, RunResult};
 use ringsync_model::scenario::Scenario;
 use ringsync_proto::node::{MasterCounters, SlaveCounters};
 
+use crate::inject::{Injected, InjectorPlan};
 use crate::netns::VethRing;
 use crate::node::{NodeLink, NodePlan, NodeRecord, Tap, read_record};
 use crate::run::{Injection, RtError, RtOptions, RtResult, Streamed, io_err};
@@ -38,11 +39,7 @@ const START_UP_MARGIN: i64 = 300_000_000;
 
 /// What a process run does not do yet, named; `None` when `opts` asks for none of it.
 fn unsupported(s: &Scenario, opts: &RtOptions) -> Option<&'static str> {
-    if opts.garbage_rate > 0.0 || !opts.forge.is_empty() {
-        Some("--garbage-rate and --forge")
-    } else if opts.flap.is_some() {
-        Some("--flap-link")
-    } else if !s.faults.break_link.is_empty() && opts.transport == TransportKind::Udp {
+    if !s.faults.break_link.is_empty() && opts.transport == TransportKind::Udp {
         Some("a broken link over UDP (--break-link, faults.break_link; use --transport veth)")
     } else {
         None
@@ -192,7 +189,7 @@ pub fn run_processes(
             .map(|d| d.0.join(crate::frames::file_name(i)))
     };
     let mut tries = 1;
-    let (plan, sup) = loop {
+    let (plan, sup, injected, flap_down_ns) = loop {
         let epoch = sys::now_ns() + SPAWN + start_up;
         let mut plan = node_plan(text, origin, opts, links.clone(), epoch)?;
         plan.cpu = cpu.as_ref().map(|c| c.cpu());
@@ -239,6 +236,51 @@ pub fn run_processes(
                 )
             }))
             .collect();
+        // A link flap: on veth the link itself, at its time; over UDP its sending node
+        // drops what it would carry.
+        if let Some(f) = opts.flap {
+            say(&crate::inject::flap_line(&f, n, veth.is_some()));
+        }
+        let flapper = match (opts.flap, &veth) {
+            (Some(f), Some(v)) => Some(crate::inject::spawn_flap(
+                v.clone(),
+                f,
+                t0.clone(),
+                stop_breaks.clone(),
+            )),
+            _ => None,
+        };
+        // Frames injected (garbage, forgeries): the launcher is the faulty device, sending
+        // onto the ring's links while the run goes (not into the start-up phase).
+        let injected = Arc::new(Injected::default());
+        let injector = if opts.garbage_rate > 0.0 || !opts.forge.is_empty() {
+            let udp: Vec<_> = plan
+                .links
+                .iter()
+                .filter_map(|l| match l {
+                    NodeLink::Udp { listen, .. } => Some(*listen),
+                    NodeLink::Raw { .. } => None,
+                })
+                .collect();
+            let senders = crate::inject::senders(&veth, &udp)
+                .map_err(io_err("opening the injector's sockets"))?;
+            Some(crate::inject::spawn(
+                senders,
+                InjectorPlan {
+                    garbage_rate: opts.garbage_rate,
+                    forgeries: opts.forge.clone(),
+                    slaves: n,
+                    t_cyc,
+                    seed: spec.scenario.seed,
+                    t0: t0.clone(),
+                    run_for: Some(spec.scenario.duration.0),
+                },
+                injected.clone(),
+                stop_breaks.clone(),
+            ))
+        } else {
+            None
+        };
         let sup = supervise(children, stop, deadline, std::time::Duration::from_secs(2));
         stop_breaks.store(true, std::sync::atomic::Ordering::SeqCst);
         for h in breakers {
@@ -246,6 +288,17 @@ pub fn run_processes(
                 eprintln!("ringsync rt: warning: a link break did not happen: {why}");
             }
         }
+        if let Some(h) = injector {
+            let _ = h.join();
+        }
+        let flap_down_ns = match flapper.map(|h| h.join()) {
+            Some(Ok(Ok(d))) => d,
+            Some(Ok(Err(why))) => {
+                eprintln!("ringsync rt: warning: the link flap did not happen: {why}");
+                None
+            }
+            _ => None,
+        };
         let sup = sup.map_err(io_err("starting the node processes"))?;
         // The master found the measured ring too slow for the cycle: a host that held the
         // nodes off their CPUs while the probes went round makes the round trips' p99 a host
@@ -283,7 +336,7 @@ pub fn run_processes(
             tries += 1;
             continue;
         }
-        break (plan, sup);
+        break (plan, sup, injected, flap_down_ns);
     };
     // Every child is gone: the namespaces may go.
     drop(veth);
@@ -320,6 +373,13 @@ pub fn run_processes(
         .map(|i| read_record(&record(i)))
         .collect::<Result<Vec<_>, _>>()?;
     let mut r = gather(&plan, &records, sup.stopped, opts.trace)?;
+    r.timing.flap_down_ns = flap_down_ns;
+    r.injected.garbage = injected.garbage.load(std::sync::atomic::Ordering::SeqCst);
+    r.injected.forged = opts
+        .forge
+        .iter()
+        .map(|f| (*f, injected.forged(*f)))
+        .collect();
     // The capture: every node's frames, merged in time order; a frame a node kept and the
     // merge did not find (a file cut short) is counted with those its queue dropped.
     if let Some(c) = capture {
@@ -407,6 +467,15 @@ pub fn node_plan(
             slave: k.slave,
             at_ns: k.at.as_ns(),
         }),
+        // On veth the launcher takes the link down itself.
+        flap: opts
+            .flap
+            .filter(|_| opts.transport != TransportKind::Veth)
+            .map(|f| crate::node::NodeFlap {
+                from: f.from,
+                at_ns: f.at.as_ns(),
+                until_ns: f.at.as_ns() + f.down_for.as_ns(),
+            }),
     };
     // Checks the links and the slave taken out against the ring.
     let n = plan.spec()?.axes();
@@ -525,6 +594,7 @@ pub fn gather(
             c.clock_window = ringsync_proto::Duration::from_ns(w);
         }
     }
+    let counted_malformed = crate::run::malformed_counted(&run);
     Ok(RtResult {
         scenario: spec.scenario.clone(),
         spec: ran,
@@ -535,6 +605,7 @@ pub fn gather(
             // Every node's frames dropped beside a broken link.
             broken_dropped: records.iter().map(|r| r.broken_dropped).sum(),
             receive_errors: records.iter().map(|r| r.receive_errors).sum(),
+            flap_dropped: records.iter().map(|r| r.flap_dropped).sum(),
             ..master.timing.clone().unwrap_or_default()
         },
         schedule: master.schedule.unwrap_or(crate::schedule::Schedule {
@@ -544,7 +615,13 @@ pub fn gather(
         }),
         calibration,
         realtime,
-        injected: Injection::default(),
+        // What the nodes made of frames injected (the launcher adds what it injected).
+        injected: Injection {
+            counted_malformed,
+            malformed_unread: records.iter().map(|r| r.unread_at_end.0).sum(),
+            valid_unread: records.iter().map(|r| r.unread_at_end.1).sum(),
+            ..Injection::default()
+        },
         nodes_rx: records
             .iter()
             .map(|r| (r.frames_read, r.last_read_s))

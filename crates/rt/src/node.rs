@@ -136,6 +136,28 @@ pub struct NodePlan {
     /// A slave taken out of the ring during the run (`--kill-slave`), if any.
     #[serde(default)]
     pub kill: Option<NodeKill>,
+    /// A link down for a while over UDP (`--flap-link`): its sending node drops what it
+    /// would send on it then (on veth the launcher takes the link down itself).
+    #[serde(default)]
+    pub flap: Option<NodeFlap>,
+}
+
+/// A link flap a node carries out itself (UDP, [`NodePlan::flap`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct NodeFlap {
+    /// The link's sending node (0 the master).
+    pub from: usize,
+    /// Down from [ns from time 0].
+    pub at_ns: i64,
+    /// Up again at [ns from time 0].
+    pub until_ns: i64,
+}
+
+impl NodeFlap {
+    /// Whether node `node`'s send forward at `t` [ns] falls in this flap.
+    fn drops(flap: Option<NodeFlap>, node: usize, t: i64) -> bool {
+        flap.is_some_and(|f| f.from == node && (f.at_ns..f.until_ns).contains(&t))
+    }
 }
 
 /// A slave taken out of a ring of node processes (`--kill-slave`): from `at_ns` on its
@@ -280,6 +302,14 @@ pub struct NodeRecord {
     /// When this slave was taken out of the ring ([`NodeKill`]) [s from time 0].
     #[serde(default)]
     pub taken_out_s: Option<f64>,
+    /// Frames this node dropped on a flapping link ([`NodeFlap`]).
+    #[serde(default)]
+    pub flap_dropped: u64,
+    /// Frames still waiting on the node's port when it ended, read then and handed to no
+    /// node: those it would have refused as malformed, and well-formed ones (injected
+    /// frames among them).
+    #[serde(default)]
+    pub unread_at_end: (u64, u64),
 }
 
 /// An observer that keeps the events of one node.
@@ -573,10 +603,14 @@ fn run_master(
     };
     // Reading paused after a receive error, per direction (forward, backward).
     let mut paused = [None; 2];
-    let send =
+    let flap = plan.flap;
+    let mut flap_dropped = 0u64;
+    let mut send =
         |port: &mut dyn Port, log: &mut TimingLog, t: i64, (b_side, bytes): (bool, Vec<u8>)| {
             // Port B is the link behind, port A the link ahead.
-            if if b_side {
+            if !b_side && NodeFlap::drops(flap, 0, t) {
+                flap_dropped += 1;
+            } else if if b_side {
                 links.behind_down(t)
             } else {
                 links.ahead_down(t)
@@ -699,6 +733,13 @@ fn run_master(
             }
         }
     }
+    // What came after the run's end (an injector's last frames): read once the slaves'
+    // tail is over, and counted.
+    rec.flap_dropped = flap_dropped;
+    if !rec.interrupted {
+        clock.sleep_until(end + TAIL);
+    }
+    rec.unread_at_end = crate::ring::drain_port(port);
     let counters = dev.master.counters();
     rec.broken_dropped = log.timing.broken_dropped;
     rec.receive_errors = log.timing.receive_errors;
@@ -815,23 +856,27 @@ fn run_slave(
     };
     let mut paused = [None; 2];
     let mut receive_errors = 0u64;
-    let forward = |port: &mut dyn Port, t: i64, bytes: &[u8], dropped: &mut u64| {
-        if !links.ahead_down(t) {
+    let flap = plan.flap;
+    // Frames dropped: beside a broken link, and on a flapping one.
+    let forward = |port: &mut dyn Port, t: i64, bytes: &[u8], dropped: &mut [u64; 2]| {
+        if NodeFlap::drops(flap, i + 1, t) {
+            dropped[1] += 1;
+        } else if !links.ahead_down(t) {
             let _ = port.send(bytes);
         } else if !links.cut_off(t) {
             let _ = port.send_back(bytes);
         } else {
-            *dropped += 1;
+            dropped[0] += 1;
         }
     };
-    let mut dropped = 0u64;
+    let mut dropped = [0u64; 2];
     // The timers due by `now`, in time order: latches, cycle probes, responses.
     // (A slave taken out sends nothing: `dead`.)
     let timers = |dev: &mut Devices,
                   pending: &mut Vec<(i64, Vec<u8>)>,
                   probe_k: &mut i64,
                   port: &mut dyn Port,
-                  dropped: &mut u64,
+                  dropped: &mut [u64; 2],
                   now: i64,
                   dead: bool| loop {
         // Nothing of the axis happens from the run's end on (the master has stopped): the
@@ -926,7 +971,7 @@ fn run_slave(
                     continue;
                 }
                 if back && (links.cut_off(t) || links.turned_before(bytes)) {
-                    dropped += 1;
+                    dropped[0] += 1;
                     continue;
                 }
                 // Round the ring, or turned here beside the broken link behind.
@@ -969,8 +1014,13 @@ fn run_slave(
                 .map_err(io_err("waiting for frames"))?;
         }
     }
+    rec.unread_at_end = if dead {
+        (0, 0)
+    } else {
+        crate::ring::drain_port(port)
+    };
     rec.slave = Some(dev.slaves[i].counters());
-    rec.broken_dropped = dropped;
+    [rec.broken_dropped, rec.flap_dropped] = dropped;
     rec.receive_errors = receive_errors;
     rec.events = tap.take();
     Ok(())

@@ -172,24 +172,31 @@ enum Due {
 /// node would have refused as malformed (not ringsync's at the link layer, or failing the
 /// PDU's header, payload or CRC checks), and how many were well-formed.
 pub(crate) fn drain(ports: &mut [Option<Box<dyn Port>>]) -> (u64, u64) {
+    ports
+        .iter_mut()
+        .flatten()
+        .map(|p| drain_port(p.as_mut()))
+        .fold((0, 0), |a, b| (a.0 + b.0, a.1 + b.1))
+}
+
+/// [`drain`] for one port.
+pub(crate) fn drain_port(p: &mut dyn Port) -> (u64, u64) {
     let mut buf = vec![0u8; MAX_PDU];
     let (mut malformed, mut valid) = (0, 0);
-    for p in ports.iter_mut().flatten() {
-        // Both directions: frames a broken ring turned back wait on the other socket.
-        for back in [false, true] {
-            while let Ok(Some(len)) = if back {
-                p.recv_back(&mut buf)
+    // Both directions: frames a broken ring turned back wait on the other socket.
+    for back in [false, true] {
+        while let Ok(Some(len)) = if back {
+            p.recv_back(&mut buf)
+        } else {
+            p.recv(&mut buf)
+        } {
+            if buf
+                .get(..len)
+                .is_none_or(|b| len == 0 || Pdu::parse(b).is_err())
+            {
+                malformed += 1;
             } else {
-                p.recv(&mut buf)
-            } {
-                if buf
-                    .get(..len)
-                    .is_none_or(|b| len == 0 || Pdu::parse(b).is_err())
-                {
-                    malformed += 1;
-                } else {
-                    valid += 1;
-                }
+                valid += 1;
             }
         }
     }

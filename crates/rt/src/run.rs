@@ -257,6 +257,16 @@ pub struct Injection {
     pub valid_unread: u64,
 }
 
+/// Frames the nodes of `run` refused as malformed (injected garbage among them).
+pub(crate) fn malformed_counted(run: &ringsync_model::result::RunResult) -> u64 {
+    run.master.rejected.get(Reject::Malformed)
+        + run
+            .slaves
+            .iter()
+            .map(|c| c.rejected.get(Reject::Malformed))
+            .sum::<u64>()
+}
+
 /// What can stop a real-time run from starting.
 #[derive(Debug, thiserror::Error)]
 pub enum RtError {
@@ -500,6 +510,7 @@ pub fn run_streamed(
                 t_cyc,
                 seed: s.seed,
                 t0: ring.t0_shared.clone(),
+                run_for: None,
             },
             injected.clone(),
             stop_inject.clone(),
@@ -508,17 +519,7 @@ pub fn run_streamed(
         None
     };
     if let Some(f) = opts.flap {
-        say(&format!(
-            "link {} goes down at {:.3} s for {:.1} ms{}",
-            f.name(n),
-            f.at.as_ns() as f64 * 1e-9,
-            f.down_for.as_ns() as f64 * 1e-6,
-            if veth.is_some() {
-                ""
-            } else {
-                " (UDP: the runtime drops what it would carry)"
-            }
-        ));
+        say(&inject::flap_line(&f, n, veth.is_some()));
     }
     let breakers: Vec<_> = match &veth {
         Some(v) => s
@@ -601,12 +602,7 @@ pub fn run_streamed(
     drop(veth);
     timing.flap_down_ns = flap_down_ns;
     run.start_up = Some(cal.start_up.clone());
-    let counted = run.master.rejected.get(Reject::Malformed)
-        + run
-            .slaves
-            .iter()
-            .map(|c| c.rejected.get(Reject::Malformed))
-            .sum::<u64>();
+    let counted = malformed_counted(&run);
     Ok(RtResult {
         scenario: spec.scenario.clone(),
         spec,
