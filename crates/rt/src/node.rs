@@ -161,8 +161,8 @@ impl NodeFlap {
 }
 
 /// A slave taken out of a ring of node processes (`--kill-slave`): from `at_ns` on its
-/// process reads and sends nothing more (the launcher takes its veth links down too), while
-/// its axis and its watchdog go on, as one process takes a slave out.
+/// process reads, sends and latches nothing more (the launcher takes its veth links down
+/// too), while its axis goes on with its last command, as one process takes a slave out.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub struct NodeKill {
     /// The slave (1-based).
@@ -926,7 +926,7 @@ fn run_slave(
             break;
         }
         if !dead && now >= kill_at {
-            // Taken out: nothing read or sent from now on; the axis and its watchdog go on.
+            // Taken out: nothing read, sent or latched from now on; the axis goes on.
             dead = true;
             rec.taken_out_s = Some(now as f64 * 1e-9);
             pending.clear();
