@@ -116,8 +116,8 @@ pub struct RtArgs {
     /// nodes stamp frames in software, or --stamps kernel, unpinned; --cpu N pins them all to CPU N,
     /// which the 1 ms cycle needs on a small host; --pcap: every frame each node sent,
     /// merged once they are done; --kill-slave: that slave's process goes silent; frames
-    /// injected by the launcher). A broken link (--break-link) on veth only; not yet with
-    /// --scope.
+    /// injected by the launcher; --scope: fed by what the nodes write as they run). A
+    /// broken link (--break-link) on veth only.
     #[arg(long)]
     processes: bool,
     #[cfg(feature = "scope")]
@@ -165,13 +165,6 @@ impl RealtimeArgs {
 /// Runs `ringsync rt`: exit status 3 when the run ends in a group stop, 1 when it is
 /// interrupted (its partial results written all the same).
 pub(crate) fn rt(args: &RtArgs) -> Result<Outcome, CliError> {
-    #[cfg(feature = "scope")]
-    if args.processes && args.scope.scope.is_some() {
-        return Err(CliError::Usage(
-            "--scope is not fed by a ring of node processes yet: drop --processes or --scope"
-                .into(),
-        ));
-    }
     let loaded = ringsync::load(&args.scenario)?;
     let loaded = if args.break_link.is_empty() {
         loaded
@@ -254,7 +247,14 @@ pub(crate) fn rt(args: &RtArgs) -> Result<Outcome, CliError> {
     // trace.csv and the capture are written as the run goes: its memory does not grow
     // with its duration.
     let r = if args.processes {
-        ringsync::rt::run_rt_processes(&mut dir, &loaded, &opts, stop, args.pcap.as_deref())?
+        ringsync::rt::run_rt_processes(
+            &mut dir,
+            &loaded,
+            &opts,
+            stop,
+            args.pcap.as_deref(),
+            observers,
+        )?
     } else {
         ringsync::rt::run_rt_streamed(&mut dir, s, &opts, stop, observers, args.pcap.as_deref())?
     };

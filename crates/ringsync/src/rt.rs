@@ -44,18 +44,20 @@ pub fn run_rt(
 /// executable): docs/runtime.md, "One process per node". With `pcap` (inside `dir` or
 /// beside it, committed with it), the frames every node sent, merged in time order once the
 /// nodes are done, go there as pcapng (the result's capture is then empty, as a streamed
-/// run's).
+/// run's). `observers` watch it as it goes, from what the nodes tell
+/// ([`ringsync_rt::launch::live_merge`]).
 pub fn run_rt_processes(
     dir: &mut OutDir,
     loaded: &crate::Loaded,
     opts: &RtOptions,
     stop: &AtomicBool,
     pcap: Option<&Path>,
+    observers: Vec<Box<dyn Observer>>,
 ) -> Result<RtResult> {
     use std::io::Write as _;
     let program = std::env::current_exe()
         .map_err(|e| Error::io("finding the ringsync executable to start the nodes", e))?;
-    let run = |capture| {
+    let run = move |capture| {
         ringsync_rt::launch::run_processes(
             &loaded.text,
             &loaded.origin,
@@ -63,6 +65,7 @@ pub fn run_rt_processes(
             &program,
             stop,
             capture,
+            observers,
         )
     };
     let Some(p) = pcap.filter(|_| opts.capture) else {

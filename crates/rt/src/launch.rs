@@ -16,7 +16,7 @@ use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 
 use ringsync_model::Spec;
-use ringsync_model::observer::Observer;
+use ringsync_model::observer::{NodeView, Observer};
 use ringsync_model::record::{AxisProbe, Recorder};
 use ringsync_model::result::{LinkCounters, RunResult};
 use ringsync_model::scenario::Scenario;
@@ -24,7 +24,7 @@ use ringsync_proto::node::{MasterCounters, SlaveCounters};
 
 use crate::inject::{Injected, InjectorPlan};
 use crate::netns::VethRing;
-use crate::node::{NodeLink, NodePlan, NodeRecord, Tap, read_record};
+use crate::node::{Live, NodeLink, NodePlan, NodeRecord, Tap, Tapped, read_record};
 use crate::run::{Injection, RtError, RtOptions, RtResult, Streamed, io_err};
 use crate::supervise::{ChildSpec, Ended, supervise};
 use crate::sys;
@@ -70,7 +70,9 @@ pub struct Capture<'a, 'b> {
 /// being the `ringsync` executable the nodes run as (`ringsync node …`). `stop` ends the
 /// run early. With `capture`, every node keeps the frames it sends ([`crate::frames`]) and
 /// the capture's sink is handed them all in time order once the nodes are done (the
-/// result's `streamed` says so, and how many the nodes' queues dropped).
+/// result's `streamed` says so, and how many the nodes' queues dropped). `observers` watch
+/// the run as it goes, from what the nodes write as they run ([`crate::node::Live`],
+/// merged by [`live_merge`]); none: the nodes write nothing.
 pub fn run_processes(
     text: &str,
     origin: &str,
@@ -78,6 +80,7 @@ pub fn run_processes(
     program: &Path,
     stop: &AtomicBool,
     capture: Option<Capture<'_, '_>>,
+    observers: Vec<Box<dyn Observer>>,
 ) -> Result<RtResult, RtError> {
     let scenario = Scenario::from_toml(text, origin)?;
     if let Some(what) = unsupported(&scenario, opts) {
@@ -151,8 +154,10 @@ pub fn run_processes(
             program: program.to_path_buf(),
             args,
             env: Vec::new(),
+            stdout: None,
         }
     };
+    let mut observers = Some(observers).filter(|o| !o.is_empty());
     // With `--cpu N`, one CPU for every node (claimed here, for the whole run): a frame's hop
     // is then a wake-up on the same CPU, not a cross-CPU one. Not the default: a second
     // broken link is misjudged on one CPU (docs/runtime.md, "One process per node").
@@ -194,8 +199,27 @@ pub fn run_processes(
         let mut plan = node_plan(text, origin, opts, links.clone(), epoch)?;
         plan.cpu = cpu.as_ref().map(|c| c.cpu());
         plan.capture_dir = frames_dir.as_ref().map(|d| d.0.clone());
+        plan.live = observers.is_some();
         crate::node::write_plan(&plan, &plan_path)?;
-        let children: Vec<ChildSpec> = (1..=n).chain([0]).map(child).collect();
+        let mut children: Vec<ChildSpec> = (1..=n).chain([0]).map(child).collect();
+        // A live view: every node's standard output into one merge that tells the
+        // observers (handed back for another attempt when the start-up is refused).
+        let merger = match observers.take() {
+            Some(obs) => {
+                let (tx, rx) = std::sync::mpsc::channel();
+                for (c, i) in children.iter_mut().zip((1..=n).chain([0])) {
+                    c.stdout = Some((i, tx.clone()));
+                }
+                let merge = move || live_merge(&rx, obs, n, t_cyc);
+                Some(
+                    std::thread::Builder::new()
+                        .name("rt-live-merge".into())
+                        .spawn(merge)
+                        .map_err(io_err("starting the live view's merge"))?,
+                )
+            }
+            None => None,
+        };
         say(&format!(
             "starting {} node processes; start-up phase {:.0} ms, then {} cycles of {:.1} µs",
             n + 1,
@@ -299,6 +323,11 @@ pub fn run_processes(
             }
             _ => None,
         };
+        // Every child is gone, and with them the last senders of the live view's lines:
+        // the merge has told the observers all.
+        if let Some(m) = merger {
+            observers = m.join().ok();
+        }
         let sup = sup.map_err(io_err("starting the node processes"))?;
         // The master found the measured ring too slow for the cycle: a host that held the
         // nodes off their CPUs while the probes went round makes the round trips' p99 a host
@@ -476,6 +505,7 @@ pub fn node_plan(
                 at_ns: f.at.as_ns(),
                 until_ns: f.at.as_ns() + f.down_for.as_ns(),
             }),
+        live: false,
     };
     // Checks the links and the slave taken out against the ring.
     let n = plan.spec()?.axes();
@@ -631,6 +661,148 @@ pub fn gather(
         detection_cycles,
         streamed: Streamed::default(),
     })
+}
+
+/// Cycles a node may be ahead of one that has not told a cycle's start before the merge
+/// hands that cycle over without it (a node that stopped, or a slow pipe).
+const LIVE_LAG: i64 = 8;
+
+/// One cycle of a live view being put together from the nodes' lines.
+struct LiveCycle {
+    probes: Vec<AxisProbe>,
+    told: Vec<bool>,
+    views: Vec<Option<NodeView>>,
+    timing: Option<(i64, bool)>,
+}
+
+/// Tells `observers` what the `n` + 1 nodes of a ring with a live view write (`lines`: the
+/// node's index and one [`Live`] line), as one process tells its observers: cycle k (of
+/// `t_cyc` ns) once every node has told its start (the master's desired positions, each
+/// slave's own axis), then its timing and the nodes' views; the other events as they come.
+/// A cycle some node has not told is handed over once another node is [`LIVE_LAG`] cycles
+/// on, with that node's last axis state and view. Returns the observers when the lines end.
+pub fn live_merge(
+    lines: &std::sync::mpsc::Receiver<(usize, String)>,
+    mut observers: Vec<Box<dyn Observer>>,
+    n: usize,
+    t_cyc: i64,
+) -> Vec<Box<dyn Observer>> {
+    let mut cycles: BTreeMap<i64, LiveCycle> = BTreeMap::new();
+    let mut next = 0i64;
+    let mut newest = -1i64;
+    let mut last_probe = vec![AxisProbe::AT_REST; n];
+    let mut last_view = vec![NodeView::default(); n + 1];
+    let fresh = || LiveCycle {
+        probes: vec![AxisProbe::AT_REST; n],
+        told: vec![false; n + 1],
+        views: vec![None; n + 1],
+        timing: None,
+    };
+    let mut hand_over = |observers: &mut [Box<dyn Observer>], k: i64, c: LiveCycle| {
+        let mut probes = c.probes;
+        for (i, p) in probes.iter_mut().enumerate() {
+            if c.told[i + 1] {
+                last_probe[i] = *p;
+            } else {
+                // Not told: the axis as last told, under this cycle's desired position.
+                *p = AxisProbe {
+                    x_d: p.x_d,
+                    ..last_probe[i]
+                };
+            }
+        }
+        for (v, last) in c.views.iter().zip(last_view.iter_mut()) {
+            if let Some(v) = v {
+                *last = *v;
+            }
+        }
+        let stopping = last_view[0].stopping;
+        let views: Vec<NodeView> = last_view
+            .iter()
+            .enumerate()
+            .map(|(i, v)| {
+                if i == 0 {
+                    *v
+                } else {
+                    v.with_master_stopping(stopping)
+                }
+            })
+            .collect();
+        let t = k as f64 * t_cyc as f64 * 1e-9;
+        for o in observers.iter_mut() {
+            o.cycle(k, t, &probes);
+            if let Some((late, stalled)) = c.timing {
+                o.timing(k, late, stalled);
+            }
+            o.node_views(k, &views);
+        }
+    };
+    for (node, line) in lines.iter() {
+        let Ok(live) = serde_json::from_str::<Live>(&line) else {
+            continue;
+        };
+        if node > n {
+            continue;
+        }
+        match live {
+            Live::Tap(Tapped {
+                ev: Tap::Cycle { k, probes },
+                ..
+            }) => {
+                if k < next {
+                    continue;
+                }
+                let c = cycles.entry(k).or_insert_with(fresh);
+                if node == 0 {
+                    for (a, m) in c.probes.iter_mut().zip(&probes) {
+                        a.x_d = m.x_d;
+                    }
+                } else if let (Some(a), Some(s)) = (c.probes.get_mut(node - 1), probes.first()) {
+                    *a = AxisProbe { x_d: a.x_d, ..*s };
+                }
+                c.told[node] = true;
+                newest = newest.max(k);
+            }
+            Live::Tap(Tapped { ev, .. }) => {
+                for o in observers.iter_mut() {
+                    match &ev {
+                        Tap::Cycle { .. } => {}
+                        Tap::Computed { k, record } => o.computed(*k, record),
+                        Tap::Applied { axis, t, u } => o.applied(*axis, *t, *u),
+                        Tap::Fault(f) => o.fault(f),
+                        Tap::Monitor(m) => o.monitor(m),
+                        Tap::Ring(c) => o.ring(c),
+                    }
+                }
+            }
+            Live::View { k, view } if k >= next => {
+                cycles.entry(k).or_insert_with(fresh).views[node] = Some(view);
+            }
+            Live::Timing {
+                k,
+                lateness_ns,
+                stalled,
+            } if k >= next => {
+                cycles.entry(k).or_insert_with(fresh).timing = Some((lateness_ns, stalled));
+            }
+            Live::View { .. } | Live::Timing { .. } => {}
+        }
+        // Hand over, in order, every cycle all nodes have told, and one left behind.
+        while let Some(c) = cycles.get(&next) {
+            if !c.told.iter().all(|t| *t) && newest < next + LIVE_LAG {
+                break;
+            }
+            if let Some(c) = cycles.remove(&next) {
+                hand_over(&mut observers, next, c);
+            }
+            next += 1;
+        }
+    }
+    // The lines have ended: what is left, in order.
+    for (k, c) in std::mem::take(&mut cycles) {
+        hand_over(&mut observers, k, c);
+    }
+    observers
 }
 
 /// Where the ring of node processes broke at a group stop at `t` [s], from what each node

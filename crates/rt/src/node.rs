@@ -23,7 +23,8 @@
 use std::io;
 use std::net::{SocketAddr, UdpSocket};
 use std::path::Path;
-use std::sync::atomic::{AtomicBool, AtomicI64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicI64, AtomicU64, Ordering};
+use std::sync::mpsc::{SyncSender, sync_channel};
 use std::sync::{Arc, Mutex};
 
 use serde::{Deserialize, Serialize};
@@ -31,7 +32,7 @@ use serde::{Deserialize, Serialize};
 use ringsync_model::Spec;
 use ringsync_model::devices::Devices;
 use ringsync_model::monitor::MonitorEvent;
-use ringsync_model::observer::Observer;
+use ringsync_model::observer::{NodeView, Observer};
 use ringsync_model::oscillator::Oscillator;
 use ringsync_model::record::{AxisProbe, FaultEvent};
 use ringsync_model::result::RingChange;
@@ -39,8 +40,8 @@ use ringsync_model::scenario::LinkBreak;
 use ringsync_model::scenario::Scenario;
 use ringsync_model::spec::timestamp_tolerance;
 use ringsync_proto::node::{
-    CalibrationConfig, CalibrationState, Calibrator, CycleRecord, FrameOutcome, MasterCounters,
-    Port as MasterPort, Slave, SlaveCounters, WireFrame,
+    CalibrationConfig, CalibrationState, Calibrator, CycleRecord, FrameOutcome, Master,
+    MasterCounters, Port as MasterPort, Slave, SlaveCounters, WireFrame,
 };
 use ringsync_proto::{Duration, Instant};
 
@@ -140,6 +141,85 @@ pub struct NodePlan {
     /// would send on it then (on veth the launcher takes the link down itself).
     #[serde(default)]
     pub flap: Option<NodeFlap>,
+    /// Every node writes what it sees on its standard output as the run goes ([`Live`],
+    /// one JSON line each), for a live view (`--scope`).
+    #[serde(default)]
+    pub live: bool,
+}
+
+/// What a node of a ring with a live view ([`NodePlan::live`]) writes on its standard
+/// output as the run goes, one JSON line each.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Live {
+    /// One of its events, as its record keeps it.
+    Tap(Tapped),
+    /// Its counters and state at cycle `k`'s start.
+    View {
+        /// Cycle index.
+        k: i64,
+        /// The node's view.
+        view: NodeView,
+    },
+    /// (The master) how late its loop started cycle `k` [ns], and whether the host
+    /// stalled it then.
+    Timing {
+        /// Cycle index.
+        k: i64,
+        /// Lateness [ns].
+        lateness_ns: i64,
+        /// A host stall.
+        stalled: bool,
+    },
+}
+
+/// Messages a node's live feed holds before it drops one (its writer thread is behind).
+const LIVE_QUEUE: usize = 8192;
+
+/// A node's live feed ([`NodePlan::live`]): messages go through a bounded queue to a
+/// writer thread at the normal priority (a full queue drops and counts, never blocks the
+/// loop).
+#[derive(Clone)]
+struct LiveTx {
+    tx: SyncSender<Live>,
+    dropped: Arc<AtomicU64>,
+}
+
+impl LiveTx {
+    /// Starts the writer thread on standard output.
+    fn start() -> io::Result<(LiveTx, std::thread::JoinHandle<()>)> {
+        let (tx, rx) = sync_channel::<Live>(LIVE_QUEUE);
+        let writer = std::thread::Builder::new()
+            .name("rt-live".into())
+            .spawn(move || {
+                use std::io::Write as _;
+                let mut w = io::BufWriter::new(io::stdout().lock());
+                while let Ok(m) = rx.recv() {
+                    for m in std::iter::once(m).chain(rx.try_iter()) {
+                        if serde_json::to_writer(&mut w, &m).is_err() || w.write_all(b"\n").is_err()
+                        {
+                            return;
+                        }
+                    }
+                    if w.flush().is_err() {
+                        return;
+                    }
+                }
+            })?;
+        Ok((
+            LiveTx {
+                tx,
+                dropped: Arc::new(AtomicU64::new(0)),
+            },
+            writer,
+        ))
+    }
+
+    fn send(&self, m: Live) {
+        if self.tx.try_send(m).is_err() {
+            self.dropped.fetch_add(1, Ordering::Relaxed);
+        }
+    }
 }
 
 /// A link flap a node carries out itself (UDP, [`NodePlan::flap`]).
@@ -310,6 +390,9 @@ pub struct NodeRecord {
     /// frames among them).
     #[serde(default)]
     pub unread_at_end: (u64, u64),
+    /// Messages of its live feed dropped ([`NodePlan::live`]: the writer was behind).
+    #[serde(default)]
+    pub live_dropped: u64,
 }
 
 /// An observer that keeps the events of one node.
@@ -318,13 +401,18 @@ struct Tapper {
     axis: Option<usize>,
     now: Arc<AtomicI64>,
     events: Arc<Mutex<Vec<Tapped>>>,
+    live: Option<LiveTx>,
 }
 
 impl Tapper {
     fn push(&self, ev: Tap) {
         let t = self.now.load(Ordering::Relaxed);
+        let e = Tapped { t, ev };
+        if let Some(l) = &self.live {
+            l.send(Live::Tap(e.clone()));
+        }
         if let Ok(mut v) = self.events.lock() {
-            v.push(Tapped { t, ev });
+            v.push(e);
         }
     }
 }
@@ -362,6 +450,20 @@ impl Observer for Tapper {
         if self.axis.is_none() {
             self.push(Tap::Ring(*change));
         }
+    }
+    fn nodes(&mut self, k: i64, master: &Master, slaves: &[Slave]) {
+        // This node alone: the others of its `Devices` are not the ring's.
+        let Some(l) = &self.live else {
+            return;
+        };
+        let view = match self.axis {
+            None => NodeView::of_master(master),
+            Some(i) => match slaves.get(i) {
+                Some(s) => NodeView::of_slave(s, k),
+                None => return,
+            },
+        };
+        l.send(Live::View { k, view });
     }
 }
 
@@ -471,22 +573,35 @@ pub fn run_node(plan: &NodePlan, node: usize, stop: &AtomicBool) -> Result<NodeR
 struct TapHandle {
     now: Arc<AtomicI64>,
     events: Arc<Mutex<Vec<Tapped>>>,
+    live: Option<LiveTx>,
 }
 
-fn tap(dev: &mut Devices, axis: Option<usize>) -> TapHandle {
+fn tap(dev: &mut Devices, axis: Option<usize>, live: Option<LiveTx>) -> TapHandle {
     let t = TapHandle {
         now: Arc::new(AtomicI64::new(0)),
         events: Arc::new(Mutex::new(Vec::new())),
+        live,
     };
     dev.observe(Box::new(Tapper {
         axis,
         now: t.now.clone(),
         events: t.events.clone(),
+        live: t.live.clone(),
     }));
     t
 }
 
 impl TapHandle {
+    /// (The master) cycle `k`'s start, `lateness_ns` late, for the live feed.
+    fn timing(&self, k: i64, lateness_ns: i64, stalled: bool) {
+        if let Some(l) = &self.live {
+            l.send(Live::Timing {
+                k,
+                lateness_ns,
+                stalled,
+            });
+        }
+    }
     fn at(&self, t: i64) {
         self.now.store(t, Ordering::Relaxed);
     }
@@ -582,7 +697,8 @@ fn run_master(
     let cycles = spec.scenario.duration.0.as_ns() / t_cyc;
     let end = cycles * t_cyc;
     let mut dev = Devices::new(spec, cycles, false)?;
-    let tap = tap(&mut dev, None);
+    let live = start_live(plan)?;
+    let tap = tap(&mut dev, None, live.as_ref().map(|l| l.0.clone()));
     let mut log = TimingLog::new(cycles);
     let (mut k, mut probe_k) = (0i64, 0i64);
     let spin = plan.spin_ns;
@@ -699,6 +815,7 @@ fn run_master(
                 let c = dev.master.counters();
                 let stall = clock.take_stall();
                 let late = log.cycle_start(k, now, m, c.lumped_lost + c.commands_lost, stall);
+                tap.timing(k, late, stall >= crate::timing::STALL);
                 clock.note_stall(late);
                 k += 1;
             }
@@ -746,6 +863,8 @@ fn run_master(
     rec.timing = Some(log.finish(&counters));
     rec.master = Some(counters);
     rec.events = tap.take();
+    drop((tap, dev));
+    rec.live_dropped = end_live(live);
     Ok(())
 }
 
@@ -820,6 +939,7 @@ fn run_slave(
     // 2. The run: the same node, running, with the delay it took (a fresh `Slave` of the
     //    devices, configured with it).
     let mut dev = Devices::new(spec, cycles, false)?;
+    let live = start_live(plan)?;
     // The runtime's clock servo, with its outlier limit at least twice this slave's path:
     // a software stamp here carries a process wake-up per hop (tens of µs each on this
     // machine), and with the one-process limit of 50 µs most syncs of the far slaves were
@@ -832,7 +952,7 @@ fn run_slave(
     for sl in &mut dev.slaves {
         sl.clock_mut().set_filter(filter);
     }
-    let tap = tap(&mut dev, Some(i));
+    let tap = tap(&mut dev, Some(i), live.as_ref().map(|l| l.0.clone()));
     let mut pending: Vec<(i64, Vec<u8>)> = Vec::new();
     let mut probe_k = 0i64;
     let mut probed = 0i64;
@@ -1023,7 +1143,34 @@ fn run_slave(
     [rec.broken_dropped, rec.flap_dropped] = dropped;
     rec.receive_errors = receive_errors;
     rec.events = tap.take();
+    drop((tap, dev));
+    rec.live_dropped = end_live(live);
     Ok(())
+}
+
+/// A node's live feed when its plan asks for one ([`NodePlan::live`]): the sender, and
+/// the writer thread to join at the end ([`end_live`]).
+type LiveFeed = Option<(LiveTx, std::thread::JoinHandle<()>)>;
+
+fn start_live(plan: &NodePlan) -> Result<LiveFeed, RtError> {
+    if !plan.live {
+        return Ok(None);
+    }
+    LiveTx::start()
+        .map(Some)
+        .map_err(io_err("starting the node's live feed"))
+}
+
+/// Ends a live feed once every other sender is gone (the node's devices and tap dropped):
+/// its writer has written what the queue held. Returns the messages it dropped.
+fn end_live(live: LiveFeed) -> u64 {
+    let Some((l, writer)) = live else {
+        return 0;
+    };
+    let dropped = l.dropped.load(Ordering::Relaxed);
+    drop(l);
+    let _ = writer.join();
+    dropped
 }
 
 /// The next frame waiting on `port` from one direction (`back`: frames coming backward

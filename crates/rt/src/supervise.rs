@@ -59,8 +59,12 @@ const MAX_LINE: usize = 4096;
 /// that left its process group) holds a pipe longer; its tail is then what arrived.
 const DRAIN: Duration = Duration::from_secs(1);
 
+/// Where a child's standard output goes, line by line, when not to the launcher's:
+/// each line with the child's index.
+pub type LineSink = std::sync::mpsc::Sender<(usize, String)>;
+
 /// One child to start: the program, its arguments, and a name for messages.
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone)]
 pub struct ChildSpec {
     /// The name in messages and in the prefix of its standard error's lines ("master",
     /// "slave 3").
@@ -71,6 +75,9 @@ pub struct ChildSpec {
     pub args: Vec<OsString>,
     /// Variables added to (or replacing some of) the launcher's environment.
     pub env: Vec<(OsString, OsString)>,
+    /// Its standard output, line by line, to this sink with this index (a node's live
+    /// feed); `None`: the launcher's own standard output.
+    pub stdout: Option<(usize, LineSink)>,
 }
 
 impl ChildSpec {
@@ -85,6 +92,7 @@ impl ChildSpec {
             program: program.into(),
             args: args.into_iter().map(Into::into).collect(),
             env: Vec::new(),
+            stdout: None,
         }
     }
 }
@@ -384,7 +392,11 @@ impl Children {
         cmd.args(&spec.args)
             .envs(spec.env.iter().map(|(k, v)| (k, v)))
             .stdin(Stdio::null())
-            .stdout(Stdio::inherit())
+            .stdout(if spec.stdout.is_some() {
+                Stdio::piped()
+            } else {
+                Stdio::inherit()
+            })
             .stderr(Stdio::piped())
             .process_group(0);
         sys::die_with_parent(&mut cmd);
@@ -401,6 +413,28 @@ impl Children {
         let pid = child.id();
         let tail = Arc::new(Tail::default());
         let stderr = child.stderr.take();
+        if let (Some(out), Some((index, sink))) = (child.stdout.take(), spec.stdout.clone()) {
+            // Detached as the standard error's reader: it ends with the pipe.
+            let lines = move || {
+                for line in io::BufRead::lines(io::BufReader::new(out)) {
+                    let Ok(line) = line else { break };
+                    if sink.send((index, line)).is_err() {
+                        break;
+                    }
+                }
+            };
+            if let Err(e) = thread::Builder::new()
+                .name("rt-child-stdout".into())
+                .spawn(lines)
+            {
+                let _ = child.kill();
+                let _ = child.wait();
+                return Err(io::Error::new(
+                    e.kind(),
+                    format!("cannot read the standard output of {}: {e}", spec.name),
+                ));
+            }
+        }
         self.list.push(Running {
             name: spec.name.clone(),
             pid,

@@ -11,9 +11,9 @@ use std::sync::mpsc::{Receiver, SyncSender, TrySendError, sync_channel};
 use std::time::Instant;
 
 use ringsync::layers::model::monitor::MonitorEvent;
+use ringsync::layers::model::observer::NodeView;
 use ringsync::layers::model::result::RingChange;
-use ringsync::layers::proto::node::{Master, MonitorKind, Slave};
-use ringsync::layers::wire::Status;
+use ringsync::layers::proto::node::MonitorKind;
 use ringsync::{AxisProbe, FaultEvent, FaultStep, Observer};
 
 use crate::ab::AbReport;
@@ -55,29 +55,7 @@ pub mod status {
 }
 
 /// Node states (the node block's `state` field).
-pub mod node_state {
-    /// Running.
-    pub const RUNNING: u32 = 0;
-    /// The group stop is under way.
-    pub const STOPPING: u32 = 1;
-    /// Braking on its own.
-    pub const BRAKING: u32 = 2;
-    /// Torque off.
-    pub const TORQUE_OFF: u32 = 3;
-    /// No lumped frame reached it for 2 cycles or more.
-    pub const SILENT: u32 = 4;
-    /// In its safe state after a fault.
-    pub const FAULT: u32 = 5;
-    /// Names, by code.
-    pub const NAMES: [&str; 6] = [
-        "running",
-        "stopping",
-        "braking",
-        "torque off",
-        "silent",
-        "fault",
-    ];
-}
+pub use ringsync::layers::model::observer::node_state;
 
 /// One cycle as the scope sees it.
 #[derive(Debug, Clone, Copy)]
@@ -286,65 +264,38 @@ impl Observer for ScopeObserver {
         }
     }
 
-    fn nodes(&mut self, _k: i64, master: &Master, slaves: &[Slave]) {
+    fn node_views(&mut self, _k: i64, views: &[NodeView]) {
         let r = &mut self.row;
-        let mc = master.counters();
-        let stopping = master.is_stopping();
         let sat = |v: u64| u32::try_from(v).unwrap_or(u32::MAX);
-        r.nodes[..NODE_FIELDS].copy_from_slice(&[
-            sat(mc.frames_sent),
-            sat(mc.rejected.total()),
-            sat(mc.retries),
-            sat(mc.lumped_lost + mc.commands_lost),
-            if stopping {
-                node_state::STOPPING
-            } else {
-                node_state::RUNNING
-            },
-        ]);
-        let k = master.cycle();
-        for (i, sl) in slaves.iter().take(MAX_AXES).enumerate() {
-            let c = sl.counters();
-            let st = sl.status();
-            let silent = sl.last_lumped_cycle().is_none_or(|l| l + 2 < k) && k >= 2;
-            let state = if st.contains(Status::FAULT) {
-                node_state::FAULT
-            } else if sl.torque_off() {
-                node_state::TORQUE_OFF
-            } else if st.contains(Status::BRAKING) {
-                node_state::BRAKING
-            } else if silent {
-                node_state::SILENT
-            } else if stopping || st.contains(Status::STOPPING) {
-                node_state::STOPPING
-            } else {
-                node_state::RUNNING
-            };
-            let at = (i + 1) * NODE_FIELDS;
+        for (i, v) in views.iter().take(MAX_NODES).enumerate() {
+            let at = i * NODE_FIELDS;
+            let [a, b, c, d] = v.counters;
             r.nodes[at..at + NODE_FIELDS].copy_from_slice(&[
-                sat(c.syncs + c.commands),
-                sat(c.rejected.total()),
-                sat(c.duplicates),
-                sat(u64::try_from(k).unwrap_or(0).saturating_sub(c.syncs)),
-                state,
+                sat(a),
+                sat(b),
+                sat(c),
+                sat(d),
+                v.state,
             ]);
-            if i < self.n {
-                let bits = &mut self.status[i];
-                let keep = status::IN_SYNC
-                    | status::SYNC_WARNING
-                    | status::SYNC_TRIP
-                    | status::FOLLOWING_WARNING
-                    | status::FOLLOWING_TRIP;
-                *bits &= keep;
-                for (on, b) in [
-                    (stopping, status::STOPPING),
-                    (sl.torque_off(), status::TORQUE_OFF),
-                    (st.contains(Status::BRAKING), status::BRAKING),
-                    (st.contains(Status::WATCHDOG), status::WATCHDOG),
-                ] {
-                    if on {
-                        *bits |= b;
-                    }
+            // Slave i's axis (i − 1): its drive's flags beside the monitors' bits.
+            if i == 0 || i > self.n {
+                continue;
+            }
+            let bits = &mut self.status[i - 1];
+            let keep = status::IN_SYNC
+                | status::SYNC_WARNING
+                | status::SYNC_TRIP
+                | status::FOLLOWING_WARNING
+                | status::FOLLOWING_TRIP;
+            *bits &= keep;
+            for (on, b) in [
+                (v.stopping, status::STOPPING),
+                (v.torque_off, status::TORQUE_OFF),
+                (v.braking, status::BRAKING),
+                (v.watchdog, status::WATCHDOG),
+            ] {
+                if on {
+                    *bits |= b;
                 }
             }
         }
