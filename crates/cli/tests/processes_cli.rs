@@ -925,8 +925,8 @@ fn a_ring_too_slow_for_its_cycle_is_measured_three_times_then_refused() {
 struct Told {
     /// Each cycle handed over: its index and its axes' probes.
     cycles: Vec<(i64, Vec<ringsync::AxisProbe>)>,
-    /// Each cycle's node views: how many, and slave 1's frames taken.
-    views: Vec<(usize, u64)>,
+    /// Each cycle's node views: how many, the master's frames sent, slave 1's frames taken.
+    views: Vec<(usize, u64, u64)>,
     timings: usize,
     computed: usize,
 }
@@ -952,8 +952,8 @@ impl ringsync::Observer for Keep {
     }
     fn node_views(&mut self, _k: i64, views: &[ringsync::layers::model::observer::NodeView]) {
         if let Ok(mut t) = self.0.lock() {
-            let slave1 = views.get(1).map_or(0, |v| v.counters[0]);
-            t.views.push((views.len(), slave1));
+            let frames = |i: usize| views.get(i).map_or(0, |v| v.counters[0]);
+            t.views.push((views.len(), frames(0), frames(1)));
         }
     }
 }
@@ -1021,12 +1021,11 @@ fn a_live_view_of_a_ring_of_node_processes_is_told_every_cycle_in_order() {
             .any(|(_, a)| a.iter().all(|p| p.x_d != 0.0 && p.clock_error_ns != 0.0))
     );
     assert_eq!(t.views.len(), 40);
-    assert!(t.views.iter().all(|(n, _)| *n == 5), "{:?}", t.views);
-    assert!(
-        t.views.last().is_some_and(|(_, f)| *f >= 40),
-        "{:?}",
-        t.views
-    );
+    assert!(t.views.iter().all(|(n, ..)| *n == 5), "{:?}", t.views);
+    // Each cycle's own views: the master sends frames every cycle.
+    let fresh = t.views.windows(2).filter(|w| w[1].1 > w[0].1).count();
+    assert!(fresh >= 36, "{:?}", t.views);
+    assert!(t.views.last().is_some_and(|v| v.2 >= 40), "{:?}", t.views);
     assert_eq!(t.timings, 40);
     assert!(t.computed >= 30, "{} law runs", t.computed);
 }

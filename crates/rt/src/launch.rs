@@ -670,15 +670,26 @@ const LIVE_LAG: i64 = 8;
 /// One cycle of a live view being put together from the nodes' lines.
 struct LiveCycle {
     probes: Vec<AxisProbe>,
+    /// Each node's axis state (its cycle start) told.
     told: Vec<bool>,
     views: Vec<Option<NodeView>>,
     timing: Option<(i64, bool)>,
 }
 
+impl LiveCycle {
+    /// Every node has told its cycle start and its view, and the master its lateness.
+    fn complete(&self) -> bool {
+        self.timing.is_some()
+            && self.told.iter().all(|t| *t)
+            && self.views.iter().all(Option::is_some)
+    }
+}
+
 /// Tells `observers` what the `n` + 1 nodes of a ring with a live view write (`lines`: the
 /// node's index and one [`Live`] line), as one process tells its observers: cycle k (of
-/// `t_cyc` ns) once every node has told its start (the master's desired positions, each
-/// slave's own axis), then its timing and the nodes' views; the other events as they come.
+/// `t_cyc` ns) once every node has told its start and its view (the master's desired
+/// positions, each slave's own axis) and the master its lateness, then that timing and the
+/// nodes' views; the other events as they come.
 /// A cycle some node has not told is handed over once another node is [`LIVE_LAG`] cycles
 /// on, with that node's last axis state and view. Returns the observers when the lines end.
 pub fn live_merge(
@@ -789,7 +800,7 @@ pub fn live_merge(
         }
         // Hand over, in order, every cycle all nodes have told, and one left behind.
         while let Some(c) = cycles.get(&next) {
-            if !c.told.iter().all(|t| *t) && newest < next + LIVE_LAG {
+            if !c.complete() && newest < next + LIVE_LAG {
                 break;
             }
             if let Some(c) = cycles.remove(&next) {
