@@ -1007,4 +1007,109 @@ mod tests {
         assert_eq!(run.summary.track_rmse, 0.0);
         assert_eq!(run.summary.samples, 3);
     }
+
+    /// What a live view is told, in order: ("c", k, axis 0's x, x_d), ("t", k, lateness),
+    /// ("v", k, views).
+    #[derive(Default)]
+    struct Seen(std::sync::Arc<std::sync::Mutex<Vec<(char, i64, f64, f64)>>>);
+
+    impl Observer for Seen {
+        fn cycle(&mut self, k: i64, _t: f64, axes: &[AxisProbe]) {
+            if let Ok(mut v) = self.0.lock() {
+                v.push(('c', k, axes[1].x, axes[1].x_d));
+            }
+        }
+        fn timing(&mut self, k: i64, lateness_ns: i64, _stalled: bool) {
+            if let Ok(mut v) = self.0.lock() {
+                v.push(('t', k, lateness_ns as f64, 0.0));
+            }
+        }
+        fn node_views(&mut self, k: i64, views: &[NodeView]) {
+            if let Ok(mut v) = self.0.lock() {
+                v.push(('v', k, views.len() as f64, views[2].counters[0] as f64));
+            }
+        }
+    }
+
+    /// The nodes' lines come in any order across nodes: a cycle is told once its every
+    /// part is in (slave 2's axis, the master's desired position and lateness, each view),
+    /// in cycle order; a node that stops telling (slave 2 after cycle 1) holds its cycles
+    /// back only until another is [`LIVE_LAG`] cycles on, then shows as it last was; what
+    /// is left is told when the lines end.
+    #[test]
+    fn a_live_view_is_told_each_cycle_whole_and_in_order() {
+        let n = 2;
+        let line = |l: &Live| serde_json::to_string(l).expect("json");
+        let cycle = |node: usize, k: i64| {
+            let probes = if node == 0 {
+                vec![probe(0.0, 10.0 + k as f64); n]
+            } else {
+                vec![probe(k as f64 + node as f64 / 10.0, 0.0)]
+            };
+            line(&Live::Tap(Tapped {
+                t: k,
+                ev: Tap::Cycle { k, probes },
+            }))
+        };
+        let view = |k: i64, frames: u64| {
+            line(&Live::View {
+                k,
+                view: NodeView {
+                    counters: [frames, 0, 0, 0],
+                    ..NodeView::default()
+                },
+            })
+        };
+        let timing = |k: i64| {
+            line(&Live::Timing {
+                k,
+                lateness_ns: 100 + k,
+                stalled: false,
+            })
+        };
+        let (tx, rx) = std::sync::mpsc::channel();
+        let send = |node: usize, l: String| tx.send((node, l)).expect("send");
+        // Cycle 0: slave 2 first, the master's lateness last.
+        send(2, cycle(2, 0));
+        send(2, view(0, 1));
+        send(1, cycle(1, 0));
+        send(0, cycle(0, 0));
+        send(1, view(0, 1));
+        send(0, view(0, 1));
+        send(9, cycle(2, 0)); // a node that is not on the ring: ignored
+        send(0, "not a line of ours".into());
+        send(0, timing(0));
+        // Cycles 1..=12: slave 2 tells cycle 1 only.
+        for k in 1..=12 {
+            for node in 0..=n {
+                if node == 2 && k > 1 {
+                    continue;
+                }
+                send(node, cycle(node, k));
+                send(node, view(k, 1 + k as u64));
+            }
+            send(0, timing(k));
+        }
+        drop(tx);
+        let seen = Seen::default();
+        let got = seen.0.clone();
+        let observers: Vec<Box<dyn Observer>> = vec![Box::new(seen)];
+        let back = live_merge(&rx, observers, n, 1_000_000);
+        assert_eq!(back.len(), 1);
+        let got = got.lock().expect("lock").clone();
+        // Three calls a cycle, cycles 0..=12 in order.
+        let ks: Vec<i64> = got.iter().map(|g| g.1).collect();
+        let want: Vec<i64> = (0..=12).flat_map(|k| [k, k, k]).collect();
+        assert_eq!(ks, want);
+        // Cycle 0 whole: slave 2's axis and the master's desired position, its lateness.
+        assert_eq!(got[0], ('c', 0, 0.2, 10.0));
+        assert_eq!(got[1], ('t', 0, 100.0, 0.0));
+        assert_eq!(got[2], ('v', 0, 3.0, 1.0));
+        // After cycle 1, slave 2 as it last was (x 1.2, 2 frames), under each cycle's x_d.
+        for k in 2..=12 {
+            let at = 3 * k as usize;
+            assert_eq!(got[at], ('c', k, 1.2, 10.0 + k as f64));
+            assert_eq!(got[at + 2], ('v', k, 3.0, 2.0));
+        }
+    }
 }
