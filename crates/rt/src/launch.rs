@@ -1010,8 +1010,9 @@ mod tests {
 
     /// What a live view is told, in order: ("c", k, axis 0's x, x_d), ("t", k, lateness),
     /// ("v", k, views).
+    type Calls = std::sync::Arc<std::sync::Mutex<Vec<(char, i64, f64, f64)>>>;
     #[derive(Default)]
-    struct Seen(std::sync::Arc<std::sync::Mutex<Vec<(char, i64, f64, f64)>>>);
+    struct Seen(Calls);
 
     impl Observer for Seen {
         fn cycle(&mut self, k: i64, _t: f64, axes: &[AxisProbe]) {
