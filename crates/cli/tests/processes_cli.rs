@@ -1028,4 +1028,5 @@ fn a_live_view_of_a_ring_of_node_processes_is_told_every_cycle_in_order() {
     assert!(t.views.last().is_some_and(|v| v.2 >= 40), "{:?}", t.views);
     assert_eq!(t.timings, 40);
     assert!(t.computed >= 30, "{} law runs", t.computed);
+    assert_eq!(r.streamed.live_dropped, 0);
 }

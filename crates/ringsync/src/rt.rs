@@ -378,6 +378,7 @@ pub fn rt_summary(
             "capture": r.streamed.capture,
             "trace_rows_dropped": r.streamed.trace_rows_dropped,
             "frames_dropped": r.streamed.frames_dropped,
+            "live_dropped": r.streamed.live_dropped,
         },
         "runtime_assumptions": ASSUMPTIONS.iter().copied().chain([r.stamps.assumption()]).collect::<Vec<_>>(),
     });

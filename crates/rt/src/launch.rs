@@ -659,7 +659,10 @@ pub fn gather(
         interrupted,
         killed,
         detection_cycles,
-        streamed: Streamed::default(),
+        streamed: Streamed {
+            live_dropped: records.iter().map(|r| r.live_dropped).sum(),
+            ..Streamed::default()
+        },
     })
 }
 

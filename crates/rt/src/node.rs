@@ -177,8 +177,8 @@ pub enum Live {
 const LIVE_QUEUE: usize = 8192;
 
 /// A node's live feed ([`NodePlan::live`]): messages go through a bounded queue to a
-/// writer thread at the normal priority (a full queue drops and counts, never blocks the
-/// loop).
+/// writer thread at the normal priority, on any CPU (a full queue drops and counts, never
+/// blocks the loop).
 #[derive(Clone)]
 struct LiveTx {
     tx: SyncSender<Live>,
@@ -193,6 +193,8 @@ impl LiveTx {
             .name("rt-live".into())
             .spawn(move || {
                 use std::io::Write as _;
+                // Started from the loop's thread: not its priority, nor its CPU.
+                sys::set_normal();
                 let mut w = io::BufWriter::new(io::stdout().lock());
                 while let Ok(m) = rx.recv() {
                     for m in std::iter::once(m).chain(rx.try_iter()) {

@@ -238,6 +238,9 @@ pub struct Streamed {
     pub trace_rows_dropped: u64,
     /// Captured frames the sink could not take.
     pub frames_dropped: u64,
+    /// Messages of a ring of node processes' live view that the nodes' queues dropped
+    /// (`--scope`: a node's writer fell behind).
+    pub live_dropped: u64,
 }
 
 /// Frames injected onto the ring.
@@ -633,6 +636,7 @@ pub fn run_streamed(
             capture: capture_streamed,
             trace_rows_dropped: dropped.0,
             frames_dropped: dropped.1,
+            live_dropped: 0,
         },
     })
 }
