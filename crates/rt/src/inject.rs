@@ -373,6 +373,20 @@ pub fn spawn_flap(
 
 /// A broken link (`faults.break_link`, `--break-link`) on a veth ring: link `b.link` (from
 /// node `b.link` − 1) goes down at `b.at` and, if it heals, up again at `b.heal`; returns
+/// How long a flap's link was down [ns], once its thread (`flapper`, [`spawn_flap`]) has
+/// ended; a flap that could not happen is said as a warning (whether or not the run is
+/// verbose: the run lacks the fault it was asked for).
+pub fn flap_down_ns(flapper: Option<JoinHandle<Result<Option<i64>, String>>>) -> Option<i64> {
+    match flapper.map(|h| h.join()) {
+        Some(Ok(Ok(d))) => d,
+        Some(Ok(Err(why))) => {
+            eprintln!("ringsync rt: warning: the link flap did not happen: {why}");
+            None
+        }
+        _ => None,
+    }
+}
+
 /// The line a run says of a link flap: `link A → B goes down at T s for D ms`, and over
 /// UDP (`veth` false) who drops what it would carry.
 pub fn flap_line(f: &Flap, n: usize, veth: bool) -> String {

@@ -315,14 +315,7 @@ pub fn run_processes(
         if let Some(h) = injector {
             let _ = h.join();
         }
-        let flap_down_ns = match flapper.map(|h| h.join()) {
-            Some(Ok(Ok(d))) => d,
-            Some(Ok(Err(why))) => {
-                eprintln!("ringsync rt: warning: the link flap did not happen: {why}");
-                None
-            }
-            _ => None,
-        };
+        let flap_down_ns = crate::inject::flap_down_ns(flapper);
         // Every child is gone, and with them the last senders of the live view's lines:
         // the merge has told the observers all.
         if let Some(m) = merger {

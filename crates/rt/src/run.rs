@@ -568,15 +568,7 @@ pub fn run_streamed(
     if let Some(h) = injector {
         let _ = h.join();
     }
-    let flap_down_ns = match flapper.map(|h| h.join()) {
-        Some(Ok(Ok(d))) => d,
-        Some(Ok(Err(why))) => {
-            // Said whether or not verbose: the run lacks the fault it was asked for.
-            eprintln!("ringsync rt: warning: the link flap did not happen: {why}");
-            None
-        }
-        _ => None,
-    };
+    let flap_down_ns = crate::inject::flap_down_ns(flapper);
     for h in breakers {
         if let Ok(Err(why)) = h.join() {
             eprintln!("ringsync rt: warning: a link break did not happen: {why}");

@@ -327,15 +327,21 @@ pub fn packet_socket(ifname: &str, ethertype: u16) -> io::Result<OwnedFd> {
     if r != 0 {
         return Err(io::Error::last_os_error());
     }
-    let one: libc::c_int = 1;
     // PACKET_IGNORE_OUTGOING (Linux 4.20): without it the socket also reads what it sends.
     const PACKET_IGNORE_OUTGOING: libc::c_int = 23;
+    set_flag(fd.as_raw_fd(), libc::SOL_PACKET, PACKET_IGNORE_OUTGOING)?;
+    Ok(fd)
+}
+
+/// Sets socket option `name` of `level` on `fd` to 1.
+fn set_flag(fd: RawFd, level: libc::c_int, name: libc::c_int) -> io::Result<()> {
+    let one: libc::c_int = 1;
     // SAFETY: the option value is a valid c_int and its size is passed.
     let r = unsafe {
         libc::setsockopt(
-            fd.as_raw_fd(),
-            libc::SOL_PACKET,
-            PACKET_IGNORE_OUTGOING,
+            fd,
+            level,
+            name,
             (&one as *const libc::c_int).cast(),
             std::mem::size_of::<libc::c_int>() as libc::socklen_t,
         )
@@ -343,7 +349,7 @@ pub fn packet_socket(ifname: &str, ethertype: u16) -> io::Result<OwnedFd> {
     if r != 0 {
         return Err(io::Error::last_os_error());
     }
-    Ok(fd)
+    Ok(())
 }
 
 /// Sends `buf` on a bound socket.
@@ -378,21 +384,7 @@ const SO_TIMESTAMPNS: libc::c_int = 35;
 /// Asks the kernel to stamp every datagram `fd` receives with the instant it reached the
 /// socket (`SO_TIMESTAMPNS`: `CLOCK_REALTIME`, read by [`recv_stamped`]).
 pub fn enable_rx_stamps(fd: RawFd) -> io::Result<()> {
-    let one: libc::c_int = 1;
-    // SAFETY: the option value is a valid c_int and its size is passed.
-    let r = unsafe {
-        libc::setsockopt(
-            fd,
-            libc::SOL_SOCKET,
-            SO_TIMESTAMPNS,
-            (&one as *const libc::c_int).cast(),
-            std::mem::size_of::<libc::c_int>() as libc::socklen_t,
-        )
-    };
-    if r != 0 {
-        return Err(io::Error::last_os_error());
-    }
-    Ok(())
+    set_flag(fd, libc::SOL_SOCKET, SO_TIMESTAMPNS)
 }
 
 /// Receives one datagram into `buf` without blocking, as [`recv`], with the kernel's
