@@ -61,10 +61,11 @@ pub struct PlanArgs {
     /// W instead of the scenario's faults.watchdog_cycles.
     #[arg(long, value_name = "W")]
     watchdog_cycles: Option<u32>,
-    /// How the nodes stamp the frames they receive: software (the instant a node's loop
-    /// reads the frame) or kernel (the instant it reached the node's socket: on a real
-    /// network card, when its driver took it in).
-    #[arg(long, value_name = "KIND", default_value = "software")]
+    /// How the nodes stamp the frames they receive: kernel (the instant it reached the
+    /// node's socket: on a real network card, when its driver took it in; every relay then
+    /// adds the time it held a sync lumped frame to its stamp) or software (the instant a
+    /// node's loop reads the frame).
+    #[arg(long, value_name = "KIND", default_value = "kernel")]
     stamps: ringsync::Stamps,
     /// Set a scenario key (repeatable), as `ringsync sim --set`.
     #[arg(long = "set", value_name = "KEY=VALUE", value_parser = key_value)]

@@ -101,25 +101,32 @@ pub struct RtArgs {
     #[arg(long, value_parser = duration)]
     sample_lead: Option<Duration>,
     /// How the slaves stamp the lumped frames their clocks follow: phy (the default in one
-    /// process: the instant the master sent the frame plus the slave's path delay, as the
-    /// scenario's hardware stamps on links of constant delay), software (the instant the
-    /// loop reads the frame, the default with --processes: the clocks then see the loop's
-    /// forwarding jitter, µs to tens of µs) or kernel (--processes only: the instant the
-    /// frame reached the node's socket, before its process woke).
+    /// loop, --in-process: the instant the master sent the frame plus the slave's path
+    /// delay, as the scenario's hardware stamps on links of constant delay), kernel (node
+    /// processes only, their default: the instant the frame reached the node's socket,
+    /// before its process woke; every relay adds the time it held a sync lumped frame to
+    /// its stamp, as a PTP transparent clock) or software (the instant the loop reads the
+    /// frame: the clocks then see the loop's forwarding jitter, µs to tens of µs).
     #[arg(long, value_name = "KIND")]
     stamps: Option<ringsync::Stamps>,
     /// Skip the simulator's prediction for the same scenario.
     #[arg(long)]
     no_sim_prediction: bool,
     /// Run every node as its own process (`ringsync node master`, `ringsync node slave
-    /// --index I`), each with its own port, clock and loop, and gather their results (the
-    /// nodes stamp frames in software, or --stamps kernel, unpinned; --cpu N pins them all to CPU N,
-    /// which the 1 ms cycle needs on a small host; --pcap: every frame each node sent,
-    /// merged once they are done; --kill-slave: that slave's process goes silent; frames
-    /// injected by the launcher; --scope: fed by what the nodes write as they run). A
-    /// broken link (--break-link) on veth only.
-    #[arg(long)]
+    /// --index I`), each with its own port, clock and loop, and gather their results: the
+    /// default on veth; on UDP this option asks for it. The nodes stamp frames with the
+    /// kernel's receive time (--stamps), all pinned to one CPU (the last no other run has
+    /// claimed, --cpu N, or --no-pin), which a 1 ms cycle needs on a small host; --pcap:
+    /// every frame each node sent, merged once they are done; --kill-slave: that slave's
+    /// process goes silent; frames injected by the launcher; --scope: fed by what the nodes
+    /// write as they run. A broken link (--break-link) on veth only.
+    #[arg(long, conflicts_with = "in_process")]
     processes: bool,
+    /// Run every node in one loop of this process (the default on UDP): the slaves can
+    /// then stamp frames as PHYs would (--stamps phy, its default), which no ring of
+    /// processes can emulate.
+    #[arg(long)]
+    in_process: bool,
     #[cfg(feature = "scope")]
     #[command(flatten)]
     scope: crate::scope_opt::RtScopeArgs,
@@ -195,17 +202,22 @@ pub(crate) fn rt(args: &RtArgs) -> Result<Outcome, CliError> {
     };
     // Before the ring runs: an --out that cannot be written fails now, not after the run.
     let mut dir = out_dir(&args.out, &loaded)?;
-    let stamps = match (args.processes, args.stamps) {
+    // A ring of node processes: the default on veth, asked for on UDP.
+    let processes = match args.transport {
+        Transport::Veth => !args.in_process,
+        Transport::Udp => args.processes,
+    };
+    let stamps = match (processes, args.stamps) {
         (false, None) => ringsync::Stamps::Phy,
-        (true, None) => ringsync::Stamps::Software,
+        (true, None) => ringsync::Stamps::Kernel,
         (false, Some(ringsync::Stamps::Kernel)) => {
             return Err(CliError::Usage(
-                "--stamps kernel is for a ring of node processes: add --processes, or use phy or software".into(),
+                "--stamps kernel is for a ring of node processes (the default on veth; --processes on UDP): use phy or software in one loop".into(),
             ));
         }
         (true, Some(ringsync::Stamps::Phy)) => {
             return Err(CliError::Usage(
-                "--stamps phy needs the one loop that sees the master's sends: with --processes use kernel or software".into(),
+                "--stamps phy needs the one loop that sees the master's sends (--in-process): a ring of node processes stamps kernel or software".into(),
             ));
         }
         (_, Some(s)) => s,
@@ -246,7 +258,7 @@ pub(crate) fn rt(args: &RtArgs) -> Result<Outcome, CliError> {
     let observers = Vec::new();
     // trace.csv and the capture are written as the run goes: its memory does not grow
     // with its duration.
-    let r = if args.processes {
+    let r = if processes {
         ringsync::rt::run_rt_processes(
             &mut dir,
             &loaded,

@@ -96,8 +96,8 @@ fn wait_clean(pid: u32) -> Vec<String> {
     }
 }
 
-/// Starts `ringsync rt --processes` on the slow ring (`extra` arguments after the rest)
-/// and reads its standard error until a line contains `until`: the child, and the lines
+/// Starts a ring of node processes on the slow ring (`ringsync rt`: the default on veth,
+/// `--processes` on UDP; `extra` arguments after the rest) and reads its standard error until a line contains `until`: the child, and the lines
 /// read so far (the rest are read by a thread into the returned handle).
 fn start(
     transport: &str,
@@ -112,10 +112,9 @@ fn start(
     std::thread::JoinHandle<Vec<String>>,
 ) {
     let mut child = Command::new(env!("CARGO_BIN_EXE_ringsync"))
+        .args(["rt", scenario().to_str().expect("utf-8 path")])
+        .args((transport == "udp").then_some("--processes"))
         .args([
-            "rt",
-            scenario().to_str().expect("utf-8 path"),
-            "--processes",
             "--transport",
             transport,
             "--watchdog-cycles",
@@ -163,14 +162,14 @@ fn runs_as_one(transport: &str) {
     ));
     // W = 1: a slave's watchdog expires one cycle after the master's last command; no
     // such step may come after the run's end.
-    // On veth every node on one CPU (`--cpu`, the last this process may use); on UDP
-    // unpinned, the default.
+    // On veth every node on one CPU named (`--cpu`, the last this process may use) and the
+    // kernel's receive stamps named; on UDP the defaults, which are the same (the last CPU
+    // no other run holds).
     let last = allowed_cpus(std::process::id())
         .rsplit([',', '-'])
         .next()
         .unwrap_or("0")
         .to_string();
-    // On veth, the kernel's receive stamps too (software stamps, the default, on UDP).
     let pin: Vec<&str> = if transport == "veth" {
         vec!["--cpu", &last, "--stamps", "kernel"]
     } else {
@@ -234,13 +233,23 @@ fn runs_as_one(transport: &str) {
         taken.iter().all(|d| d.as_i64().is_some_and(|d| d > 0)),
         "{taken:?}"
     );
-    let stamps = if transport == "veth" {
-        "kernel"
-    } else {
-        "software"
-    };
-    assert_eq!(summary["stamps"], stamps);
+    assert_eq!(summary["stamps"], "kernel");
     assert_eq!(summary["cycles_planned"], 40);
+    // Kernel stamps: every relay transparent (it adds the time it held a sync lumped frame
+    // to its stamp), each frame corrected once by each of the 5 nodes it leaves, none left
+    // uncorrected; the slaves' clocks took their links alone, i·L.
+    let relays = &summary["relays"];
+    let corrected = relays["lumped_frames_corrected"]
+        .as_u64()
+        .expect("corrected");
+    assert_eq!(relays["lumped_frames_uncorrected"], 0, "{relays}");
+    assert_eq!(relays["transparent"], true);
+    assert!((5..=5 * 40).contains(&corrected), "{relays}");
+    let l = taken[0].as_i64().unwrap_or(0);
+    for (i, d) in taken.iter().enumerate() {
+        let k = i as i64 + 1;
+        assert!((d.as_i64().unwrap_or(0) - k * l).abs() <= k, "{taken:?}");
+    }
     let realtime = summary["realtime"].to_string();
     match realtime.find("pinned to CPU ") {
         // Claimed: every node on that one CPU, and no slave said otherwise.
@@ -256,13 +265,11 @@ fn runs_as_one(transport: &str) {
             assert!(cpus.iter().all(|c| *c == cpu), "{cpus:?} {realtime}");
             assert!(!realtime.contains("slave "), "{realtime}");
         }
-        // Unpinned (UDP here), or the CPU asked for held by another run (then the launcher
-        // said so): the nodes run where this process may.
+        // The CPU asked for held by another run (then the launcher said so): the nodes run
+        // where this process may.
         None => {
-            if transport == "veth" {
-                assert!(err.contains("warning:"), "{err}");
-                assert!(realtime.contains("nodes: warning:"), "{realtime}");
-            }
+            assert!(err.contains("warning:"), "{err}");
+            assert!(realtime.contains("nodes: warning:"), "{realtime}");
             let mine = allowed_cpus(std::process::id());
             assert!(cpus.iter().all(|c| *c == mine), "{cpus:?} {mine}");
         }

@@ -43,6 +43,7 @@ fn a_signal_ends_a_veth_run_cleanly(signal: &str) {
         "paper-2015",
         "--transport",
         "veth",
+        "--in-process",
         "--duration",
         "30s",
         "--no-sim-prediction",
@@ -98,6 +99,7 @@ fn a_run_that_fails_after_building_the_ring_removes_it() {
         "paper-2015",
         "--transport",
         "veth",
+        "--in-process",
         "--cycle",
         "300us",
         "--out",
@@ -166,7 +168,24 @@ fn bad_rt_options_give_one_line_and_exit_2() {
         ),
         (
             [&base[..], &["--processes", "--stamps", "phy"]].concat(),
-            "with --processes use kernel or software",
+            "a ring of node processes stamps kernel or software",
+        ),
+        (
+            vec![
+                "rt",
+                "paper-2015",
+                "--transport",
+                "veth",
+                "--stamps",
+                "phy",
+                "--out",
+                "/tmp/x",
+            ],
+            "needs the one loop that sees the master's sends (--in-process)",
+        ),
+        (
+            [&base[..], &["--processes", "--in-process"]].concat(),
+            "cannot be used with",
         ),
         (
             [&base[..], &["--stamps", "ptp"]].concat(),

@@ -287,8 +287,19 @@ pub fn start_up_line(r: &RunResult) -> Option<String> {
     } else {
         format!("the planner's wire figures {} µs", us(&c.planned))
     };
+    // Behind transparent relays (a ring of node processes with kernel stamps) the slaves'
+    // clocks take their links alone: the relays put their residences in the stamps.
+    let took: Vec<ringsync_proto::Duration> = c.taken.iter().flatten().copied().collect();
+    let took = if took.len() == m.path.len() && took != m.path {
+        format!(
+            "; the slaves' clocks took their links alone, {} µs (transparent relays)",
+            us(&took)
+        )
+    } else {
+        String::new()
+    };
     Some(format!(
-        "path delays measured by the nodes ({} of {} probes back, every link taken equal): {} µs; {against}",
+        "path delays measured by the nodes ({} of {} probes back, every link taken equal): {} µs; {against}{took}",
         m.probes_back,
         m.probes,
         us(&m.path)

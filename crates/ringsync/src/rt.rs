@@ -364,6 +364,11 @@ pub fn rt_summary(
             "valid_unread_at_end": r.injected.valid_unread,
             "forged": r.injected.forged.iter().map(|(f, n)| json!({"kind": f.name(), "frames": n})).collect::<Vec<_>>(),
         },
+        "relays": {
+            "transparent": r.stamps == ringsync_rt::Stamps::Kernel,
+            "lumped_frames_corrected": t.relay_corrected,
+            "lumped_frames_uncorrected": t.relay_uncorrected,
+        },
         "flap": {
             "dropped_by_runtime_udp": t.flap_dropped,
             "link_down_ms": t.flap_down_ns.map(|d| d as f64 * 1e-6),
@@ -442,9 +447,17 @@ pub fn rt_text(r: &RtResult, prediction: Option<RtPrediction>) -> String {
         }
     }
     text += &format!(
-        "\n  residual clock error ≤ {:.0} ns ({} stamps)",
+        "\n  residual clock error ≤ {:.0} ns ({} stamps{})",
         r.run.clock_error_max_ns.iter().copied().fold(0.0, f64::max),
-        r.stamps.name()
+        r.stamps.name(),
+        if t.relay_corrected + t.relay_uncorrected > 0 {
+            format!(
+                ", transparent relays: {} lumped frames corrected, {} not",
+                t.relay_corrected, t.relay_uncorrected
+            )
+        } else {
+            String::new()
+        }
     );
     if r.injected.garbage > 0 {
         text += &format!(

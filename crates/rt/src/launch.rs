@@ -158,12 +158,13 @@ pub fn run_processes(
         }
     };
     let mut observers = Some(observers).filter(|o| !o.is_empty());
-    // With `--cpu N`, one CPU for every node (claimed here, for the whole run): a frame's hop
-    // is then a wake-up on the same CPU, not a cross-CPU one. Not the default: a second
-    // broken link is misjudged on one CPU (docs/runtime.md, "One process per node").
+    // One CPU for every node (claimed here, for the whole run; `--cpu N`, or by default
+    // the last no other run holds): a frame's hop is then a wake-up on the same CPU, not a
+    // cross-CPU one, which a 1 ms cycle needs on a small host (docs/runtime.md, "One
+    // process per node"). `--no-pin`: unpinned.
     let pin = match opts.realtime.cpu {
-        crate::realtime::Pin::Cpu(c) => crate::realtime::Pin::Cpu(c),
-        _ => crate::realtime::Pin::Off,
+        crate::realtime::Pin::Shared(_) => crate::realtime::Pin::Off,
+        p => p,
     };
     let (cpu, line) = crate::realtime::claim_cpu(pin);
     let mut pin_warning = None;
@@ -629,6 +630,8 @@ pub fn gather(
             broken_dropped: records.iter().map(|r| r.broken_dropped).sum(),
             receive_errors: records.iter().map(|r| r.receive_errors).sum(),
             flap_dropped: records.iter().map(|r| r.flap_dropped).sum(),
+            relay_corrected: records.iter().map(|r| r.relay_corrected).sum(),
+            relay_uncorrected: records.iter().map(|r| r.relay_uncorrected).sum(),
             ..master.timing.clone().unwrap_or_default()
         },
         schedule: master.schedule.unwrap_or(crate::schedule::Schedule {

@@ -395,6 +395,48 @@ pub struct NodeRecord {
     /// Messages of its live feed dropped ([`NodePlan::live`]: the writer was behind).
     #[serde(default)]
     pub live_dropped: u64,
+    /// Sync lumped frames whose stamp this node moved on by the time it held them
+    /// (transparent relays, kernel stamps: [`Relay`]).
+    #[serde(default)]
+    pub relay_corrected: u64,
+    /// Sync lumped frames it passed on uncorrected: they failed their checks (the next
+    /// node refuses them) or their stamp would have overflowed.
+    #[serde(default)]
+    pub relay_uncorrected: u64,
+}
+
+/// A node's relays of sync lumped frames. Transparent (kernel stamps): as a PTP
+/// transparent clock corrects a sync message for its time in the bridge, the node adds to
+/// the frame's stamp how long it held it, from its kernel receive stamp to just before the
+/// send, on its own clock (the master: from the instant it stamped the frame); the slaves'
+/// path delays are then their links alone, and a relay's wake-up and forwarding time, which
+/// varies from frame to frame by tens of µs on a busy host, no longer reaches the clocks
+/// after it. Plain (software stamps): frames pass as they came.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct Relay {
+    transparent: bool,
+}
+
+impl Relay {
+    /// The relays of a node stamping with `stamps`.
+    pub(crate) fn of(stamps: Stamps) -> Relay {
+        Relay {
+            transparent: stamps.in_processes() == Stamps::Kernel,
+        }
+    }
+
+    /// Adds `held_ns` to `pdu`'s stamp if it is a sync lumped frame and the relays are
+    /// transparent, counting in `rec`; anything else passes as it is.
+    fn pass(self, pdu: &mut [u8], held_ns: i64, rec: &mut NodeRecord) {
+        if !self.transparent {
+            return;
+        }
+        match ringsync_wire::add_to_master_time(pdu, held_ns.max(0) as u64) {
+            Ok(ringsync_wire::Relayed::Corrected) => rec.relay_corrected += 1,
+            Ok(ringsync_wire::Relayed::NotLumped) => {}
+            Ok(ringsync_wire::Relayed::Overflow) | Err(_) => rec.relay_uncorrected += 1,
+        }
+    }
 }
 
 /// An observer that keeps the events of one node.
@@ -632,6 +674,8 @@ fn run_master(
     let origin = -plan.start_up_ns;
     let mut cfg = CalibrationConfig::new(n, t_cyc, u32::try_from(plan.probes).unwrap_or(u32::MAX));
     cfg.interval = t_cyc.min(PROBE_INTERVAL);
+    let relay = Relay::of(plan.stamps);
+    cfg.transparent = relay.transparent;
     let mut cal = Calibrator::new(cfg, Instant::from_ns(origin));
     sys::sleep_until(plan.epoch_ns + origin);
     // The last instant the master acted at: frames are stamped no earlier.
@@ -686,6 +730,9 @@ fn run_master(
     let calibration = Calibration::of(m, taken, 0, 0, spec, took);
     let response_timeout = Duration::from_ns(plan.response_timeout_ns);
     let sched = schedule::apply(spec, &calibration, response_timeout)?;
+    if relay.transparent {
+        spec.master.transparent_link = Some(calibration.start_up.measured.link);
+    }
     rec.calibration = Some(calibration);
     rec.schedule = Some(sched);
     if clock.now() >= 0 {
@@ -805,7 +852,9 @@ fn run_master(
                 if news.computed {
                     log.computed(t);
                 }
-                for f in out.drain(..) {
+                for mut f in out.drain(..) {
+                    // The master stamped the frame at `t`: it held it until now.
+                    relay.pass(&mut f.1, clock.now() - t, rec);
                     send(port, &mut log, t, f);
                 }
             }
@@ -829,7 +878,8 @@ fn run_master(
             if news.computed {
                 log.computed(now);
             }
-            for f in out.drain(..) {
+            for mut f in out.drain(..) {
+                relay.pass(&mut f.1, clock.now() - now, rec);
                 send(port, &mut log, now, f);
             }
             continue;
@@ -942,6 +992,7 @@ fn run_slave(
     //    devices, configured with it).
     let mut dev = Devices::new(spec, cycles, false)?;
     let live = start_live(plan)?;
+    let relay = Relay::of(plan.stamps);
     // The runtime's clock servo, with its outlier limit at least twice this slave's path:
     // a software stamp here carries a process wake-up per hop (tens of µs each on this
     // machine), and with the one-process limit of 50 µs most syncs of the far slaves were
@@ -992,7 +1043,9 @@ fn run_slave(
         }
     };
     let mut dropped = [0u64; 2];
-    // The timers due by `now`, in time order: latches, cycle probes, responses.
+    // The timers due by `now`, in time order: latches, cycle probes, responses, each at its
+    // own instant, the latest of which `floor` keeps (a frame that reached the node after
+    // it keeps its stamp, however long the timers took to run).
     // (A slave taken out sends nothing: `dead`.)
     let timers = |dev: &mut Devices,
                   pending: &mut Vec<(i64, Vec<u8>)>,
@@ -1000,7 +1053,8 @@ fn run_slave(
                   port: &mut dyn Port,
                   dropped: &mut [u64; 2],
                   now: i64,
-                  dead: bool| loop {
+                  dead: bool,
+                  floor: &mut i64| loop {
         // Nothing of the axis happens from the run's end on (the master has stopped): the
         // tail only carries the last frames round.
         // (A slave taken out no longer latches: its node has stopped; its axis goes on
@@ -1023,6 +1077,7 @@ fn run_slave(
             return first;
         }
         tap.at(first);
+        *floor = (*floor).max(first);
         // On a tie the cycle's probe first, as in the in-process loop.
         if first == probe {
             dev.probe(*probe_k, probe);
@@ -1083,12 +1138,17 @@ fn run_slave(
                     &mut dropped,
                     t,
                     dead,
+                    &mut floor,
                 );
                 rec.frames_read += 1;
                 rec.last_read_s = Some(t as f64 * 1e-9);
                 let bytes = &mut buf[..len];
+                // How long this slave held a frame it passes on, by its own clock.
+                let held =
+                    |clock: &mut Clock| osc.local(clock.now()).as_ns() - osc.local(t).as_ns();
                 if back && !links.behind_down(t) {
                     // A relay backward: the link behind is whole.
+                    relay.pass(bytes, held(clock), rec);
                     let _ = port.send_back(bytes);
                     continue;
                 }
@@ -1102,6 +1162,7 @@ fn run_slave(
                     pending.push((at, f.into_bytes()))
                 });
                 if outcome == FrameOutcome::Forward {
+                    relay.pass(bytes, held(clock), rec);
                     forward(port, t, bytes, &mut dropped);
                 }
             }
@@ -1115,8 +1176,8 @@ fn run_slave(
             &mut dropped,
             now,
             dead,
+            &mut floor,
         );
-        floor = now;
         if probe_k != probed {
             // Once a cycle: a system clock set during the run moves the kernel's stamps.
             probed = probe_k;

@@ -111,9 +111,11 @@ pub enum Stamps {
     /// Software stamps: the instant the loop read the frame. The clocks then follow the
     /// master to within the loop's forwarding jitter (µs to tens of µs here).
     Software,
-    /// Kernel receive stamps (a ring of node processes, `--processes`): the instant the
-    /// frame reached the node's socket (`SO_TIMESTAMPNS`), before the node's process woke
-    /// to read it. The clocks then see the senders' jitter, not the receivers' wake-ups.
+    /// Kernel receive stamps (a ring of node processes, the default there): the instant
+    /// the frame reached the node's socket (`SO_TIMESTAMPNS`), before the node's process
+    /// woke to read it; and every relay transparent (it adds the time it held a sync
+    /// lumped frame to its stamp). The clocks then see the links' jitter, not the nodes'
+    /// wake-ups and forwarding.
     Kernel,
 }
 
@@ -131,12 +133,12 @@ impl Stamps {
     }
 
     /// These stamps as a ring of node processes takes them: no process sees another's
-    /// sends, so emulated PHY stamps (the in-process default) become software stamps, the
+    /// sends, so emulated PHY stamps (the in-process default) become kernel stamps, the
     /// processes' default.
     pub fn in_processes(self) -> Stamps {
         match self {
-            Stamps::Phy | Stamps::Software => Stamps::Software,
-            Stamps::Kernel => Stamps::Kernel,
+            Stamps::Phy | Stamps::Kernel => Stamps::Kernel,
+            Stamps::Software => Stamps::Software,
         }
     }
 
@@ -150,7 +152,7 @@ impl Stamps {
                 "slaves stamp the lumped frames they receive in software, at the instant the loop reads them (--stamps software): the clocks see the loop's forwarding jitter"
             }
             Stamps::Kernel => {
-                "every node stamps the frames it receives with the kernel's receive time (--stamps kernel, SO_TIMESTAMPNS): the instant the frame reached its socket, before the node's process woke to read it; the clocks see the senders' jitter, not the receivers' wake-ups"
+                "every node stamps the frames it receives with the kernel's receive time (--stamps kernel, SO_TIMESTAMPNS): the instant the frame reached its socket, before the node's process woke to read it; and every relay is transparent (as a PTP transparent clock): it adds to a sync lumped frame's stamp how long it held the frame, from that receive stamp to just before its send, and the slaves' path delays are their links alone (every link taken equal); the clocks see the links' jitter (a send call's), not the nodes' wake-ups and forwarding"
             }
         }
     }

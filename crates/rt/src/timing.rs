@@ -40,6 +40,12 @@ pub struct Timing {
     /// Frames the runtime dropped on the link of a `--flap` over UDP while it was down
     /// (UDP has no link to take down: the loop drops what the link would carry).
     pub flap_dropped: u64,
+    /// Sync lumped frames whose stamp a transparent relay moved on by the time it held them
+    /// (kernel stamps, a ring of node processes), summed over the nodes.
+    pub relay_corrected: u64,
+    /// Sync lumped frames a transparent relay passed on uncorrected (they failed their
+    /// checks, or their stamp would have overflowed).
+    pub relay_uncorrected: u64,
     /// How long the flapped link was down [ns] (veth): from before the call that took it
     /// down to after the call that brought it up (microseconds more than asked).
     pub flap_down_ns: Option<i64>,

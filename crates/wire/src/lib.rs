@@ -67,7 +67,7 @@ pub use header::{CRC_LEN, Common, Flags, Frame, FrameKind, HEADER_LEN, Route, St
 pub use lumped::{
     DelayFrameRepr, DelayMarker, DelaySlot, DelaySlotView, FeedbackSlot, FeedbackSlotView,
     LumpedFrameRepr, LumpedOnlyFrameRepr, LumpedOnlySlot, LumpedOnlySlotView, LumpedPayload,
-    LumpedRepr, SlotCodec,
+    LumpedRepr, Relayed, SlotCodec, add_to_master_time,
 };
 pub use response::{RESPONSE_PDU_LEN, ResponsePayload, ResponseRepr};
 

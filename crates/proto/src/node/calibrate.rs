@@ -50,6 +50,11 @@ pub struct CalibrationConfig {
     pub closing_tries: u32,
     /// The cycle the ring will run: no delay may reach it.
     pub cycle: Duration,
+    /// The relays are transparent: each slave adds to a sync lumped frame's stamp the time
+    /// it held the frame (a ring of node processes with kernel stamps, whose relays are
+    /// processes that must wake), so each slave is sent its links alone, i·L, as its path
+    /// delay ([`Calibrator::clock_path`]); otherwise D_i, residences included.
+    pub transparent: bool,
 }
 
 impl CalibrationConfig {
@@ -62,6 +67,7 @@ impl CalibrationConfig {
             interval: cycle,
             closing_tries: 8,
             cycle,
+            transparent: false,
         }
     }
 }
@@ -227,6 +233,8 @@ pub struct Calibrator {
     /// The closing frame in flight: its sequence number and send time.
     closing: Option<(u16, Instant)>,
     measurement: Option<DelayMeasurement>,
+    /// What each slave is sent as its path delay (see [`Calibrator::clock_path`]).
+    clock_path: Vec<Duration>,
     out: Outbox,
     rejected: Rejections,
 }
@@ -257,6 +265,7 @@ impl Calibrator {
             acked: vec![false; n],
             closing: None,
             measurement: None,
+            clock_path: Vec::new(),
             out: Outbox::default(),
             rejected: Rejections::default(),
         }
@@ -274,6 +283,13 @@ impl Calibrator {
     /// closing).
     pub fn measurement(&self) -> Option<&DelayMeasurement> {
         self.measurement.as_ref()
+    }
+    /// The path delay each slave is sent and its clock takes, once the probes are done:
+    /// the measured D_i (`DelayMeasurement::path`), or with transparent relays
+    /// ([`CalibrationConfig::transparent`]) the links alone, i·L (the relays' residences
+    /// then come in each frame's stamp).
+    pub fn clock_path(&self) -> &[Duration] {
+        &self.clock_path
     }
     /// Frames refused, per reason.
     pub fn rejected(&self) -> Rejections {
@@ -305,7 +321,12 @@ impl Calibrator {
                 self.send_probe(now);
             }
             CalibrationState::Probing => match self.figures() {
-                Ok(m) => {
+                Ok((m, links)) => {
+                    self.clock_path = if self.cfg.transparent {
+                        links
+                    } else {
+                        m.path.clone()
+                    };
                     self.measurement = Some(m);
                     self.state = CalibrationState::Closing;
                     self.send_closing(now);
@@ -360,11 +381,11 @@ impl Calibrator {
     }
 
     fn send_closing(&mut self, now: Instant) {
-        let Some(m) = &self.measurement else {
+        if self.measurement.is_none() {
             return;
-        };
-        let slots = m
-            .path
+        }
+        let slots = self
+            .clock_path
             .iter()
             .map(|d| DelaySlot {
                 path_delay_ns: u32::try_from(d.as_ns()).unwrap_or(u32::MAX),
@@ -450,7 +471,8 @@ impl Calibrator {
     }
 
     /// The figures from the probes (see the module docs).
-    fn figures(&self) -> Result<DelayMeasurement, CalibrationError> {
+    /// The figures, and each slave's links alone (i·L).
+    fn figures(&self) -> Result<(DelayMeasurement, Vec<Duration>), CalibrationError> {
         let n = self.cfg.slaves;
         let mut links = Vec::new();
         for p in &self.sent {
@@ -487,6 +509,10 @@ impl Calibrator {
             .map(|r| median(&mut r.iter().map(|(_, ns)| *ns as f64).collect::<Vec<_>>()))
             .collect();
         let mut path = Vec::with_capacity(n);
+        // i·L: the path a slave's clock takes behind transparent relays.
+        let links_only = (1..=n)
+            .map(|i| Duration::from_ns((i as f64 * link).round() as i64))
+            .collect();
         let mut before = 0.0;
         for (i, r) in residence.iter().enumerate() {
             let d = Duration::from_ns(((i + 1) as f64 * link + before).round() as i64);
@@ -500,7 +526,7 @@ impl Calibrator {
             before += r;
         }
         let round_trips: Vec<Duration> = self.sent.iter().filter_map(|p| p.back).collect();
-        Ok(DelayMeasurement {
+        let m = DelayMeasurement {
             probes: self.sent.len() as u32,
             probes_back: round_trips.len() as u32,
             complete: links.len() as u32,
@@ -512,7 +538,8 @@ impl Calibrator {
                 .collect(),
             path,
             closing_sent: self.closing_sent,
-        })
+        };
+        Ok((m, links_only))
     }
 
     /// The next frame to send, as bytes.
@@ -585,6 +612,8 @@ mod tests {
         lose: Option<(u16, usize)>,
         /// A slave (1-based) that forwards nothing.
         dead: Option<usize>,
+        /// The master sends each slave its links alone (transparent relays).
+        transparent: bool,
     }
 
     impl Ring {
@@ -595,12 +624,15 @@ mod tests {
                 offset: (0..n).map(|i| 1_000_003 * (i as i64 + 1)).collect(),
                 lose: None,
                 dead: None,
+                transparent: false,
             }
         }
 
         fn run(&self, probes: u32) -> (Calibrator, Vec<Slave>) {
             let n = self.hold.len();
-            let mut cal = Calibrator::new(CalibrationConfig::new(n, CYCLE, probes), Instant::ZERO);
+            let mut cfg = CalibrationConfig::new(n, CYCLE, probes);
+            cfg.transparent = self.transparent;
+            let mut cal = Calibrator::new(cfg, Instant::ZERO);
             let mut slaves: Vec<Slave> = (1..=n)
                 .map(|a| Slave::calibrating(SlaveConfig::new(a as u16, CYCLE, Duration::ZERO)))
                 .collect();
@@ -652,8 +684,27 @@ mod tests {
                 assert_eq!(m.residence[i].as_ns(), ring.hold[i]);
                 assert_eq!(m.path[i].as_ns(), d, "slave {}", i + 1);
                 assert_eq!(s.path_delay(), Some(m.path[i]));
+                assert_eq!(cal.clock_path()[i], m.path[i]);
                 d += ring.hold[i];
             }
+        }
+    }
+
+    /// Behind transparent relays (each adds its residence to the stamp) a slave is sent its
+    /// links alone; the figures, residences included, are the same.
+    #[test]
+    fn behind_transparent_relays_each_slave_takes_its_links_alone() {
+        let mut ring = Ring::new(4, 1_260, 1_000);
+        ring.hold = vec![900, 1_100, 1_700, 300];
+        ring.transparent = true;
+        let (cal, slaves) = ring.run(16);
+        assert_eq!(cal.state(), &CalibrationState::Done);
+        let m = cal.measurement().expect("figures");
+        assert_eq!(m.path[3].as_ns(), 4 * 1_260 + 900 + 1_100 + 1_700);
+        for (i, s) in slaves.iter().enumerate() {
+            let links = Duration::from_ns(1_260 * (i as i64 + 1));
+            assert_eq!(cal.clock_path()[i], links, "slave {}", i + 1);
+            assert_eq!(s.path_delay(), Some(links), "slave {}", i + 1);
         }
     }
 

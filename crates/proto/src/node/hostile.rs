@@ -764,3 +764,66 @@ fn one_late_sync_frame_does_not_throw_a_clock_off() {
         assert_eq!(r.slaves[1].counters().relocks, 0);
     }
 }
+
+/// Relays that hold each sync lumped frame for a varying time (0-10 µs, as a process that
+/// must wake): when each adds the time it held the frame to the frame's stamp (a
+/// transparent relay, `ringsync_wire::add_to_master_time`) and the master expects it, every
+/// clock follows the master's within 100 ns; the same relays without the correction throw
+/// the far slaves' clocks µs off; and a master that does not expect the correction refuses
+/// its frames back.
+#[test]
+fn transparent_relays_keep_the_clocks_exact_through_varying_residences() {
+    let run = |correct: bool, expect: bool| {
+        let mut r = ring();
+        if expect {
+            let mut cfg = r.master.config().clone();
+            cfg.transparent_link = Some(Duration::from_ns(1_000));
+            r.master = Master::new(
+                cfg,
+                Box::new(super::testbed::PdMotion::new(
+                    4,
+                    15.12,
+                    1.0,
+                    super::testbed::RESOLUTION,
+                )),
+            );
+        }
+        let mut draw = 12_345u64;
+        r.tap = Some(Box::new(move |hop: &Hop, b: &mut Vec<u8>| {
+            if hop.from == 0 || !is_kind(b, FrameKind::Lumped) {
+                return Fate::Deliver;
+            }
+            draw = draw
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            let held = (draw >> 33) % 10_000;
+            if correct {
+                assert_eq!(
+                    ringsync_wire::add_to_master_time(b, held),
+                    Ok(ringsync_wire::Relayed::Corrected)
+                );
+            }
+            Fate::Delay { by: held as i64 }
+        }));
+        r.run_until(500 * MS + 300_000);
+        let errors: Vec<i64> = (1..=4).map(|i| clock_error(&r, i)).collect();
+        (r, errors)
+    };
+    let (r, errors) = run(true, true);
+    assert!(errors.iter().all(|e| e.abs() < 100), "{errors:?}");
+    assert_eq!(
+        r.master.counters().rejected.total(),
+        0,
+        "{:?}",
+        r.master.counters()
+    );
+    assert!(stops(&r).is_empty());
+    let (_, errors) = run(false, false);
+    assert!(errors[3].abs() > 5_000, "uncorrected: {errors:?}");
+    let (r, _) = run(true, false);
+    assert!(
+        r.master.counters().rejected.get(Reject::Unsolicited) >= 400,
+        "{:?}",
+        r.master.counters()
+    );
+}

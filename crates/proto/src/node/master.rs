@@ -88,6 +88,14 @@ pub struct MasterConfig {
     /// (from the P2P start) by the longer path's hops over the whole ring's, at least to the
     /// model's (the model's wire figures are not the real links').
     pub measured: bool,
+    /// The relays are transparent, on links of this delay L (a ring of node processes with
+    /// kernel stamps): every slave adds to a sync lumped frame's stamp the time it held the
+    /// frame, and the slaves' path delays are their links alone. A lumped frame may then
+    /// come back with its stamp later than sent, by up to a cycle; on a broken ring the
+    /// copy on port B is stamped ahead by the links alone, L·(n + 1 − 2j)
+    /// ([`BrokenRing::stamp_shift`] counts the residences too). `None`: stamps come back
+    /// as sent.
+    pub transparent_link: Option<Duration>,
 }
 
 /// The ring as the master sees it (ring redundancy, docs/planner.md "A broken link").
@@ -188,6 +196,7 @@ impl MasterConfig {
             timestamp_tolerance: Duration::from_us(50),
             ring: Some(RingModel::of(plan)),
             measured: false,
+            transparent_link: None,
         }
     }
 
@@ -1189,7 +1198,18 @@ impl Master {
             start += m;
         }
         let (j, slots) = j.ok_or(Reject::Unsolicited)?;
-        let echoes = |s: &SentLumped| s.sent && s.seq == seq && s.stamp == stamp;
+        // Transparent relays move the stamp on by their residences, within a cycle.
+        let moved = self
+            .cfg
+            .transparent_link
+            .map_or(0, |_| self.cfg.cycle.as_ns());
+        let echoes = |s: &SentLumped| {
+            s.sent
+                && s.seq == seq
+                && stamp
+                    .checked_sub(s.stamp)
+                    .is_some_and(|d| d <= moved.max(0) as u64)
+        };
         let (sent, port) = match (self.sent_lumped.get(j), self.sent_lumped_b.get(j)) {
             (Some(a), _) if echoes(a) => (a, Port::A),
             (_, Some(b)) if echoes(b) => (b, Port::B),
@@ -1492,6 +1512,13 @@ impl Master {
     /// The broken ring's timing on the links this master measured (see
     /// [`MasterConfig::measured`]); the model's as it is otherwise.
     fn on_real_links(&self, mut b: BrokenRing) -> BrokenRing {
+        if let Some(link) = self.cfg.transparent_link {
+            // The links alone; never before the copy's send (its stamp stays in its cycle,
+            // which a shift beyond the model's send delay would leave: those slaves then
+            // take the difference as a bias while the ring is broken).
+            let n = i64::from(b.side_a + b.side_b);
+            b.stamp_shift = (link * (n + 1 - 2 * i64::from(b.link))).max(-b.b_delay);
+        }
         if !self.cfg.measured {
             return b;
         }

@@ -363,3 +363,112 @@ impl<T: AsRef<[u8]> + AsMut<[u8]>> LumpedPayload<T> {
             .map(LumpedOnlySlotView::new_unchecked)
     }
 }
+
+/// What a transparent relay did to a frame it passes on ([`add_to_master_time`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Relayed {
+    /// A sync lumped frame (kind 1 or 4): its stamp moved on, its CRC filled again.
+    Corrected,
+    /// Another kind, which carries no stamp a slave follows: left as it was.
+    NotLumped,
+    /// The stamp plus the residence would pass the largest u64: left as it was (the
+    /// slaves further on refuse so far a stamp anyway).
+    Overflow,
+}
+
+/// A transparent relay, as a PTP transparent clock corrects a sync message for the time it
+/// spent in the bridge: adds `residence_ns` (how long the relay held the frame, first bit
+/// in to first bit out, on its own clock) to the master send timestamp of the sync lumped
+/// PDU `pdu` (header to CRC) and fills its CRC again, so that every slave after it sees
+/// the master's stamp plus the relays' residences, and a slave's path delay is its links
+/// alone. A frame that fails its checks (version, kind, flags, CRC, payload length) is
+/// left untouched and the error returned: a relay never makes a bad frame good.
+pub fn add_to_master_time(pdu: &mut [u8], residence_ns: u64) -> Result<Relayed> {
+    let mut frame = crate::Frame::new_checked(&mut pdu[..])?;
+    let kind = frame.check()?;
+    if !matches!(kind, FrameKind::Lumped | FrameKind::LumpedOnly) {
+        return Ok(Relayed::NotLumped);
+    }
+    let mut p = LumpedPayload::new_checked(frame.payload_mut(), kind)?;
+    let Some(stamp) = p.master_time_ns().checked_add(residence_ns) else {
+        return Ok(Relayed::Overflow);
+    };
+    p.set_master_time_ns(stamp);
+    frame.fill_crc();
+    Ok(Relayed::Corrected)
+}
+
+#[cfg(test)]
+mod relay_tests {
+    use super::*;
+    use crate::{Common, Pdu};
+    use alloc::vec;
+
+    fn lumped(stamp: u64) -> Vec<u8> {
+        let repr = LumpedRepr {
+            common: Common {
+                cycle: 7,
+                seq: 3,
+                ..Common::default()
+            },
+            master_time_ns: stamp,
+            first_slot: 0,
+            slots: vec![FeedbackSlot::default(); 2],
+        };
+        let pdu: Pdu = repr.into();
+        let mut b = vec![0u8; pdu.buffer_len()];
+        pdu.emit(&mut b).expect("emit");
+        b
+    }
+
+    /// The stamp moves on by the residence and the frame stays whole; everything else in it
+    /// is as it was.
+    #[test]
+    fn a_relay_adds_its_residence_to_the_stamp_and_keeps_the_frame_whole() {
+        let mut b = lumped(1_000_000);
+        let before = b.clone();
+        assert_eq!(add_to_master_time(&mut b, 6_900), Ok(Relayed::Corrected));
+        let f = crate::Frame::new_checked(&b[..]).expect("frame");
+        assert_eq!(f.check(), Ok(FrameKind::Lumped));
+        let p = LumpedPayload::new_checked(f.payload(), FrameKind::Lumped).expect("payload");
+        assert_eq!(p.master_time_ns(), 1_006_900);
+        let stamp = HEADER_LEN + field::MASTER_TIME.start..HEADER_LEN + field::MASTER_TIME.end;
+        let crc = b.len() - CRC_LEN..b.len();
+        for k in 0..b.len() {
+            if !stamp.contains(&k) && !crc.contains(&k) {
+                assert_eq!(b[k], before[k], "byte {k}");
+            }
+        }
+    }
+
+    /// A frame with a bad CRC stays bad (and untouched); a stamp that would wrap is left;
+    /// a frame of another kind is left.
+    #[test]
+    fn a_relay_never_mends_a_bad_frame_nor_wraps_a_stamp() {
+        let mut b = lumped(5);
+        b[HEADER_LEN + 1] ^= 0x10;
+        let bad = b.clone();
+        assert!(matches!(
+            add_to_master_time(&mut b, 100),
+            Err(Error::BadCrc { .. })
+        ));
+        assert_eq!(b, bad);
+        let mut b = lumped(u64::MAX - 10);
+        let kept = b.clone();
+        assert_eq!(add_to_master_time(&mut b, 11), Ok(Relayed::Overflow));
+        assert_eq!(b, kept);
+        assert_eq!(add_to_master_time(&mut b, 10), Ok(Relayed::Corrected));
+        let cmd = Pdu::Command(crate::CommandRepr {
+            common: Common::default(),
+            target: 1,
+            command_v: 0.5,
+            sample_time_ns: 0,
+        });
+        let mut c = vec![0u8; cmd.buffer_len()];
+        cmd.emit(&mut c).expect("emit");
+        let kept = c.clone();
+        assert_eq!(add_to_master_time(&mut c, 10), Ok(Relayed::NotLumped));
+        assert_eq!(c, kept);
+        assert!(add_to_master_time(&mut [0u8; 3], 10).is_err());
+    }
+}
