@@ -242,7 +242,7 @@ fn runs_as_one(transport: &str) {
     let corrected = relays["lumped_frames_corrected"]
         .as_u64()
         .expect("corrected");
-    assert_eq!(relays["lumped_frames_uncorrected"], 0, "{relays}");
+    assert_eq!(relays["frames_passed_untouched"], 0, "{relays}");
     assert_eq!(relays["transparent"], true);
     assert!((5..=5 * 40).contains(&corrected), "{relays}");
     let l = taken[0].as_i64().unwrap_or(0);

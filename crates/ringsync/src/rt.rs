@@ -367,7 +367,7 @@ pub fn rt_summary(
         "relays": {
             "transparent": r.stamps == ringsync_rt::Stamps::Kernel,
             "lumped_frames_corrected": t.relay_corrected,
-            "lumped_frames_uncorrected": t.relay_uncorrected,
+            "frames_passed_untouched": t.relay_uncorrected,
         },
         "flap": {
             "dropped_by_runtime_udp": t.flap_dropped,
@@ -452,7 +452,7 @@ pub fn rt_text(r: &RtResult, prediction: Option<RtPrediction>) -> String {
         r.stamps.name(),
         if t.relay_corrected + t.relay_uncorrected > 0 {
             format!(
-                ", transparent relays: {} lumped frames corrected, {} not",
+                ", transparent relays: {} lumped frames corrected, {} frames passed untouched",
                 t.relay_corrected, t.relay_uncorrected
             )
         } else {

@@ -399,8 +399,9 @@ pub struct NodeRecord {
     /// (transparent relays, kernel stamps: [`Relay`]).
     #[serde(default)]
     pub relay_corrected: u64,
-    /// Sync lumped frames it passed on uncorrected: they failed their checks (the next
-    /// node refuses them) or their stamp would have overflowed.
+    /// Frames it relayed without looking into them (backward on a broken ring) that failed
+    /// their checks (the next node refuses them), or lumped frames whose stamp would have
+    /// overflowed: passed on untouched.
     #[serde(default)]
     pub relay_uncorrected: u64,
 }

@@ -43,8 +43,8 @@ pub struct Timing {
     /// Sync lumped frames whose stamp a transparent relay moved on by the time it held them
     /// (kernel stamps, a ring of node processes), summed over the nodes.
     pub relay_corrected: u64,
-    /// Sync lumped frames a transparent relay passed on uncorrected (they failed their
-    /// checks, or their stamp would have overflowed).
+    /// Frames a transparent relay passed on untouched: relayed unread and failing their
+    /// checks, or lumped frames whose stamp would have overflowed.
     pub relay_uncorrected: u64,
     /// How long the flapped link was down [ns] (veth): from before the call that took it
     /// down to after the call that brought it up (microseconds more than asked).
