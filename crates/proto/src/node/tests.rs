@@ -221,3 +221,27 @@ fn a_frame_reflected_to_port_a_breaks_nothing() {
     assert_eq!(m.counters().ring_breaks, 0);
     assert!(m.record().fresh.iter().all(|f| *f), "{:?}", m.record());
 }
+
+/// With port A's link down the master reaches every slave from port B, its copy there
+/// stamped ahead by Δ. Behind transparent relays (each adds its hold to the stamp) Δ counts
+/// the links alone, L·(n + 1 − 2j); otherwise the model's hops and residences.
+#[test]
+fn behind_transparent_relays_a_broken_ring_shifts_the_port_b_stamp_by_the_links_alone() {
+    for link in [None, Some(Duration::from_ns(2_000))] {
+        let (master, _) = ring(4, Duration::ZERO);
+        let mut cfg = master.config().clone();
+        let model = cfg.ring.expect("a ring model");
+        cfg.transparent_link = link;
+        let mut m = Master::new(cfg, Box::new(PdMotion::new(4, 15.12, 1e9, RES)));
+        m.handle_link(Instant::ZERO, Port::A, false);
+        master_until(&mut m, &mut [], 3 * T_CYC);
+        assert_eq!(m.ring(), RingState::Broken { link: 1 });
+        let b = m.broken_ring().expect("broken");
+        // Link 1 broken: every slave on side B, n + 1 − 2j = 3.
+        let expected = match link {
+            Some(l) => l * 3,
+            None => (model.hop + model.residence) * 3,
+        };
+        assert_eq!(b.stamp_shift, expected, "{link:?}");
+    }
+}
