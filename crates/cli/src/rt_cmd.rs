@@ -141,11 +141,12 @@ pub struct RealtimeArgs {
     /// SCHED_FIFO priority of the loop (1-99); 0 keeps the normal scheduler.
     #[arg(long, default_value_t = 80, value_parser = clap::value_parser!(i32).range(0..=99))]
     priority: i32,
-    /// CPU to pin the loop to (default: the last one no other ringsync run has claimed;
-    /// one another run holds is not shared: the loop then runs unpinned, with a warning).
+    /// CPU to pin the loop to, or every node process of a ring of processes (default: the
+    /// last one no other ringsync run has claimed; one another run holds is not shared:
+    /// the ring then runs unpinned, with a warning).
     #[arg(long)]
     cpu: Option<usize>,
-    /// Do not pin the loop to a CPU.
+    /// Do not pin the loop (or the node processes) to a CPU.
     #[arg(long, conflicts_with = "cpu")]
     no_pin: bool,
     /// Do not lock memory (mlockall).
