@@ -895,23 +895,27 @@ fn run_master(
             .min(port_events.front().map_or(i64::MAX, |e| e.0))
             .min(links.next_sense())
             .min(paused.iter().flatten().copied().min().unwrap_or(i64::MAX));
-        if wake - now > spin {
+        // On the CPU the slaves share, at their priority, the master does not busy-wait
+        // while frames are going round: SCHED_FIFO keeps the CPU for a spinning thread, and
+        // a lumped frame still going round when it began to spin before its P2P start
+        // waited out the spin in a relay's socket (or in the kernel's receive work, which
+        // a loaded host hands to a thread at normal priority), came back late, and the law
+        // ran on the cycle before's samples (the reference ring, one CPU: 4-97 lumped
+        // frames late in 1 000 cycles, in some runs every one, the axes then drifting to a
+        // following error). It waits for them until the deadline itself.
+        let waiting = shared_cpu && dev.master.awaiting_frames();
+        if waiting || wake - now > spin {
             if dev.master.awaiting_frames() {
-                wait_frames(clock, port, links.may_break(), &paused, wake - spin)
+                let until = if waiting { wake } else { wake - spin };
+                wait_frames(clock, port, links.may_break(), &paused, until)
                     .map_err(io_err("waiting for frames"))?;
             } else {
                 clock.sleep_until(wake - spin);
             }
-        } else if shared_cpu {
-            // Busy-waiting on the CPU the slaves share, at their priority: let any that is
-            // ready run first (SCHED_FIFO keeps the CPU for a spinning thread). Without
-            // this a lumped frame still going round when the master began to spin before
-            // its P2P start waited out the spin in a relay's socket, came back late, and
-            // the law ran on the cycle before's samples (measured on the reference ring,
-            // one CPU: 4-97 lumped frames late in 1 000 cycles, and in some runs every
-            // one, the axes then drifting to a following error).
-            std::thread::yield_now();
         }
+        // (Busy-waiting for the cycle start, it keeps the CPU: a slave's latch that falls
+        // due meanwhile runs just after the send, at its own instant. Yielding to it cost
+        // the cycle start 7-12 µs at the median for nothing.)
     }
     // What came after the run's end (an injector's last frames): read once the slaves'
     // tail is over, and counted.
