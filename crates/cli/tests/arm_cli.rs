@@ -6,7 +6,7 @@ mod common;
 use common::ringsync;
 
 fn temp_dir(name: &str) -> std::path::PathBuf {
-    let d = std::env::temp_dir().join(format!("ringsync-arm-test-{}-{name}", std::process::id()));
+    let d = common::scratch("arm", name);
     let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).expect("dir");
     d

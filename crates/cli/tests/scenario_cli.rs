@@ -5,7 +5,7 @@ mod common;
 use common::ringsync;
 
 fn temp_file(name: &str, text: &str) -> std::path::PathBuf {
-    let dir = std::env::temp_dir().join(format!("ringsync-scenario-test-{}", std::process::id()));
+    let dir = common::scratch("scenario", "");
     std::fs::create_dir_all(&dir).expect("dir");
     let p = dir.join(name);
     std::fs::write(&p, text).expect("write");

@@ -6,7 +6,7 @@ mod common;
 use common::ringsync;
 
 fn dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("ringsync-sim-test-{}-{name}", std::process::id()));
+    let d = common::scratch("sim", name);
     let _ = std::fs::remove_dir_all(&d);
     d
 }
