@@ -140,8 +140,8 @@ impl Identification {
             .map(|a| (a.axis, a.id, a.scenario))
             .collect();
         let mut t = ringsync_report::identify::identify_text(&rows);
-        if let Some((why, _)) = velocity_choice(&self.run.scenario) {
-            t.push_str(&format!("The written scenario also sets {why}\n"));
+        for c in measurement_choices(&self.run.scenario) {
+            t.push_str(&format!("The written scenario also sets {}\n", c.why));
         }
         t
     }
@@ -164,9 +164,9 @@ pub fn identified_toml(id: &Identification) -> Result<String> {
     control.insert("kh".into(), list(&|a| a.id.h.value));
     control.insert("kc".into(), list(&|a| a.id.c.value));
     control.insert("kf".into(), list(&|a| a.id.f.value.max(0.0)));
-    let velocity = velocity_choice(&id.run.scenario);
-    if let Some((_, to)) = &velocity {
-        control.insert("velocity".into(), toml::Value::String(to.to_string()));
+    let choices = measurement_choices(&id.run.scenario);
+    for c in &choices {
+        control.insert(c.key.into(), toml::Value::String(c.to.to_string()));
     }
     let body = toml::to_string(&table)
         .map_err(|e| Error::Failed(format!("cannot write the scenario: {e}")))?;
@@ -177,8 +177,8 @@ pub fn identified_toml(id: &Identification) -> Result<String> {
          # (every law adds K_H·ẍ^d + K_C·ẋ^d + K_F·sat(ẋ^d/kf_velocity)).\n",
         id.run.origin
     );
-    if let Some((why, _)) = &velocity {
-        head.push_str(&format!("# {why}\n"));
+    for c in &choices {
+        head.push_str(&format!("# {}\n", c.why));
     }
     for a in &id.axes {
         head.push_str(&format!(
@@ -189,28 +189,61 @@ pub fn identified_toml(id: &Identification) -> Result<String> {
     Ok(format!("{head}{body}"))
 }
 
-/// The velocity source a compensated scenario should use, when not the run's: with the
-/// axes cancelled by the feed-forward, what is left of the errors is mostly the encoder's
-/// quantisation through K_D, and the slave's velocity over its short window
-/// (`axis.velocity_window`) has a quantum of one count per window where the difference of
-/// successive samples has one count per cycle. (why, the source's name).
-pub fn velocity_choice(s: &ringsync_model::Scenario) -> Option<(String, &'static str)> {
+/// A setting of `[control]` that a compensated scenario should have when the run's differs.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Choice {
+    /// The key in `[control]`.
+    pub key: &'static str,
+    /// The value written.
+    pub to: &'static str,
+    /// Why, one line: `control.KEY: "from" -> "to": reason`.
+    pub why: String,
+}
+
+/// The measurement settings a compensated scenario should use, where the run's differ. With
+/// the axes cancelled by the feed-forward, what is left of the errors is mostly the encoder's
+/// quantisation, so:
+///
+/// - **velocity**: the slave's velocity over its short window (`axis.velocity_window`) has a
+///   quantum of one count per window where the difference of successive samples has one
+///   count per cycle: `differenced`;
+/// - **estimator**: extrapolating noise amplifies it (the paper's weights, eq. 12, sum to 5
+///   in magnitude): a cycle that runs on last cycle's samples (a lumped frame lost or late)
+///   then leaves an offset the slow pole K_P/K_D removes only over about a second, where
+///   holding the samples leaves none (docs/experiments.md, experiment 6): `hold`.
+pub fn measurement_choices(s: &ringsync_model::Scenario) -> Vec<Choice> {
+    use ringsync_control::EstimatorKind;
     use ringsync_model::scenario::VelocityKind;
-    let a = s.axis_spec(0)?;
+    let mut out = Vec::new();
+    let Some(a) = s.axis_spec(0) else {
+        return out;
+    };
     let (window, cycle) = (a.velocity_window.secs(), s.ring.cycle.secs());
-    (s.control.velocity == VelocityKind::Reported && window < cycle).then(|| {
+    if s.control.velocity == VelocityKind::Reported && window < cycle {
         let count = std::f64::consts::TAU / 2f64.powi(a.encoder_bits as i32);
-        (
-            format!(
+        out.push(Choice {
+            key: "velocity",
+            to: "differenced",
+            why: format!(
                 "control.velocity: \"reported\" -> \"differenced\": one encoder count is {:.4} rad/s over the slave's {:.0} µs window, {:.4} rad/s over the {:.0} µs cycle.",
                 count / window,
                 window * 1e6,
                 count / cycle,
                 cycle * 1e6
             ),
-            "differenced",
-        )
-    })
+        });
+    }
+    if s.control.estimator != EstimatorKind::Hold {
+        out.push(Choice {
+            key: "estimator",
+            to: "hold",
+            why: format!(
+                "control.estimator: \"{}\" -> \"hold\": with the axes cancelled the errors left are encoder noise, which extrapolation amplifies; a cycle run on last cycle's samples (a lumped frame lost or late) then leaves an offset that takes about a second to die out.",
+                s.control.estimator.name()
+            ),
+        });
+    }
+    out
 }
 
 /// The columns of a trace.csv that identification reads, per axis.

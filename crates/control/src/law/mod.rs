@@ -347,6 +347,8 @@ pub struct Controller<L> {
     pub velocity: VelocitySource,
     /// The observer's (ê, ė̂) per axis, with [`VelocitySource::Observer`].
     observed: Vec<(f64, f64)>,
+    /// Per axis, how many times the law ran on its newest sample since it was taken.
+    held: Vec<u32>,
     /// The disturbance observer, if any ([`Controller::with_dob`]).
     dob: Option<crate::dob::DisturbanceObserver>,
 }
@@ -360,6 +362,7 @@ impl<L: ControlLaw> Controller<L> {
             history: ErrorHistory::new(n),
             velocity,
             observed: vec![(0.0, 0.0); n],
+            held: vec![0; n],
             dob: None,
         }
     }
@@ -393,6 +396,14 @@ impl<L: ControlLaw> Controller<L> {
     /// (the same sample delivered again, e.g. when a slave latched after the lumped frame
     /// passed) is ignored, as if not fresh: taking it would put two samples one "cycle"
     /// apart in the history that are really zero apart, and the estimators' slopes with it.
+    ///
+    /// With [`VelocitySource::Differenced`], the ė a law ran on keeps adding up to the
+    /// change of e across a gap, as it does from cycle to cycle (Σ ė·T = e[m] − e[0]): a law
+    /// that ran k cycles on its newest sample (no new one came) ran on that sample's ė k
+    /// more times, so the interpolated samples carry that ė and the next sample's ė is
+    /// (e − e₀)·(k + 1)/(t − t₀) − k·ė₀, taking back what the repeats added. Without it a
+    /// missed cycle left one count of velocity noise in the D term, an offset the slow
+    /// pole K_P/K_D takes half a second to remove (docs/control.md). Not in the paper.
     pub fn update(
         &mut self,
         fb: &Feedback,
@@ -410,21 +421,29 @@ impl<L: ControlLaw> Controller<L> {
             check_len(what, n, len)?;
         }
         for i in 0..n {
+            // Law runs on axis i's newest sample since it was taken, this one not counted.
+            let held = std::mem::take(&mut self.held[i]);
             if !fb.fresh[i] {
+                self.held[i] = held.saturating_add(u32::from(self.history.count[i] > 0));
                 continue;
             }
             let e = fb.desired[i].x - fb.position[i];
             let t = fb.sample_time[i];
             let h = &mut self.history;
+            // The newest sample taken before this one: (e, ė, t).
+            let last = (h.e[i][0], h.de[i][0], h.t[i]);
+            // Differenced ė across a gap the law ran through (see the docs above).
+            let carried = held > 0 && matches!(self.velocity, VelocitySource::Differenced);
             if h.count[i] > 0 {
                 let steps = ((t - h.t[i]) / input.t_cyc).round();
                 if steps < 1.0 {
+                    self.held[i] = held.saturating_add(1);
                     continue;
                 }
                 if steps > crate::estimator::DEPTH as f64 {
                     h.count[i] = 0;
                 } else if steps >= 2.0 {
-                    let (e0, de0, t0) = (h.e[i][0], h.de[i][0], h.t[i]);
+                    let (e0, de0, t0) = last;
                     let de_new = match self.velocity {
                         VelocitySource::Reported => fb.desired[i].v - fb.velocity[i],
                         VelocitySource::Differenced => (e - e0) / (t - t0),
@@ -439,7 +458,11 @@ impl<L: ControlLaw> Controller<L> {
                         h.push(
                             i,
                             e0 + f * (e - e0),
-                            de0 + f * (de_new - de0),
+                            if carried {
+                                de0
+                            } else {
+                                de0 + f * (de_new - de0)
+                            },
                             t0 + f * (t - t0),
                         )?;
                         if let Some(est) = self.law.estimator_mut() {
@@ -452,7 +475,11 @@ impl<L: ControlLaw> Controller<L> {
                 VelocitySource::Reported => fb.desired[i].v - fb.velocity[i],
                 VelocitySource::Differenced => {
                     let dt = fb.sample_time[i] - self.history.t[i];
-                    if self.history.count[i] > 0 && dt > 0.0 {
+                    let (e0, de0, t0) = last;
+                    if carried && self.history.count[i] > 0 && t > t0 {
+                        let k = f64::from(held);
+                        (e - e0) * (k + 1.0) / (t - t0) - k * de0
+                    } else if self.history.count[i] > 0 && dt > 0.0 {
                         (e - self.history.e[i][0]) / dt
                     } else {
                         0.0

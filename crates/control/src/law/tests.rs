@@ -352,6 +352,53 @@ fn missed_samples_are_interpolated() {
     assert_eq!(c.history.count[0], 1);
 }
 
+/// With differenced velocity the ė a law runs on adds up, cycle by cycle, to the change of
+/// the error, across missed cycles and a sample delivered twice as well: a gap leaves no
+/// velocity noise behind in the D term.
+#[test]
+fn differenced_velocity_adds_up_across_gaps() {
+    let t_cyc = 1e-3;
+    let law = Pd::new(Gains::uniform(1, 1.0, 1.0, 0.0), false).expect("pd");
+    let mut c = Controller::new(law, VelocitySource::Differenced);
+    let mut fb = Feedback::new(1);
+    let input = ControlInput::new(1, t_cyc);
+    let mut out = ControlOutput::new(1);
+    // e = 0.5 rad/s · t plus quantisation-like noise of up to ±3 µrad; cycles 5, 9-10
+    // and 20 bring no new sample, cycle 14 brings cycle 13's again.
+    let e_at = |m: usize| 0.5 * m as f64 * t_cyc + 3e-6 * ((m * 7919 % 13) as f64 / 6.0 - 1.0);
+    let (mut sum, mut first, mut last) = (0.0, None, 0.0);
+    for m in 0..30usize {
+        let taken = match m {
+            5 | 9 | 10 | 20 => None,
+            14 => Some(13),
+            _ => Some(m),
+        };
+        match taken {
+            Some(k) => {
+                fb.fresh[0] = true;
+                fb.sample_time[0] = k as f64 * t_cyc;
+                fb.position[0] = -e_at(k);
+                first.get_or_insert(e_at(k));
+                last = e_at(k);
+            }
+            None => fb.fresh[0] = false,
+        }
+        c.update(&fb, &input, &mut out).expect("update");
+        // The ė the law ran on this cycle, held for one cycle.
+        if m > 0 {
+            sum += c.history.de[0][0] * t_cyc;
+        }
+        // PD with K_P = K_D = 1 and no feed-forward: the command is e + ė of that sample.
+        let (e, de) = (c.history.e[0][0], c.history.de[0][0]);
+        assert!((out.u[0] - (e + de)).abs() < 1e-12, "cycle {m}");
+    }
+    let change = last - first.expect("a sample");
+    assert!(
+        (sum - change).abs() < 1e-15,
+        "Σ ė·T = {sum:e}, e changed by {change:e}"
+    );
+}
+
 #[test]
 fn bad_configurations_are_named() {
     let name = |e: ControlError| match e {
