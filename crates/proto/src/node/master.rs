@@ -9,7 +9,8 @@
 //!    slice without its response is retried in the ⌊n/4⌋ + 1 reserve slices.
 //!
 //! A lost lumped frame leaves the old samples in place (`fresh = false`), so the estimator
-//! extrapolates them over a longer D.
+//! extrapolates them over a longer D. One that comes back after the law ran (late) brings
+//! samples the next law run takes as new.
 //!
 //! # Frame acceptance
 //! Nothing from the wire is trusted ([`super::reject`]). A returning lumped frame is taken
@@ -533,12 +534,14 @@ pub struct Master {
     next_slot: usize,
     open_at: Option<Instant>,
     deadline: Option<Instant>,
-    /// Latest sample per axis and whether it arrived this cycle.
+    /// Latest sample per axis.
     latest: Vec<Option<FeedbackSlot>>,
     /// Last returned lumped-only slots (the lumped-only plan).
     lo_slots: Vec<LumpedOnlySlot>,
     /// Empty slots for the next lumped frame, kept to avoid an allocation per cycle.
     empty_slots: Vec<FeedbackSlot>,
+    /// Per axis, whether `latest` holds a sample no law run has taken yet (P2P plans; the
+    /// lumped-only plan: whether one came back this cycle).
     fresh: Vec<bool>,
     lumped_back: usize,
     /// Slice bookkeeping: target (0-based) of the open slice, its retry count.
@@ -880,7 +883,6 @@ impl Master {
         self.open_at = None;
         self.deadline = None;
         self.lumped_back = 0;
-        self.fresh.fill(false);
         self.acked.fill(false);
         self.sent_lumped.fill(SentLumped::default());
         self.sent_lumped_b.fill(SentLumped::default());
@@ -1003,6 +1005,9 @@ impl Master {
             commanded: true,
         };
         self.motion.compute(&input, &mut self.mout);
+        // A sample is fresh until a law run has taken it: one that came back after this
+        // cycle's law ran (its lumped frame late) is the next run's, not lost.
+        self.fresh.fill(false);
         self.take_motion_events(now);
         self.events.push_back(MasterEvent::Computed { k: self.k });
     }

@@ -69,7 +69,8 @@ pub struct MotionInput<'a> {
     pub cycle_start: Instant,
     /// Latest accepted sample of each axis (raw wire values), if any yet.
     pub samples: &'a [Option<FeedbackSlot>],
-    /// Whether the sample came in this cycle.
+    /// Whether the sample is new to the law: no law run has taken it yet (in the lumped-only
+    /// plan: it came back this cycle).
     pub fresh: &'a [bool],
     /// Axes without a new sample for W cycles (the master's feedback watchdog).
     pub blind: &'a [bool],

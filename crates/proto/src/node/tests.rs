@@ -93,6 +93,61 @@ fn a_sample_carried_twice_is_counted_stale_and_not_taken_again() {
     assert_eq!(m.counters().samples_stale, 1);
 }
 
+/// A lumped frame that comes back after the law ran (late, as after a host stall) brings
+/// samples the next law run takes as new: they are not dropped with the cycle.
+#[test]
+fn samples_that_come_back_after_the_law_ran_are_the_next_runs() {
+    let (mut m, mut s) = ring(2, Duration::ZERO);
+    let p2p = m.config().p2p_start.as_ns();
+    latch(&mut s[0], 0, 100);
+    latch(&mut s[1], 0, 200);
+    master_until(&mut m, &mut s, p2p);
+    assert_eq!(m.record().fresh, vec![true, true]);
+    // Cycle 1: the lumped frame goes round only after the law ran.
+    master_until(&mut m, &mut s, T_CYC - 1);
+    latch(&mut s[0], T_CYC, 110);
+    latch(&mut s[1], T_CYC, 210);
+    let mut held = Vec::new();
+    while m.poll_timeout().as_ns() <= T_CYC + p2p {
+        let now = m.poll_timeout();
+        m.handle_timeout(now);
+        while let Some(tx) = m.poll_transmit() {
+            if tx.bytes.get(1) == Some(&(ringsync_wire::FrameKind::Lumped as u8)) {
+                held.push(tx.bytes);
+            }
+        }
+    }
+    assert_eq!(m.record().k, 1);
+    assert_eq!(m.record().fresh, vec![false, false]);
+    let late = Instant::from_ns(T_CYC + p2p + 10_000);
+    for mut bytes in held {
+        for sl in s.iter_mut() {
+            assert_eq!(
+                sl.handle_frame(late, late, &mut bytes),
+                FrameOutcome::Forward
+            );
+        }
+        m.handle_frame(late, &bytes);
+    }
+    // Cycle 2: its lumped frame is lost; the law runs on cycle 1's late samples, new to it.
+    while m.poll_timeout().as_ns() <= 2 * T_CYC + p2p {
+        let now = m.poll_timeout();
+        m.handle_timeout(now);
+        while m.poll_transmit().is_some() {}
+    }
+    assert_eq!(m.record().k, 2);
+    assert_eq!(m.record().fresh, vec![true, true]);
+    assert_eq!(m.record().sample_time, vec![1e-3, 1e-3]);
+    assert_eq!(m.record().position, vec![110.0 * RES, 210.0 * RES]);
+    // Cycle 3: nothing new came; the same samples are not new again.
+    while m.poll_timeout().as_ns() <= 3 * T_CYC + p2p {
+        let now = m.poll_timeout();
+        m.handle_timeout(now);
+        while m.poll_transmit().is_some() {}
+    }
+    assert_eq!(m.record().fresh, vec![false, false]);
+}
+
 #[test]
 fn the_sampling_lead_moves_both_latches_and_the_sample_time() {
     let lead = Duration::from_us(100);
