@@ -398,12 +398,13 @@ impl<L: ControlLaw> Controller<L> {
     /// apart in the history that are really zero apart, and the estimators' slopes with it.
     ///
     /// With [`VelocitySource::Differenced`], the ė a law ran on keeps adding up to the
-    /// change of e across a gap, as it does from cycle to cycle (Σ ė·T = e[m] − e[0]): a law
-    /// that ran k cycles on its newest sample (no new one came) ran on that sample's ė k
-    /// more times, so the interpolated samples carry that ė and the next sample's ė is
-    /// (e − e₀)·(k + 1)/(t − t₀) − k·ė₀, taking back what the repeats added. Without it a
-    /// missed cycle left one count of velocity noise in the D term, an offset the slow
-    /// pole K_P/K_D takes half a second to remove (docs/control.md). Not in the paper.
+    /// change of e across a short gap, as it does from cycle to cycle (Σ ė·T = e[m] − e[0],
+    /// T the cycle): a law that ran k more times on its newest sample (no new one came, or
+    /// the same one again), 0 < k < [`DEPTH`](crate::estimator::DEPTH), ran on that sample's
+    /// ė k more times, so the interpolated samples carry that ė and the next sample's ė is
+    /// (e − e₀)/T − k·ė₀, taking back what the repeats added. Without it a missed cycle left
+    /// one count of velocity noise in the D term, an offset the slow pole K_P/K_D takes half
+    /// a second to remove (docs/control.md). Not in the paper.
     pub fn update(
         &mut self,
         fb: &Feedback,
@@ -433,7 +434,9 @@ impl<L: ControlLaw> Controller<L> {
             // The newest sample taken before this one: (e, ė, t).
             let last = (h.e[i][0], h.de[i][0], h.t[i]);
             // Differenced ė across a gap the law ran through (see the docs above).
-            let carried = held > 0 && matches!(self.velocity, VelocitySource::Differenced);
+            let carried = held > 0
+                && (held as usize) < crate::estimator::DEPTH
+                && matches!(self.velocity, VelocitySource::Differenced);
             if h.count[i] > 0 {
                 let steps = ((t - h.t[i]) / input.t_cyc).round();
                 if steps < 1.0 {
@@ -475,10 +478,9 @@ impl<L: ControlLaw> Controller<L> {
                 VelocitySource::Reported => fb.desired[i].v - fb.velocity[i],
                 VelocitySource::Differenced => {
                     let dt = fb.sample_time[i] - self.history.t[i];
-                    let (e0, de0, t0) = last;
-                    if carried && self.history.count[i] > 0 && t > t0 {
-                        let k = f64::from(held);
-                        (e - e0) * (k + 1.0) / (t - t0) - k * de0
+                    let (e0, de0, _) = last;
+                    if carried && self.history.count[i] > 0 {
+                        (e - e0) / input.t_cyc - f64::from(held) * de0
                     } else if self.history.count[i] > 0 && dt > 0.0 {
                         (e - self.history.e[i][0]) / dt
                     } else {

@@ -364,13 +364,15 @@ fn differenced_velocity_adds_up_across_gaps() {
     let input = ControlInput::new(1, t_cyc);
     let mut out = ControlOutput::new(1);
     // e = 0.5 rad/s · t plus quantisation-like noise of up to ±3 µrad; cycles 5, 9-10
-    // and 20 bring no new sample, cycle 14 brings cycle 13's again.
+    // and 20 bring no new sample, cycle 14 brings cycle 13's again, and from cycle 21 on
+    // every cycle brings the one before's (the samples lag the law by a cycle).
     let e_at = |m: usize| 0.5 * m as f64 * t_cyc + 3e-6 * ((m * 7919 % 13) as f64 / 6.0 - 1.0);
     let (mut sum, mut first, mut last) = (0.0, None, 0.0);
     for m in 0..30usize {
         let taken = match m {
             5 | 9 | 10 | 20 => None,
             14 => Some(13),
+            21.. => Some(m - 1),
             _ => Some(m),
         };
         match taken {
