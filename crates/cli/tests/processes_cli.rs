@@ -7,13 +7,17 @@
 //! processes and their exit paths, not the control. One run at a time: three rings of five
 //! processes at once on two CPUs would measure each other.
 
+mod common;
+
+use common::ringsync;
 use std::io::{BufRead as _, BufReader};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-/// The slow ring these tests run (written once into the temporary directory).
+/// The slow ring these tests run (written into the temporary directory; the next run of
+/// these tests clears it).
 fn scenario() -> std::path::PathBuf {
-    let p = std::env::temp_dir().join(format!("ringsync-proc-slow-{}.toml", std::process::id()));
+    let p = common::scratch("proc", "slow.toml");
     std::fs::write(
         &p,
         "name = \"slow-ring\"\nduration = \"4s\"\n[ring]\ncycle = \"100ms\"\n\
@@ -693,14 +697,6 @@ impl Drop for HostLinks {
             let _ = Command::new("ip").args(["link", "del", name]).status();
         }
     }
-}
-
-fn ringsync(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_ringsync"))
-        .args(args)
-        .env("RUST_BACKTRACE", "0")
-        .output()
-        .expect("run ringsync")
 }
 
 /// A ring started by hand, as a user with real network cards starts one: `ringsync node
