@@ -191,10 +191,11 @@ pub fn predict(s: &Scenario, seeds: u64) -> Result<SimPrediction> {
 pub struct RtPrediction {
     /// The scenario as run (after the overrides) on its plan's links and schedule.
     pub planned: SimPrediction,
-    /// The ring the nodes ran: their schedule, path delays and command timing, every link
-    /// the measured L and every slave the median measured residence
-    /// ([`ringsync_rt::schedule::measured_ring`]); `None` when the simulator could not run
-    /// it.
+    /// The ring the nodes ran: their schedule and path delays, every link the measured L
+    /// and every slave the median measured residence
+    /// ([`ringsync_rt::schedule::measured_ring`]), the law told the command arrivals of
+    /// this simulated ring ([`ringsync_sim::predict::with_settled_arrivals`]); `None` when
+    /// the simulator could not run it.
     pub measured: Option<SimPrediction>,
     /// The link L the measured ring's hops took [ns].
     pub link_ns: i64,
@@ -207,9 +208,14 @@ pub struct RtPrediction {
 pub fn predict_rt(r: &RtResult, seeds: u64) -> Result<RtPrediction> {
     let planned = predict(&r.scenario, seeds)?;
     let ring = ringsync_rt::schedule::measured_ring(&r.spec, &r.calibration);
+    // The law times its feed-forward for the arrivals this simulated ring gives, as the
+    // runtime's law does for its own (its warm-up).
+    let measured = ringsync_sim::predict::with_settled_arrivals(&ring)
+        .and_then(|ring| ringsync_sim::predict::predict_spec(&ring, seeds))
+        .ok();
     Ok(RtPrediction {
         planned,
-        measured: ringsync_sim::predict::predict_spec(&ring, seeds).ok(),
+        measured,
         link_ns: ring.plan.hop.as_ns(),
         residence_ns: ring.scenario.ring.residence.0.as_ns(),
     })

@@ -233,7 +233,7 @@ fn median_residence(cal: &Calibration) -> Option<Duration> {
 }
 
 /// What the simulator's prediction for the ring as measured ([`measured_ring`]) assumes.
-pub const MEASURED_RING_ASSUMPTION: &str = "the ring as the start-up phase measured it: the nodes' schedule, path delays and command timing, every link the measured L and every slave the median measured residence; the hops' spread and the stamps' error are not modelled";
+pub const MEASURED_RING_ASSUMPTION: &str = "the ring as the start-up phase measured it: the nodes' schedule and path delays, every link the measured L and every slave the median measured residence, the law's command arrivals those of this simulated ring (a warm-up, as the runtime takes its own); the hops' spread and the stamps' error are not modelled";
 
 #[cfg(test)]
 mod tests {
