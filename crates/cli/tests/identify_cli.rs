@@ -50,6 +50,25 @@ fn figures(run: &Path) -> (f64, f64, f64) {
     )
 }
 
+/// A PD run of the reference scenario in `d/P` (`outputs` as `--outputs`, or all), then
+/// `identify` of it into `d/id.toml`: (the run, the scenario file, what `identify` printed).
+fn pd_identified(d: &Path, outputs: &str) -> (PathBuf, PathBuf, String) {
+    let (pd, id) = (d.join("P"), d.join("id.toml"));
+    ok(&[
+        "sim",
+        "paper-2015",
+        "--set",
+        "control.law=pd",
+        "--outputs",
+        outputs,
+        "--out",
+        p(&pd),
+    ]);
+    assert!(pd.join("scenario.toml").exists());
+    let text = ok(&["identify", p(&pd), "--out", p(&id)]);
+    (pd, id, text)
+}
+
 /// The numbers of a `key = [a, b, …]` line of a TOML file.
 fn list(toml: &str, key: &str) -> Vec<f64> {
     let line = toml
@@ -71,17 +90,8 @@ fn list(toml: &str, key: &str) -> Vec<f64> {
 #[test]
 fn identify_then_compensate_beats_pd() {
     let d = dir("flow");
-    let (pd, sync, id) = (d.join("P"), d.join("S"), d.join("id.toml"));
-    ok(&[
-        "sim",
-        "paper-2015",
-        "--set",
-        "control.law=pd",
-        "--out",
-        p(&pd),
-    ]);
-    assert!(pd.join("scenario.toml").exists());
-    let text = ok(&["identify", p(&pd), "--out", p(&id)]);
+    let sync = d.join("S");
+    let (pd, id, text) = pd_identified(&d, "all");
     assert!(text.contains("| axis | H = J/K_a"), "{text}");
     let toml = std::fs::read_to_string(&id).expect("id.toml");
     // The reference axes (docs/system.md): J/K_a, b/K_a = b·10 V/rated, T_c/K_a = 0.02·10 V.
@@ -158,16 +168,7 @@ fn identify_then_compensate_beats_pd() {
 #[test]
 fn a_lost_frame_leaves_the_compensated_axes_as_they_were() {
     let d = dir("loss");
-    let (pd, id) = (d.join("P"), d.join("id.toml"));
-    ok(&[
-        "sim",
-        "paper-2015",
-        "--set",
-        "control.law=pd",
-        "--out",
-        p(&pd),
-    ]);
-    ok(&["identify", p(&pd), "--out", p(&id)]);
+    let (_, id, _) = pd_identified(&d, "summary,trace");
     let mean_sync = |loss: &str| {
         let runs: Vec<f64> = ["1", "2", "3"]
             .iter()
@@ -217,18 +218,7 @@ fn a_lost_frame_leaves_the_compensated_axes_as_they_were() {
 #[test]
 fn the_disturbance_observer_absorbs_a_wrong_feed_forward() {
     let d = dir("dob");
-    let (pd, id) = (d.join("P"), d.join("id.toml"));
-    ok(&[
-        "sim",
-        "paper-2015",
-        "--set",
-        "control.law=pd",
-        "--outputs",
-        "summary,trace",
-        "--out",
-        p(&pd),
-    ]);
-    ok(&["identify", p(&pd), "--out", p(&id)]);
+    let (pd, id, _) = pd_identified(&d, "summary,trace");
     let toml = std::fs::read_to_string(&id).expect("id.toml");
     let skew = |key: &str| {
         let vals: Vec<String> = list(&toml, key)

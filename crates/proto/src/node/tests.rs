@@ -61,6 +61,22 @@ fn master_until(m: &mut Master, slaves: &mut [Slave], t: i64) {
     }
 }
 
+/// Runs the master's timers due up to `t` with no slave answering: the lumped frames it
+/// sent, held back (to go round later, or never); every other frame is dropped.
+fn master_alone(m: &mut Master, t: i64) -> Vec<Vec<u8>> {
+    let mut lumped = Vec::new();
+    while m.poll_timeout().as_ns() <= t {
+        let now = m.poll_timeout();
+        m.handle_timeout(now);
+        while let Some(tx) = m.poll_transmit() {
+            if tx.bytes.get(1) == Some(&(ringsync_wire::FrameKind::Lumped as u8)) {
+                lumped.push(tx.bytes);
+            }
+        }
+    }
+    lumped
+}
+
 #[test]
 fn a_sample_carried_twice_is_counted_stale_and_not_taken_again() {
     let (mut m, mut s) = ring(2, Duration::ZERO);
@@ -107,16 +123,7 @@ fn samples_that_come_back_after_the_law_ran_are_the_next_runs() {
     master_until(&mut m, &mut s, T_CYC - 1);
     latch(&mut s[0], T_CYC, 110);
     latch(&mut s[1], T_CYC, 210);
-    let mut held = Vec::new();
-    while m.poll_timeout().as_ns() <= T_CYC + p2p {
-        let now = m.poll_timeout();
-        m.handle_timeout(now);
-        while let Some(tx) = m.poll_transmit() {
-            if tx.bytes.get(1) == Some(&(ringsync_wire::FrameKind::Lumped as u8)) {
-                held.push(tx.bytes);
-            }
-        }
-    }
+    let held = master_alone(&mut m, T_CYC + p2p);
     assert_eq!(m.record().k, 1);
     assert_eq!(m.record().fresh, vec![false, false]);
     let late = Instant::from_ns(T_CYC + p2p + 10_000);
@@ -130,21 +137,13 @@ fn samples_that_come_back_after_the_law_ran_are_the_next_runs() {
         m.handle_frame(late, &bytes);
     }
     // Cycle 2: its lumped frame is lost; the law runs on cycle 1's late samples, new to it.
-    while m.poll_timeout().as_ns() <= 2 * T_CYC + p2p {
-        let now = m.poll_timeout();
-        m.handle_timeout(now);
-        while m.poll_transmit().is_some() {}
-    }
+    master_alone(&mut m, 2 * T_CYC + p2p);
     assert_eq!(m.record().k, 2);
     assert_eq!(m.record().fresh, vec![true, true]);
     assert_eq!(m.record().sample_time, vec![1e-3, 1e-3]);
     assert_eq!(m.record().position, vec![110.0 * RES, 210.0 * RES]);
     // Cycle 3: nothing new came; the same samples are not new again.
-    while m.poll_timeout().as_ns() <= 3 * T_CYC + p2p {
-        let now = m.poll_timeout();
-        m.handle_timeout(now);
-        while m.poll_transmit().is_some() {}
-    }
+    master_alone(&mut m, 3 * T_CYC + p2p);
     assert_eq!(m.record().fresh, vec![false, false]);
 }
 
