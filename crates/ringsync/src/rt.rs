@@ -191,8 +191,8 @@ pub fn predict(s: &Scenario, seeds: u64) -> Result<SimPrediction> {
 pub struct RtPrediction {
     /// The scenario as run (after the overrides) on its plan's links and schedule.
     pub planned: SimPrediction,
-    /// The ring the nodes ran: their schedule and path delays, every link the measured L
-    /// and every slave the median measured residence
+    /// The ring the nodes ran: their schedule, every link the measured L and every slave
+    /// the median measured residence, each slave's clock that ring's own path
     /// ([`ringsync_rt::schedule::measured_ring`]), the law told the command arrivals of
     /// this simulated ring ([`ringsync_sim::predict::with_settled_arrivals`]); `None` when
     /// the simulator could not run it.
