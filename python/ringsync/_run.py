@@ -336,7 +336,9 @@ def rt(
     timing: ``overruns``, ``lateness_us``, ``p2p_phase_us``, ``calibration`` …, and the
     simulator's predictions from ``prediction_seeds`` seeds, 0 for none:
     ``summary["sim_prediction"]`` for the scenario as run on its plan's links, and its
-    ``"measured_ring"`` for the ring as the start-up phase measured it), ``text()`` its
+    ``"measured_ring"`` for the ring as the start-up phase measured it, with, under
+    ``"with_the_runs_clock_bias"``, that ring again with each clock off by the run's mean
+    clock error), ``text()`` its
     lines. Numbers vary from run to run: the host's timing is part of the result.
     ``overrides`` set scenario keys first, as for :func:`simulate`.
 

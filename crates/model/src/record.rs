@@ -145,6 +145,7 @@ pub struct Recorder {
     pending: Option<usize>,
     clock_max: Vec<f64>,
     clock_sq: Vec<f64>,
+    clock_sum: Vec<f64>,
     clock_count: u64,
     sent_max: Vec<f64>,
     applied_max: Vec<f64>,
@@ -189,6 +190,7 @@ impl Recorder {
             pending: None,
             clock_max: vec![0.0; n],
             clock_sq: vec![0.0; n],
+            clock_sum: vec![0.0; n],
             clock_count: 0,
             sent_max: vec![0.0; n],
             applied_max: vec![0.0; n],
@@ -269,6 +271,7 @@ impl Recorder {
             links,
             clock_error_max_ns: self.clock_max,
             clock_error_rms_ns: self.clock_sq.iter().map(|s| (s / n).sqrt()).collect(),
+            clock_error_mean_ns: self.clock_sum.iter().map(|s| s / n).collect(),
             watchdog: self.watchdog,
             group_stop: self.group_stop,
             faults: self.faults,
@@ -307,6 +310,7 @@ impl Observer for Recorder {
                 let c = self.probe[i].clock_error_ns;
                 self.clock_max[i] = self.clock_max[i].max(c.abs());
                 self.clock_sq[i] += c * c;
+                self.clock_sum[i] += c;
             }
         }
         if let Some(c) = &self.coupling {
@@ -429,6 +433,30 @@ mod tests {
             Vec::new(),
             Vec::new(),
         )
+    }
+
+    /// The clocks' figures count the second half of the run: per slave the largest
+    /// |error|, the RMS and the mean (a clock's bias, with its sign).
+    #[test]
+    fn clock_figures_count_the_second_half() {
+        let mut rec = Recorder::new(2, 10, 1e-3, false);
+        for k in 0..10 {
+            // Slave 1: 10 ns on odd cycles, 0 on even ones; slave 2: −100 ns, and −1 000 ns
+            // in the first half (not counted).
+            let probes: Vec<AxisProbe> = [(k % 2) as f64 * 10.0, if k < 5 { -1e3 } else { -100.0 }]
+                .iter()
+                .map(|&c| AxisProbe {
+                    clock_error_ns: c,
+                    ..AxisProbe::AT_REST
+                })
+                .collect();
+            rec.cycle(k, k as f64 * 1e-3, &probes);
+        }
+        let r = result(rec);
+        // Cycles 5..=9: slave 1 reads 10, 0, 10, 0, 10.
+        assert_eq!(r.clock_error_max_ns, [10.0, 100.0]);
+        assert_eq!(r.clock_error_mean_ns, [6.0, -100.0]);
+        assert_eq!(r.clock_error_rms_ns, [60f64.sqrt(), 100.0]);
     }
 
     /// A law run that comes after the next cycle has started (a real-time master held up

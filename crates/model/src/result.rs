@@ -273,6 +273,9 @@ pub struct RunResult {
     pub clock_error_max_ns: Vec<f64>,
     /// RMS clock error over the second half of the run, per slave [ns].
     pub clock_error_rms_ns: Vec<f64>,
+    /// Mean clock error (synchronised minus true time) over the second half of the run,
+    /// per slave [ns]: a clock's bias.
+    pub clock_error_mean_ns: Vec<f64>,
     /// Watchdog expiries: (slave, true time [s]).
     pub watchdog: Vec<(usize, f64)>,
     /// The group stop, if any: (time [s], reason).

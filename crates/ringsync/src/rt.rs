@@ -197,6 +197,11 @@ pub struct RtPrediction {
     /// this simulated ring ([`ringsync_sim::predict::with_settled_arrivals`]); `None` when
     /// the simulator could not run it.
     pub measured: Option<SimPrediction>,
+    /// The same ring with each simulated clock off by the mean error the run's clock had
+    /// over its second half ([`with_clock_bias`]): how much of a difference between the
+    /// run and `measured` the clocks' biases account for. `None` when the simulator could
+    /// not run it, or no clock was off by a nanosecond.
+    pub clock_biased: Option<SimPrediction>,
     /// The link L the measured ring's hops took [ns].
     pub link_ns: i64,
     /// The residence its slaves took [ns].
@@ -210,15 +215,38 @@ pub fn predict_rt(r: &RtResult, seeds: u64) -> Result<RtPrediction> {
     let ring = ringsync_rt::schedule::measured_ring(&r.spec, &r.calibration);
     // The law times its feed-forward for the arrivals this simulated ring gives, as the
     // runtime's law does for its own (its warm-up).
-    let measured = ringsync_sim::predict::with_settled_arrivals(&ring)
-        .and_then(|ring| ringsync_sim::predict::predict_spec(&ring, seeds))
-        .ok();
+    let settled_prediction = |ring: &ringsync_model::Spec| {
+        ringsync_sim::predict::with_settled_arrivals(ring)
+            .and_then(|ring| ringsync_sim::predict::predict_spec(&ring, seeds))
+            .ok()
+    };
+    let measured = settled_prediction(&ring);
+    let bias = &r.run.clock_error_mean_ns;
+    let clock_biased = if bias.iter().any(|b| b.abs() >= 1.0) {
+        settled_prediction(&with_clock_bias(&ring, bias))
+    } else {
+        None
+    };
     Ok(RtPrediction {
         planned,
         measured,
+        clock_biased,
         link_ns: ring.plan.hop.as_ns(),
         residence_ns: ring.scenario.ring.residence.0.as_ns(),
     })
+}
+
+/// `spec` with slave i's clock off by `bias_ns[i]` [ns] (synchronised minus true time, as
+/// [`RunResult::clock_error_mean_ns`](ringsync_model::result::RunResult) has it): its path
+/// delay taken that much too long, so that every sync sets its clock that far ahead.
+pub fn with_clock_bias(spec: &ringsync_model::Spec, bias_ns: &[f64]) -> ringsync_model::Spec {
+    let mut spec = spec.clone();
+    for (c, b) in spec.slaves.iter_mut().zip(bias_ns) {
+        if b.is_finite() {
+            c.path_delay += ringsync_proto::Duration::from_ns(b.round() as i64);
+        }
+    }
+    spec
 }
 
 /// Runs `s` in real time as [`run_rt`] does, writing `trace.csv` into `dir` and the frames
@@ -337,6 +365,7 @@ pub fn rt_summary(
         "residual_clock_error_ns": {
             "max": r.run.clock_error_max_ns.iter().copied().fold(0.0, f64::max),
             "rms": r.run.clock_error_rms_ns.clone(),
+            "mean": r.run.clock_error_mean_ns.clone(),
         },
         "sim_prediction": prediction.map(|p| {
             let mut v = prediction_json(&p.planned);
@@ -346,6 +375,17 @@ pub fn rt_summary(
                 v["link_us"] = json!(p.link_ns as f64 * 1e-3);
                 v["residence_us"] = json!(p.residence_ns as f64 * 1e-3);
                 v["assumption"] = json!(ringsync_rt::schedule::MEASURED_RING_ASSUMPTION);
+                v["with_the_runs_clock_bias"] = p.clock_biased.map_or(Value::Null, |b| {
+                    let mut v = prediction_json(&b);
+                    v["clock_bias_us"] = json!(
+                        r.run
+                            .clock_error_mean_ns
+                            .iter()
+                            .map(|b| b * 1e-3)
+                            .collect::<Vec<_>>()
+                    );
+                    v
+                });
                 v
             });
             v
@@ -449,6 +489,21 @@ pub fn rt_text(r: &RtResult, prediction: Option<RtPrediction>) -> String {
                     p.residence_ns as f64 * 1e-3
                 ),
                 m,
+            );
+        }
+        if let Some(b) = &p.clock_biased {
+            let us: Vec<String> = r
+                .run
+                .clock_error_mean_ns
+                .iter()
+                .map(|b| format!("{:+.2}", b * 1e-3))
+                .collect();
+            text += &line(
+                &format!(
+                    " on that ring with the run's clock biases ({} µs)",
+                    us.join(", ")
+                ),
+                b,
             );
         }
     }
@@ -571,4 +626,36 @@ fn prediction_json(p: &SimPrediction) -> Value {
         "sync_rmse_min": p.sync_rmse_range.0, "sync_rmse_max": p.sync_rmse_range.1,
         "seeds": p.seeds,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    /// A clock bias is a path delay taken too long by as much: the simulated clocks then
+    /// run off by the bias given, with its sign, to within their timestamp resolution.
+    #[test]
+    fn clock_bias_sets_each_clock_off_by_it() {
+        let s = ringsync_model::Scenario::from_toml("duration = \"300ms\"\n", "test")
+            .expect("scenario");
+        let spec = s.build().expect("spec");
+        let bias = [-500.0, 0.0, 800.0, 2_000.0];
+        let biased = super::with_clock_bias(&spec, &bias);
+        let opts = ringsync_sim::RunOptions::default();
+        let r =
+            ringsync_sim::run::simulate(&biased, opts, Vec::new(), &mut |_, _| {}).expect("run");
+        for (i, (m, b)) in r.clock_error_mean_ns.iter().zip(bias).enumerate() {
+            assert!(
+                (m - b).abs() < 10.0,
+                "slave {}: mean {m} ns for a bias of {b}",
+                i + 1
+            );
+        }
+        let plain = ringsync_sim::run::simulate(
+            &spec,
+            ringsync_sim::RunOptions::default(),
+            Vec::new(),
+            &mut |_, _| {},
+        )
+        .expect("run");
+        assert!(plain.clock_error_mean_ns.iter().all(|m| m.abs() < 10.0));
+    }
 }
