@@ -236,6 +236,10 @@ pub fn predict_rt(r: &RtResult, seeds: u64) -> Result<RtPrediction> {
     })
 }
 
+/// What the prediction with the run's clock biases ([`with_clock_bias`]) assumes beyond the
+/// ring as measured.
+pub const CLOCK_BIAS_ASSUMPTION: &str = "the ring as measured, each slave's clock off by the mean error the run's clock had over its second half (its path delay taken that much too long); the clocks' wander about that mean is not modelled";
+
 /// `spec` with slave i's clock off by `bias_ns[i]` [ns] (synchronised minus true time, as
 /// [`RunResult::clock_error_mean_ns`](ringsync_model::result::RunResult) has it): its path
 /// delay taken that much too long, so that every sync sets its clock that far ahead.
@@ -377,6 +381,7 @@ pub fn rt_summary(
                 v["assumption"] = json!(ringsync_rt::schedule::MEASURED_RING_ASSUMPTION);
                 v["with_the_runs_clock_bias"] = p.clock_biased.map_or(Value::Null, |b| {
                     let mut v = prediction_json(&b);
+                    v["assumption"] = json!(CLOCK_BIAS_ASSUMPTION);
                     v["clock_bias_us"] = json!(
                         r.run
                             .clock_error_mean_ns
