@@ -643,10 +643,11 @@ mod tests {
             .expect("scenario");
         let spec = s.build().expect("spec");
         let bias = [-500.0, 0.0, 800.0, 2_000.0];
-        let biased = super::with_clock_bias(&spec, &bias);
-        let opts = ringsync_sim::RunOptions::default();
-        let r =
-            ringsync_sim::run::simulate(&biased, opts, Vec::new(), &mut |_, _| {}).expect("run");
+        let run = |spec: &ringsync_model::Spec| {
+            let opts = ringsync_sim::RunOptions::default();
+            ringsync_sim::run::simulate(spec, opts, Vec::new(), &mut |_, _| {}).expect("run")
+        };
+        let r = run(&super::with_clock_bias(&spec, &bias));
         for (i, (m, b)) in r.clock_error_mean_ns.iter().zip(bias).enumerate() {
             assert!(
                 (m - b).abs() < 10.0,
@@ -654,13 +655,7 @@ mod tests {
                 i + 1
             );
         }
-        let plain = ringsync_sim::run::simulate(
-            &spec,
-            ringsync_sim::RunOptions::default(),
-            Vec::new(),
-            &mut |_, _| {},
-        )
-        .expect("run");
+        let plain = run(&spec);
         assert!(plain.clock_error_mean_ns.iter().all(|m| m.abs() < 10.0));
     }
 }
