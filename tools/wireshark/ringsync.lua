@@ -103,7 +103,7 @@ local DELAY_MARKER_NAME = {
 
 local COMMAND = {
     target = { 0, 2 },
-    reserved = { 2, 2 },
+    link = { 2, 2 },
     command = { 4, 4 },
     sample_time = { 8, 8 },
 }
@@ -363,10 +363,6 @@ local function check_payload(s, kind, len)
         if u16(s, at + COMMAND.target[1]) == 0 then
             return "bad slave address 0: expected 1..=65535"
         end
-        local reserved = u16(s, at + COMMAND.reserved[1])
-        if reserved ~= 0 then
-            return string.format("reserved field command bytes 2-3 is %d, expected 0", reserved)
-        end
         if f32_nonfinite(s, at + COMMAND.command[1]) then
             return "command is not a finite number"
         end
@@ -520,8 +516,8 @@ local hf = {
     -- Command frames (kind 2)
     command_target = ProtoField.uint16("ringsync.command.target", "Target slave", base.DEC, nil, nil,
         "1..=65535 (0 is the master and is rejected)"),
-    command_reserved = ProtoField.uint16("ringsync.command.reserved", "Reserved", base.DEC, nil, nil,
-        "Reserved (0)"),
+    command_link = ProtoField.uint16("ringsync.command.link", "Link delay", base.UNIT_STRING, units("ns"), nil,
+        "The master's running estimate of one link behind transparent relays [ns]; 0: none"),
     command_value = ProtoField.float("ringsync.command.value", "Command",
         "Command for the drive [V]; the slave clips it to its drive's range"),
     command_sample_time = ProtoField.uint64("ringsync.command.sample_time", "Sampling instant",
@@ -755,16 +751,16 @@ local function dissect_command(tvb, tree, at)
     if target == 0 then
         t:add_proto_expert_info(ei.address, "bad slave address 0: expected 1..=65535")
     end
-    local r = add(tree, hf.command_reserved, tvb, at, COMMAND.reserved)
-    local reserved = tvb(at + COMMAND.reserved[1], 2):le_uint()
-    if reserved ~= 0 then
-        r:add_proto_expert_info(ei.reserved, string.format("reserved field command bytes 2-3 is %d, expected 0",
-            reserved))
-    end
+    add(tree, hf.command_link, tvb, at, COMMAND.link)
     add_float(tree, hf.command_value, tvb, at + COMMAND.command[1], "command")
     add(tree, hf.command_sample_time, tvb, at, COMMAND.sample_time)
-    return string.format(" → slave %d: %s V, sampled at %s ns", target, fmt_v(tvb(at + COMMAND.command[1], 4)),
-        tostring(tvb(at + COMMAND.sample_time[1], 8):le_uint64()))
+    local link = tvb(at + COMMAND.link[1], 2):le_uint()
+    local link_text = ""
+    if link ~= 0 then
+        link_text = string.format(", link %d ns", link)
+    end
+    return string.format(" → slave %d: %s V, sampled at %s ns%s", target, fmt_v(tvb(at + COMMAND.command[1], 4)),
+        tostring(tvb(at + COMMAND.sample_time[1], 8):le_uint64()), link_text)
 end
 
 local function dissect_response(tvb, tree, at)

@@ -254,6 +254,18 @@ fn runs_as_one(transport: &str) {
         let k = i as i64 + 1;
         assert!((d.as_i64().unwrap_or(0) - k * l).abs() <= k, "{taken:?}");
     }
+    // The master estimates the links from each 64 round trips: 40 cycles give none, so
+    // it sent no link and every slave ended on the path it took.
+    let links = &summary["links_in_run"];
+    assert_eq!(links["estimates"], 0, "{links}");
+    assert!(links["link_us"].is_null(), "{links}");
+    assert_eq!(links["links_refused"], 0, "{links}");
+    let end = links["path_delay_end_us"].as_array().expect("paths");
+    assert_eq!(end.len(), 4, "{links}");
+    for (e, d) in end.iter().zip(taken) {
+        let (e, d) = (e.as_f64().unwrap_or(-1.0), d.as_i64().unwrap_or(0));
+        assert!((e * 1e3 - d as f64).abs() < 0.5, "{links} {taken:?}");
+    }
     let realtime = summary["realtime"].to_string();
     match realtime.find("pinned to CPU ") {
         // Claimed: every node on that one CPU, and no slave said otherwise.

@@ -84,7 +84,7 @@ const FLOAT_FIELDS: [&str; 3] = [
 ];
 
 /// Every field the dissector shows for a valid frame, compared frame by frame.
-const FIELDS: [&str; 37] = [
+const FIELDS: [&str; 38] = [
     "ringsync.version",
     "ringsync.kind",
     "ringsync.flags",
@@ -112,6 +112,7 @@ const FIELDS: [&str; 37] = [
     "ringsync.slot.residence_of",
     "ringsync.slot.marker",
     "ringsync.command.target",
+    "ringsync.command.link",
     "ringsync.command.value",
     "ringsync.command.sample_time",
     "ringsync.response.source",
@@ -237,6 +238,7 @@ fn expected(buf: &[u8]) -> Fields {
             let c = f.command().expect("command");
             put("ringsync.command.target", c.target().to_string());
             put("ringsync.slave", c.target().to_string());
+            put("ringsync.command.link", c.link_ns().to_string());
             put("ringsync.command.value", c.command_v().to_string());
             put(
                 "ringsync.command.sample_time",
@@ -657,6 +659,7 @@ fn known_frames() -> Vec<(&'static str, Vec<u8>)> {
         target: 3,
         command_v: -1.25,
         sample_time_ns: (1 << 40) + 5,
+        link_ns: 1614,
     }));
     let response = emit(Pdu::Response(ResponseRepr {
         common: common(42, 7),
@@ -870,8 +873,9 @@ fn known_frames_on_ethernet_claimed_checked_or_decoded_as() {
     assert_eq!(
         one(command, "_ws.col.Info"),
         "command cycle 4000000000 seq 65535 retry 2 flags STOP|TORQUE_OFF → slave 3: -1.250 V, \
-         sampled at 1099511627781 ns"
+         sampled at 1099511627781 ns, link 1614 ns"
     );
+    assert_eq!(command["ringsync.command.link"], ["1614"]);
     let response = &decoded[3];
     assert_eq!(response["ringsync.response.position"], ["-2147483000"]);
     assert_eq!(response["ringsync.response.status"], ["0x0022"]);

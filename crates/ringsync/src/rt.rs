@@ -415,6 +415,13 @@ pub fn rt_summary(
             "valid_unread_at_end": r.injected.valid_unread,
             "forged": r.injected.forged.iter().map(|(f, n)| json!({"kind": f.name(), "frames": n})).collect::<Vec<_>>(),
         },
+        "links_in_run": r.links_in_run.as_ref().map(|l| json!({
+            "link_us": l.link_ns.map(|v| v as f64 * 1e-3),
+            "start_up_link_us": r.calibration.start_up.measured.link.as_ns() as f64 * 1e-3,
+            "estimates": l.estimates,
+            "path_delay_end_us": l.path_delay_end_ns.iter().map(|p| p.map(|v| v as f64 * 1e-3)).collect::<Vec<_>>(),
+            "links_refused": l.refused,
+        })),
         "relays": {
             "transparent": r.stamps == ringsync_rt::Stamps::Kernel,
             "lumped_frames_corrected": t.relay_corrected,
@@ -525,6 +532,21 @@ pub fn rt_text(r: &RtResult, prediction: Option<RtPrediction>) -> String {
             String::new()
         }
     );
+    if let Some(l) = &r.links_in_run {
+        let us = |ns: Option<i64>| ns.map_or("-".into(), |v| format!("{:.3}", v as f64 * 1e-3));
+        text += &format!(
+            "\n  links as the run's frames measured them: {} µs a link (start-up {} µs; {} estimates); the slaves' path delays at the end {} µs; {} links refused",
+            us(l.link_ns),
+            us(Some(r.calibration.start_up.measured.link.as_ns())),
+            l.estimates,
+            l.path_delay_end_ns
+                .iter()
+                .map(|p| us(*p))
+                .collect::<Vec<_>>()
+                .join(", "),
+            l.refused
+        );
+    }
     if r.injected.garbage > 0 {
         text += &format!(
             "\n  injected {} garbage frames; the nodes refused {} malformed frames, {} more were unread at the end",

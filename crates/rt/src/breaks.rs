@@ -223,6 +223,7 @@ mod tests {
                 target: 2,
                 command_v: 1.0,
                 sample_time_ns: 5,
+                link_ns: 0,
             })
             .emit_into(&mut v)
             .expect("emit");

@@ -302,6 +302,7 @@ fn command(cycle: u32, target: u16, v: f32, sample_time_ns: u64) -> Vec<u8> {
         target,
         command_v: v,
         sample_time_ns,
+        link_ns: 0,
     };
     let mut b = vec![0u8; cmd.buffer_len()];
     let _ = cmd.emit(&mut b);

@@ -619,7 +619,23 @@ pub fn gather(
         }
     }
     let counted_malformed = crate::run::malformed_counted(&run);
+    let links_in_run =
+        (plan.stamps.in_processes() == crate::Stamps::Kernel).then(|| crate::run::LinksInRun {
+            link_ns: master.link_in_run.map(|(l, _)| l),
+            estimates: master.link_in_run.map_or(0, |(_, k)| k),
+            path_delay_end_ns: records
+                .iter()
+                .skip(1)
+                .map(|r| r.path_delay_end_ns)
+                .collect(),
+            refused: records
+                .iter()
+                .skip(1)
+                .filter_map(|r| r.slave.map(|c| c.links_refused))
+                .sum(),
+        });
     Ok(RtResult {
+        links_in_run,
         scenario: spec.scenario.clone(),
         spec: ran,
         transport,

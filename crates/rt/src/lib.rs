@@ -31,7 +31,8 @@ pub mod transport;
 pub use inject::{Flap, Forgery};
 pub use realtime::{Applied, CpuClaim, Pin, Realtime};
 pub use run::{
-    Kill, RtError, RtOptions, RtResult, Sinks, Stamps, Streamed, run, run_observed, run_streamed,
+    Kill, LinksInRun, RtError, RtOptions, RtResult, Sinks, Stamps, Streamed, run, run_observed,
+    run_streamed,
 };
 pub use timing::Timing;
 pub use transport::TransportKind;

@@ -352,6 +352,14 @@ pub struct NodeRecord {
     pub schedule: Option<Schedule>,
     /// The path delay the slave took [ns].
     pub path_delay_ns: Option<i64>,
+    /// Behind transparent relays: the slave's path delay when the run ended [ns] (it
+    /// follows the master's estimate of the links).
+    #[serde(default)]
+    pub path_delay_end_ns: Option<i64>,
+    /// Behind transparent relays: the master's last estimate of one link from its frames'
+    /// round trips [ns], and how many estimates it made.
+    #[serde(default)]
+    pub link_in_run: Option<(i64, u64)>,
     /// Frames the slave refused in its start-up phase.
     pub start_up_rejected: u64,
     /// The master's timing of the run.
@@ -929,6 +937,7 @@ fn run_master(
     rec.receive_errors = log.timing.receive_errors;
     rec.timing = Some(log.finish(&counters));
     rec.master = Some(counters);
+    rec.link_in_run = dev.master.link_estimate().map(|(d, k)| (d.as_ns(), k));
     rec.events = tap.take();
     drop((tap, dev));
     rec.live_dropped = end_live(live);
@@ -992,6 +1001,9 @@ fn run_slave(
         }
     };
     spec.slaves[i].path_delay = delay;
+    // Behind transparent relays its path is its links alone: it follows the master's
+    // estimate of the links as the run's frames measure them.
+    spec.slaves[i].follow_link = Relay::of(plan.stamps).transparent;
     // The clock window at least twice the ring's path, as the master's schedule sets its
     // own (`schedule::apply`): the slave's estimate of that path, from its own path delay
     // over its share of the hops (slave 1's counts no residence). What it used goes into
@@ -1218,6 +1230,7 @@ fn run_slave(
         crate::ring::drain_port(port)
     };
     rec.slave = Some(dev.slaves[i].counters());
+    rec.path_delay_end_ns = dev.slaves[i].path_delay().map(|d| d.as_ns());
     [rec.broken_dropped, rec.flap_dropped] = dropped;
     rec.receive_errors = receive_errors;
     rec.events = tap.take();

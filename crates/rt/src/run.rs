@@ -227,6 +227,24 @@ pub struct RtResult {
     pub detection_cycles: Option<i64>,
     /// What went to streaming sinks ([`Sinks`]) instead of this result.
     pub streamed: Streamed,
+    /// Behind transparent relays (a ring of node processes with kernel stamps): the links
+    /// as the run's own frames measured them, and the path delays the slaves followed.
+    pub links_in_run: Option<LinksInRun>,
+}
+
+/// Behind transparent relays: the master's running estimate of one link (the median of
+/// every 64 round trips of its sync lumped frames over the n + 1 links), sent with its
+/// commands, and what the slaves made of it (`ringsync_proto::node::link`).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct LinksInRun {
+    /// The master's last estimate of one link [ns]; `None` if it made none.
+    pub link_ns: Option<i64>,
+    /// Estimates the master made.
+    pub estimates: u64,
+    /// Each slave's path delay when the run ended [ns] (`None`: no record).
+    pub path_delay_end_ns: Vec<Option<i64>>,
+    /// Links in commands the slaves refused, all slaves together.
+    pub refused: u64,
 }
 
 /// What a run streamed to its [`Sinks`] instead of keeping it in its result.
@@ -601,6 +619,7 @@ pub fn run_streamed(
     run.start_up = Some(cal.start_up.clone());
     let counted = malformed_counted(&run);
     Ok(RtResult {
+        links_in_run: None,
         scenario: spec.scenario.clone(),
         spec,
         transport: opts.transport,

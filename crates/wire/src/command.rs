@@ -4,13 +4,13 @@
 //! payload
 //! offset size type  field
 //!      0    2 u16   target slave address (1..=65535)
-//!      2    2 u16   reserved, 0
+//!      2    2 u16   link delay [ns]: the master's running estimate behind transparent relays, 0 none
 //!      4    4 f32   command [V], finite (IEEE 754 binary32)
 //!      8    8 u64   sampling instant the command was computed from [ns, master clock]
 //! ```
 //! The offsets are in [`field`]; [`CommandPayload`] reads and writes them in place.
 
-use crate::bytes::{finite, get};
+use crate::bytes::finite;
 use crate::error::{Error, Result, exact_len};
 use crate::header::{CRC_LEN, Common, FrameKind, HEADER_LEN, emit_common, parse_common};
 
@@ -20,8 +20,9 @@ pub mod field {
 
     /// Target slave address, u16 (1..=65535; 0 is the master and is rejected).
     pub const TARGET: Field = 0..2;
-    /// Reserved, u16 (0).
-    pub const RESERVED: Field = 2..4;
+    /// The master's running estimate of one link's delay behind transparent relays, u16
+    /// [ns]; 0: none (docs/wire.md).
+    pub const LINK: Field = 2..4;
     /// Command, f32 [V], finite.
     pub const COMMAND: Field = 4..8;
     /// Sampling instant of the feedback the command was computed from, u64 [ns, master clock].
@@ -44,6 +45,10 @@ pub struct CommandRepr {
     pub command_v: f32,
     /// Sampling instant of the feedback the command was computed from [ns, master clock].
     pub sample_time_ns: u64,
+    /// The master's running estimate of one link's delay [ns] when the relays are
+    /// transparent (a slave behind them takes its address times this as its path delay);
+    /// 0: none.
+    pub link_ns: u16,
 }
 
 impl CommandRepr {
@@ -67,6 +72,7 @@ impl CommandRepr {
             target: v.target(),
             command_v: v.command_v(),
             sample_time_ns: v.sample_time_ns(),
+            link_ns: v.link_ns(),
         })
     }
 
@@ -94,9 +100,9 @@ impl CommandRepr {
             &self.common,
             COMMAND_PAYLOAD_LEN,
             |p| {
-                // The payload is zeroed: the reserved field stays 0.
                 let mut v = CommandPayload::new_unchecked(p);
                 v.set_target(self.target);
+                v.set_link_ns(self.link_ns);
                 v.set_command_v(command_v);
                 v.set_sample_time_ns(self.sample_time_ns);
                 Ok(())
@@ -118,22 +124,17 @@ view! {
 
 fields!(CommandPayload {
     target, set_target: u16 = field::TARGET, "Target slave address (1..=65535 when valid; 0 is the master's).";
+    link_ns, set_link_ns: u16 = field::LINK, "The master's estimate of one link's delay behind transparent relays [ns]; 0: none.";
     command_v, set_command_v: f32 = field::COMMAND, "Command for the drive [V] (raw: may be non-finite before `check`).";
     sample_time_ns, set_sample_time_ns: u64 = field::SAMPLE_TIME, "Sampling instant of the feedback the command was computed from [ns, master clock].";
 });
 
 impl<T: AsRef<[u8]>> CommandPayload<T> {
-    /// Checks the fields: a slave target (not 0), the reserved field 0, a finite command.
+    /// Checks the fields: a slave target (not 0), a finite command (any link value is
+    /// well formed; the slave judges it against its own path).
     pub fn check(&self) -> Result<()> {
         if self.target() == 0 {
             return Err(Error::BadSlave(0));
-        }
-        let reserved: u16 = get(self.buffer.as_ref(), field::RESERVED);
-        if reserved != 0 {
-            return Err(Error::Reserved {
-                field: "command bytes 2-3",
-                value: reserved.into(),
-            });
         }
         finite("command", self.command_v()).map(drop)
     }

@@ -162,7 +162,11 @@ impl fmt::Display for Summary {
                     f,
                     " → slave {}: {:.3} V, sampled at {} ns",
                     c.target, c.command_v, c.sample_time_ns
-                )
+                )?;
+                if c.link_ns != 0 {
+                    write!(f, ", link {} ns", c.link_ns)?;
+                }
+                Ok(())
             }
             Summary::Response(r) => {
                 head(f, FrameKind::Response, &r.common)?;

@@ -29,7 +29,8 @@
 //! ```
 //! use ringsync_wire::{CommandRepr, Common, Frame, Pdu, Route};
 //! let cmd = CommandRepr { common: Common { cycle: 7, ..Common::default() },
-//!                         target: 2, command_v: -1.25, sample_time_ns: 1_000_000 };
+//!                         target: 2, command_v: -1.25, sample_time_ns: 1_000_000,
+//!                         link_ns: 0 };
 //! let mut buf = [0u8; 64];
 //! let n = cmd.emit(&mut buf).unwrap();
 //! assert_eq!(Pdu::parse(&buf[..n]), Ok(Pdu::Command(cmd)));

@@ -156,7 +156,7 @@ fn layouts() -> Vec<Layout> {
             heading: "Kind 2: command frame",
             rows: vec![
                 fixed("target slave", command::field::TARGET),
-                fixed("reserved", command::field::RESERVED),
+                fixed("link delay", command::field::LINK),
                 fixed("command", command::field::COMMAND),
                 fixed("sampling instant", command::field::SAMPLE_TIME),
             ],
@@ -359,6 +359,7 @@ fn text_form_examples_are_what_display_prints() {
         target: 2,
         command_v: -1.25,
         sample_time_ns: 1_000_000,
+        link_ns: 0,
     };
     let response = ResponseRepr {
         common: Common {

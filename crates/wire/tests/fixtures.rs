@@ -16,7 +16,7 @@ const COMMAND: [u8; 32] = [
     0x06, 0x05,                         // seq 0x0506
     0x10, 0x00,                         // payload length 16
     0x03, 0x00,                         // target slave 3
-    0x00, 0x00,                         // reserved
+    0x00, 0x00,                         // link delay: none
     0x00, 0x00, 0xC0, 0x3F,             // command 1.5 V (f32)
     0x40, 0x42, 0x0F, 0x00, 0, 0, 0, 0, // sampled at 1 000 000 ns
     0xDC, 0x8A, 0x88, 0x8F,             // CRC-32 0x8f888adc
@@ -33,6 +33,7 @@ fn command_repr() -> CommandRepr {
         target: 3,
         command_v: 1.5,
         sample_time_ns: 1_000_000,
+        link_ns: 0,
     }
 }
 
@@ -372,13 +373,11 @@ fn typed_errors_name_the_problem() {
     assert_eq!(at(2, 0x80, &COMMAND), Err(Error::ReservedFlags(0x80)));
     assert_eq!(at(2, 0x08, &COMMAND), Err(Error::ReservedFlags(0x08)));
     assert_eq!(at(12, 0, &COMMAND), Err(Error::BadSlave(0)));
-    assert_eq!(
-        at(14, 1, &COMMAND),
-        Err(Error::Reserved {
-            field: "command bytes 2-3",
-            value: 1
-        })
-    );
+    // Bytes 2-3 are the master's link estimate: any value is well formed.
+    match at(14, 0xC4, &COMMAND) {
+        Ok(Pdu::Command(c)) => assert_eq!(c.link_ns, 0xC4),
+        other => panic!("a command with a link estimate: {other:?}"),
+    }
     // 0x7FC00000 is a NaN.
     let mut nan = COMMAND.to_vec();
     nan[16..20].copy_from_slice(&f32::NAN.to_le_bytes());
@@ -1142,13 +1141,9 @@ fn view_checks_report_what_the_parsers_report() {
         Err(Error::BadSlave(0))
     );
     let b = at(14, 1, &COMMAND);
-    assert_eq!(
-        frame(&b).command().expect("view").check(),
-        Err(Error::Reserved {
-            field: "command bytes 2-3",
-            value: 1
-        })
-    );
+    let c = frame(&b);
+    let c = c.command().expect("view");
+    assert_eq!((c.check(), c.link_ns()), (Ok(()), 1));
     let b = at(15, 0x40, &RESPONSE);
     let f = frame(&b);
     let r = f.response().expect("view");

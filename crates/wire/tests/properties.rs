@@ -121,12 +121,13 @@ fn pdu() -> impl Strategy<Value = Pdu> {
                     slots
                 }
             )),
-        (common(), 1u16.., finite_f32(), any::<u64>()).prop_map(
-            |(common, target, command_v, sample_time_ns)| Pdu::Command(CommandRepr {
+        (common(), 1u16.., finite_f32(), any::<u64>(), any::<u16>()).prop_map(
+            |(common, target, command_v, sample_time_ns, link_ns)| Pdu::Command(CommandRepr {
                 common,
                 target,
                 command_v,
-                sample_time_ns
+                sample_time_ns,
+                link_ns,
             })
         ),
         (
@@ -250,6 +251,7 @@ fn read_through_views(f: &Frame<&[u8]>) -> Pdu {
                 target: c.target(),
                 command_v: c.command_v(),
                 sample_time_ns: c.sample_time_ns(),
+                link_ns: c.link_ns(),
             })
         }
         FrameKind::Response => {
@@ -345,6 +347,7 @@ fn write_through_views(pdu: &Pdu, buf: &mut [u8]) {
             v.set_target(r.target);
             v.set_command_v(r.command_v);
             v.set_sample_time_ns(r.sample_time_ns);
+            v.set_link_ns(r.link_ns);
         }
         Pdu::Response(r) => {
             let mut v = f.response_mut().expect("response view");
@@ -558,6 +561,7 @@ proptest! {
                 target: 1,
                 command_v: 0.0,
                 sample_time_ns: 0,
+                link_ns: 0,
             }),
             Pdu::Response(_) => Pdu::Response(ResponseRepr {
                 common: Common::default(),

@@ -848,6 +848,7 @@ mod tests {
             target: 1,
             command_v: 1.0,
             sample_time_ns: 0,
+            link_ns: 0,
         });
         let mut b = Vec::new();
         lumped.emit_into(&mut b).expect("emit");

@@ -43,6 +43,7 @@ fn command(cycle: u32, target: u16, v: f32, retry: u8, sample: u64) -> Vec<u8> {
         target,
         command_v: v,
         sample_time_ns: sample,
+        link_ns: 0,
     };
     let mut b = vec![0; repr.buffer_len()];
     repr.emit(&mut b).expect("emit command");
@@ -826,4 +827,70 @@ fn transparent_relays_keep_the_clocks_exact_through_varying_residences() {
         "{:?}",
         r.master.counters()
     );
+}
+
+/// Links slower than the start-up phase measured (1 000 ns per hop where the slaves were
+/// given 1 400 ns per hop as their links alone, i·L): each slave's clock runs ahead by i ×
+/// 400 ns. Behind transparent relays the master measures the links from its frames' round
+/// trips and sends the estimate with its commands; slaves that follow it take i × 1 000 ns
+/// and their clocks come within 100 ns. A slave that does not follow the link refuses it
+/// (counted) and keeps the path it was given; a link that would move a path by more than
+/// half the clock window is refused too.
+#[test]
+fn behind_transparent_relays_the_slaves_follow_the_links_the_master_measures() {
+    let run = |given_link: i64, follow: bool| {
+        let mut r = ring();
+        let mut cfg = r.master.config().clone();
+        cfg.transparent_link = Some(Duration::from_ns(given_link));
+        r.master = Master::new(
+            cfg,
+            Box::new(super::testbed::PdMotion::new(
+                4,
+                15.12,
+                1.0,
+                super::testbed::RESOLUTION,
+            )),
+        );
+        for (k, s) in r.slaves.iter_mut().enumerate() {
+            let i = k as i64 + 1;
+            *s = Slave::new(SlaveConfig {
+                path_delay: Duration::from_ns(given_link * i),
+                follow_link: follow,
+                ..s.config().clone()
+            });
+        }
+        r.run_until(500 * MS + 300_000);
+        let errors: Vec<i64> = (1..=4).map(|i| clock_error(&r, i)).collect();
+        (r, errors)
+    };
+    let (r, errors) = run(1_400, true);
+    assert!(errors.iter().all(|e| e.abs() < 100), "{errors:?}");
+    assert_eq!(
+        r.master.link_estimate().map(|(d, _)| d),
+        Some(Duration::from_ns(1_000))
+    );
+    for (k, s) in r.slaves.iter().enumerate() {
+        assert_eq!(
+            s.path_delay(),
+            Some(Duration::from_ns(1_000 * (k as i64 + 1)))
+        );
+        assert_eq!(
+            (s.counters().link_updates, s.counters().links_refused),
+            (1, 0)
+        );
+    }
+    assert!(stops(&r).is_empty());
+    // Not following: each clock ahead by i × 400 ns, every link refused.
+    let (r, errors) = run(1_400, false);
+    for (k, e) in errors.iter().enumerate() {
+        let ahead = 400 * (k as i64 + 1);
+        assert!((e - ahead).abs() < 100, "slave {}: {errors:?}", k + 1);
+    }
+    assert!(r.slaves.iter().all(|s| s.counters().links_refused > 400
+        && s.path_delay() == Some(Duration::from_ns(1_400 * (s.config().address as i64)))));
+    // Given 14 µs per hop: slave 4 would move 52 µs, beyond half its ±50 µs window.
+    let (r, _) = run(14_000, true);
+    let s4 = &r.slaves[3];
+    assert_eq!(s4.path_delay(), Some(Duration::from_ns(56_000)));
+    assert!(s4.counters().links_refused > 0 && s4.counters().link_updates == 0);
 }

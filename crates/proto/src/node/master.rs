@@ -32,6 +32,7 @@
 //! every other axis gets torque off once its ramp has ended and it has held still for
 //! `stop_hold`, and in any case `stop_timeout` after the stop began.
 
+use crate::node::link::LinkEstimate;
 use std::collections::VecDeque;
 
 use ringsync_wire::{
@@ -94,8 +95,10 @@ pub struct MasterConfig {
     /// frame, and the slaves' path delays are their links alone. A lumped frame may then
     /// come back with its stamp later than sent, by up to a cycle; on a broken ring the
     /// copy on port B is stamped ahead by the links alone, L·(n + 1 − 2j)
-    /// ([`BrokenRing::stamp_shift`] counts the residences too). `None`: stamps come back
-    /// as sent.
+    /// ([`BrokenRing::stamp_shift`] counts the residences too). The master also measures
+    /// the links from the round trips of its frames and sends its estimate with every
+    /// command ([`crate::node::link`]). `None`: stamps come back as sent, and commands
+    /// carry no link.
     pub transparent_link: Option<Duration>,
 }
 
@@ -593,6 +596,9 @@ pub struct Master {
     out: Outbox,
     events: VecDeque<MasterEvent>,
     counters: MasterCounters,
+    /// Behind transparent relays: one link's delay as the run's round trips measure it,
+    /// sent with every command.
+    link: Option<LinkEstimate>,
 }
 
 impl Master {
@@ -647,7 +653,28 @@ impl Master {
             out: Outbox::default(),
             events: VecDeque::new(),
             counters: MasterCounters::default(),
+            link: cfg
+                .transparent_link
+                .map(|_| LinkEstimate::new(n, cfg.cycle)),
             cfg,
+        }
+    }
+
+    /// Behind transparent relays: the run's estimate of one link's delay (the median of
+    /// the last [`link::WINDOW`](crate::node::link::WINDOW) round trips over the n + 1
+    /// links), once there is one, and how many estimates were made.
+    pub fn link_estimate(&self) -> Option<(Duration, u64)> {
+        self.link
+            .as_ref()
+            .and_then(|l| l.current().map(|d| (d, l.estimates())))
+    }
+
+    /// A sync lumped frame back: one that left on port A and came back to port B went
+    /// round the whole ring, and behind transparent relays its round trip less its
+    /// stamp's residences is the links'.
+    fn note_round_trip(&mut self, sent: Port, arrived: Port, now: Instant, stamp: u64) {
+        if let (Some(l), Port::A, Port::B) = (self.link.as_mut(), sent, arrived) {
+            l.note(now.as_ns(), stamp);
         }
     }
 
@@ -1088,6 +1115,7 @@ impl Master {
             sample_time_ns: (self.mout.record.sample_time[target] * 1e9)
                 .round()
                 .max(0.0) as u64,
+            link_ns: self.link.as_ref().map_or(0, LinkEstimate::wire),
         };
         if self
             .out
@@ -1143,6 +1171,7 @@ impl Master {
                 let c = &l.common;
                 self.echo_of(port, c.cycle, c.seq, l.master_time_ns, first, slots.len())
                     .map(|(j, sent)| {
+                        self.note_round_trip(sent, port, now, l.master_time_ns);
                         let back = Back { j, sent, port };
                         self.take_lumped_slots(now, back, first, slots.len(), |k| {
                             slots.get(k).copied()
@@ -1251,6 +1280,7 @@ impl Master {
                 _ => return Err(Reject::Malformed),
             }
         }
+        self.note_round_trip(sent, port, now, p.master_time_ns());
         let back = Back { j, sent, port };
         self.take_lumped_slots(now, back, first, count, |k| {
             p.slot_bytes(k).and_then(|b| FeedbackSlot::parse(b).ok())

@@ -7,6 +7,7 @@
 
 pub mod calibrate;
 pub mod clock;
+pub mod link;
 pub mod master;
 pub mod motion;
 pub mod reject;

@@ -173,6 +173,12 @@ pub struct SlaveConfig {
     pub brake_gain: f64,
     /// Longest brake before the torque goes off anyway.
     pub brake_timeout: Duration,
+    /// Behind transparent relays (its path delay its links alone, address × L): take the
+    /// master's running estimate of a link from its commands
+    /// ([`CommandRepr::link_ns`](ringsync_wire::CommandRepr)) and make the path delay
+    /// address × that link, when it stays within half the clock window of the path the
+    /// start-up phase gave. `false`: a link in a command is refused (counted).
+    pub follow_link: bool,
 }
 
 impl SlaveConfig {
@@ -199,6 +205,7 @@ impl SlaveConfig {
             safe_state: SafeState::Brake,
             brake_gain: 1.591,
             brake_timeout: Duration::from_ms(2_000),
+            follow_link: false,
         }
     }
 }
@@ -272,6 +279,13 @@ pub struct SlaveCounters {
     /// Delay frames answered: probes written in the start-up phase, closing frames taken
     /// or acknowledged again.
     pub delay_frames: u64,
+    /// Links the master sent with its commands that this slave did not take: it does not
+    /// follow the link ([`SlaveConfig::follow_link`]), or address × link would move its
+    /// path delay more than half the clock window from the start-up's (the command itself
+    /// is applied).
+    pub links_refused: u64,
+    /// Times it moved its path delay to the master's link estimate.
+    pub link_updates: u64,
 }
 
 /// Which encoder latch comes next.
@@ -385,6 +399,9 @@ pub struct Slave {
     out: Outbox,
     events: VecDeque<SlaveEvent>,
     counters: SlaveCounters,
+    /// The path delay the slave was given, or took in its start-up phase: what a link from
+    /// the master may move it from.
+    given_path: Duration,
     law: Option<Box<dyn SlaveLaw>>,
     /// Scratch for the frame's slots handed to the law.
     law_slots: Vec<Option<FeedbackSlot>>,
@@ -414,6 +431,7 @@ impl Slave {
     pub fn new(cfg: SlaveConfig) -> Self {
         let clock = SyncClock::new(cfg.clock_sync);
         Slave {
+            given_path: cfg.path_delay,
             cfg,
             phase: Phase::Running,
             clock,
@@ -827,6 +845,7 @@ impl Slave {
                 return Err(Reject::Overflow);
             }
             self.cfg.path_delay = d;
+            self.given_path = d;
             self.phase = Phase::Running;
             self.events
                 .push_back(SlaveEvent::Calibrated { path_delay: d });
@@ -1197,11 +1216,34 @@ impl Slave {
         }
     }
 
+    /// The master's estimate of one link [ns] in an accepted command: the path delay
+    /// becomes address × link if the slave follows the link and that stays within half
+    /// the clock window of the path it was given; otherwise it is refused (counted).
+    fn take_link(&mut self, link_ns: u16) {
+        let path = i64::from(link_ns).checked_mul(i64::from(self.cfg.address));
+        let plausible = path.filter(|p| {
+            p.checked_sub(self.given_path.as_ns())
+                .is_some_and(|d| d.abs() <= self.cfg.clock_window.as_ns() / 2)
+        });
+        match plausible {
+            Some(p) if self.cfg.follow_link => {
+                if p != self.cfg.path_delay.as_ns() {
+                    self.cfg.path_delay = Duration::from_ns(p);
+                    self.counters.link_updates += 1;
+                }
+            }
+            _ => self.counters.links_refused += 1,
+        }
+    }
+
     fn take_command(&mut self, cmd: &CommandRepr, rx_end: Instant, action: CommandAction) {
         let flags = cmd.common.flags;
         match action {
             CommandAction::Repeat => self.counters.duplicates += 1,
             CommandAction::Apply => {
+                if cmd.link_ns != 0 {
+                    self.take_link(cmd.link_ns);
+                }
                 if flags.contains(Flags::TORQUE_OFF) && self.drive != Drive::Off {
                     self.cut_torque(TorqueOffCause::Commanded);
                 }

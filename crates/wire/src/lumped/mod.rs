@@ -463,6 +463,7 @@ mod relay_tests {
             target: 1,
             command_v: 0.5,
             sample_time_ns: 0,
+            link_ns: 0,
         });
         let mut c = vec![0u8; cmd.buffer_len()];
         cmd.emit(&mut c).expect("emit");
