@@ -894,3 +894,43 @@ fn behind_transparent_relays_the_slaves_follow_the_links_the_master_measures() {
     assert_eq!(s4.path_delay(), Some(Duration::from_ns(56_000)));
     assert!(s4.counters().links_refused > 0 && s4.counters().link_updates == 0);
 }
+
+/// A link rides only in a command the slave accepted: forged commands of another cycle
+/// that carry one (1.5 µs, which a following slave would take: 3 µs from its 2 µs path,
+/// within half its window) are refused whole, and the slave's path does not move.
+#[test]
+fn a_link_in_a_refused_command_moves_no_path() {
+    let mut r = ring();
+    let cfg = r.slaves[1].config().clone();
+    r.slaves[1] = Slave::new(SlaveConfig {
+        follow_link: true,
+        ..cfg
+    });
+    r.run_until(100 * MS);
+    let with_link = |cycle: u32| {
+        let repr = CommandRepr {
+            common: Common {
+                cycle,
+                ..Common::default()
+            },
+            target: 2,
+            command_v: 10.0,
+            sample_time_ns: 0,
+            link_ns: 1_500,
+        };
+        let mut b = vec![0; repr.buffer_len()];
+        repr.emit(&mut b).expect("emit command");
+        b
+    };
+    for k in 100..200i64 {
+        r.inject(2, k * MS + 500_000, with_link((k + 7) as u32));
+        r.run_until(k * MS + 600_000);
+    }
+    r.run_until(200 * MS);
+    let s = &r.slaves[1];
+    let c = s.counters();
+    assert_eq!(c.rejected.get(Reject::WrongCycle), 100, "{c:?}");
+    assert_eq!((c.link_updates, c.links_refused), (0, 0), "{c:?}");
+    assert_eq!(s.path_delay(), Some(Duration::from_ns(2_000)));
+    assert!(clock_error(&r, 2).abs() < 100);
+}
