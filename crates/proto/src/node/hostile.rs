@@ -766,6 +766,21 @@ fn one_late_sync_frame_does_not_throw_a_clock_off() {
     }
 }
 
+/// The testbed's master, afresh, expecting transparent relays on links of `link` ns.
+fn expect_transparent(r: &mut Testbed, link: i64) {
+    let mut cfg = r.master.config().clone();
+    cfg.transparent_link = Some(Duration::from_ns(link));
+    r.master = Master::new(
+        cfg,
+        Box::new(super::testbed::PdMotion::new(
+            4,
+            15.12,
+            1.0,
+            super::testbed::RESOLUTION,
+        )),
+    );
+}
+
 /// Relays that hold each sync lumped frame for a varying time (0-10 µs, as a process that
 /// must wake): when each adds the time it held the frame to the frame's stamp (a
 /// transparent relay, `ringsync_wire::add_to_master_time`) and the master expects it, every
@@ -777,17 +792,7 @@ fn transparent_relays_keep_the_clocks_exact_through_varying_residences() {
     let run = |correct: bool, expect: bool| {
         let mut r = ring();
         if expect {
-            let mut cfg = r.master.config().clone();
-            cfg.transparent_link = Some(Duration::from_ns(1_000));
-            r.master = Master::new(
-                cfg,
-                Box::new(super::testbed::PdMotion::new(
-                    4,
-                    15.12,
-                    1.0,
-                    super::testbed::RESOLUTION,
-                )),
-            );
+            expect_transparent(&mut r, 1_000);
         }
         let mut draw = 12_345u64;
         r.tap = Some(Box::new(move |hop: &Hop, b: &mut Vec<u8>| {
@@ -840,17 +845,7 @@ fn transparent_relays_keep_the_clocks_exact_through_varying_residences() {
 fn behind_transparent_relays_the_slaves_follow_the_links_the_master_measures() {
     let run = |given_link: i64, follow: bool| {
         let mut r = ring();
-        let mut cfg = r.master.config().clone();
-        cfg.transparent_link = Some(Duration::from_ns(given_link));
-        r.master = Master::new(
-            cfg,
-            Box::new(super::testbed::PdMotion::new(
-                4,
-                15.12,
-                1.0,
-                super::testbed::RESOLUTION,
-            )),
-        );
+        expect_transparent(&mut r, given_link);
         for (k, s) in r.slaves.iter_mut().enumerate() {
             let i = k as i64 + 1;
             *s = Slave::new(SlaveConfig {
