@@ -7,9 +7,13 @@
 #
 #   tools/pgo-build.sh [OUTDIR]     # default target/pgo; prints the binary's path last
 #
+# RUSTFLAGS set by the caller are kept in both builds, e.g. RUSTFLAGS="-C target-cpu=native"
+# for a binary that only this machine's kind of CPU runs.
+#
 # Needs LLVM's profile tools for the toolchain in use: `rustup component add llvm-tools`.
 # Builds twice (instrumented, then optimised): about twice a release build's time.
 set -euo pipefail
+extra="${RUSTFLAGS:-}"
 root="$(cd "$(dirname "$0")/.." && pwd)"
 out="${1:-$root/target/pgo}"
 profdata="$(find "$(rustc --print sysroot)/lib/rustlib" -name llvm-profdata -type f 2>/dev/null | head -n 1)"
@@ -22,7 +26,7 @@ trap 'rm -rf "$work"' EXIT
 cd "$root"
 
 echo "pgo-build: 1/3 instrumented build" >&2
-CARGO_TARGET_DIR="$out/instrumented" RUSTFLAGS="-Cprofile-generate=$work/raw" \
+CARGO_TARGET_DIR="$out/instrumented" RUSTFLAGS="$extra -Cprofile-generate=$work/raw" \
   cargo build --release --locked -p ringsync-cli
 bin="$out/instrumented/release/ringsync"
 
@@ -41,6 +45,6 @@ short=(--set 'duration="1s"' --outputs summary)
 "$profdata" merge -o "$work/merged.profdata" "$work/raw"
 
 echo "pgo-build: 3/3 optimised build" >&2
-CARGO_TARGET_DIR="$out" RUSTFLAGS="-Cprofile-use=$work/merged.profdata" \
+CARGO_TARGET_DIR="$out" RUSTFLAGS="$extra -Cprofile-use=$work/merged.profdata" \
   cargo build --release --locked -p ringsync-cli
 echo "$out/release/ringsync"
