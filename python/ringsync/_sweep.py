@@ -125,9 +125,10 @@ class Sweep:
     def plot(self, metric: str = "sync_rmse", *, ax: Any = None) -> Any:
         """Draws ``metric`` (a row column: ``sync_rmse``, ``track_rmse`` [rad], …) against
         the grid's first key: the mean over the seeds with ± one (population) standard
-        deviation as error bars, one line per combination of the other keys. Needs
-        matplotlib (``pip install 'ringsync[plot]'``); draws into ``ax`` when given.
-        Returns the figure.
+        deviation as error bars, one line per combination of the other keys. With an
+        empty grid (the scenario alone over its seeds) it draws each seed's value and
+        their mean. Needs matplotlib (``pip install 'ringsync[plot]'``); draws into ``ax``
+        when given. Returns the figure.
 
         Example::
 
@@ -139,12 +140,13 @@ class Sweep:
             'faults.loss'
         """
         plt = _pyplot("Sweep.plot()")
-        if not self.grid:
-            raise ValueError("Sweep.plot() needs a grid with at least one key")
         if not self.rows or metric not in self.rows[0]:
             raise ValueError(
                 f"Sweep.plot(): no column {metric!r}; the rows have {', '.join(self.rows[0]) if self.rows else 'none'}"
             )
+        unit = ROW_COLUMNS.get(metric, "")
+        if not self.grid:
+            return self._plot_seeds(plt, metric, unit, ax)
         first, others = self.keys[0], self.keys[1:]
         xs = self.grid[first]
         numeric = all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in xs)
@@ -171,11 +173,28 @@ class Sweep:
         if not numeric:
             ax.set_xticks([pos[repr(v)] for v in xs], [str(v) for v in xs])
         ax.set_xlabel(first)
-        unit = ROW_COLUMNS.get(metric, "")
         ax.set_ylabel(f"{metric} [{unit}]" if unit else metric)
         ax.set_title(f"{self.scenario.name}: mean ± sd over {self.seeds} seed(s)")
         if others:
             ax.legend(fontsize="small")
+        ax.grid(True, alpha=0.3)
+        return fig
+
+    def _plot_seeds(self, plt: Any, metric: str, unit: str, ax: Any) -> Any:
+        """:meth:`plot` for an empty grid: ``metric`` of each seed, and the mean over them."""
+        pts = [(r["seed"], float(r[metric])) for r in self.rows if r[metric] is not None]
+        if ax is None:
+            fig, ax = plt.subplots(figsize=(6.4, 4.0))
+        else:
+            fig = ax.figure
+        ax.plot([p[0] for p in pts], [p[1] for p in pts], marker="o", label=metric)
+        if pts:
+            mean = sum(p[1] for p in pts) / len(pts)
+            ax.axhline(mean, linestyle="--", color="grey", label=f"mean {mean:.6g}")
+        ax.set_xlabel("seed")
+        ax.set_ylabel(f"{metric} [{unit}]" if unit else metric)
+        ax.set_title(f"{self.scenario.name}: {metric} of each of {self.seeds} seed(s)")
+        ax.legend(fontsize="small")
         ax.grid(True, alpha=0.3)
         return fig
 

@@ -105,6 +105,13 @@ def test_plots_return_figures() -> None:
     assert isinstance(fig2, Figure) and len(fig2.axes[0].containers) == 2  # one line per loss
     with pytest.raises(ValueError, match="no column 'nope'"):
         sw.plot("nope")
+    # An empty grid: the scenario alone over its seeds, each seed's value and the mean.
+    seeds = ringsync.sweep("paper-2015", {}, seeds=3, duration="0.3s")
+    fig4 = seeds.plot()
+    line, mean = fig4.axes[0].lines
+    assert list(line.get_xdata()) == [1, 2, 3]
+    assert list(line.get_ydata()) == [r["sync_rmse"] for r in seeds.rows]
+    assert mean.get_ydata()[0] == pytest.approx(seeds.mean_rows[0]["sync_rmse"])
     fig3 = ringsync.plan().plot(zoom=True)
     assert isinstance(fig3, Figure)
     import matplotlib.pyplot as plt

@@ -112,7 +112,8 @@ enum Command {
     /// Identify a run's axes (H = J/K_a, C = b/K_a, F = T_c/K_a by least squares) and write
     /// its scenario with them as feed-forward.
     Identify(sim_cmd::IdentifyArgs),
-    /// Sweep scenario keys (their product, several seeds each) in parallel: CSV and a figure.
+    /// Sweep scenario keys (their product, several seeds each), or one scenario over many
+    /// seeds, in parallel: CSV and a figure.
     Sweep(sim_cmd::SweepArgs),
 }
 

@@ -196,8 +196,9 @@ pub(crate) fn reproduce(args: &ReproduceArgs) -> Result<Outcome, CliError> {
 pub struct SweepArgs {
     /// Scenario file or built-in name: the base of every case.
     scenario: String,
-    /// A key and its values, e.g. `faults.loss=0,0.01,0.02`; several give their product.
-    #[arg(long = "set", value_name = "KEY=V1,V2,…", required = true)]
+    /// A key and its values, e.g. `faults.loss=0,0.01,0.02`; several give their product;
+    /// none: the scenario alone, over its seeds.
+    #[arg(long = "set", value_name = "KEY=V1,V2,…")]
     set: Vec<ringsync::sweep::SweepAxis>,
     /// Seeds per case (the scenario's seed, +1, …); means are over them.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=1000))]

@@ -326,6 +326,76 @@ fn sweep_writes_rows_means_and_a_figure() {
     assert_eq!(String::from_utf8_lossy(&o.stderr).lines().count(), 1);
 }
 
+/// A sweep with no key runs the scenario alone over its seeds: no key columns, one row of
+/// means over them, each seed's Sync-RMSE what `sim --seed` gives, and a figure per seed.
+#[test]
+fn a_sweep_without_keys_runs_the_scenario_over_its_seeds() {
+    let d = dir("sweep-seeds");
+    let sc = short_scenario();
+    let o = ringsync(&[
+        "sweep",
+        sc.to_str().expect("p"),
+        "--seeds",
+        "3",
+        "--out",
+        d.to_str().expect("p"),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(stdout.starts_with("| runs | Track-RMSE"), "{stdout}");
+    let rows = std::fs::read_to_string(d.join("sweep.csv")).expect("sweep.csv");
+    let lines: Vec<&str> = rows.lines().collect();
+    assert_eq!(lines.len(), 1 + 3);
+    assert!(
+        lines[0].starts_with("seed,track_rmse,sync_rmse,"),
+        "{}",
+        lines[0]
+    );
+    let field = |line: &str, i: usize| -> f64 {
+        line.split(',')
+            .nth(i)
+            .expect("field")
+            .parse()
+            .expect("number")
+    };
+    // The scenario's seed (1 by default), then +1, +2.
+    let seeds: Vec<f64> = lines[1..].iter().map(|l| field(l, 0)).collect();
+    assert_eq!(seeds, [1.0, 2.0, 3.0]);
+    let sync: Vec<f64> = lines[1..].iter().map(|l| field(l, 2)).collect();
+    assert!(sync[0] != sync[1] && sync[1] != sync[2], "{sync:?}");
+    let means = std::fs::read_to_string(d.join("means.csv")).expect("means.csv");
+    let m: Vec<&str> = means.lines().collect();
+    assert_eq!(m.len(), 2);
+    assert!(
+        m[0].starts_with("runs,track_rmse_mean,sync_rmse_mean,"),
+        "{}",
+        m[0]
+    );
+    assert_eq!(field(m[1], 0), 3.0);
+    let mean = sync.iter().sum::<f64>() / 3.0;
+    assert!((field(m[1], 2) - mean).abs() < 2e-9, "{} vs {mean}", m[1]);
+    // Seed 2's row is the single run with seed 2.
+    let one = d.join("seed2");
+    let o = ringsync(&[
+        "sim",
+        sc.to_str().expect("p"),
+        "--seed",
+        "2",
+        "--outputs",
+        "summary",
+        "--out",
+        one.to_str().expect("p"),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(one.join("summary.json")).expect("read"))
+            .expect("json");
+    let single = v["sync_rmse"].as_f64().expect("sync_rmse");
+    assert!((single - sync[1]).abs() < 1e-9, "{single} vs {}", sync[1]);
+    let svg = std::fs::read_to_string(d.join("sweep.svg")).expect("svg");
+    assert!(svg.contains("<polyline") && svg.contains("Sync-RMSE of each seed"));
+}
+
 #[test]
 fn pcap_holds_every_frame_sent() {
     let d = dir("pcap");

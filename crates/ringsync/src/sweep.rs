@@ -1,5 +1,5 @@
 //! Parameter sweeps: the Cartesian product of values of any scenario keys, several seeds
-//! each. A [`Case`] is plain data (its scenario as TOML text) and [`run_case`] a pure
+//! each (no key: the scenario alone over its seeds). A [`Case`] is plain data (its scenario as TOML text) and [`run_case`] a pure
 //! function of it, so a case can be sent to another process or machine and run there;
 //! [`run_cases`] runs them on threads here. [`aggregate`] takes means over the seeds.
 //!
@@ -487,44 +487,47 @@ impl Sweep {
             .count()
     }
 
-    /// The means as a Markdown table.
+    /// The means as a Markdown table (no key columns for a sweep over seeds alone).
     pub fn table(&self) -> String {
         let mut table = format!(
-            "| {} | runs | Track-RMSE [rad] | Sync-RMSE [rad] (± std over seeds) | peak \\|u\\| [V] |\n|{}---:|---:|---:|---:|\n",
-            self.keys.join(" | "),
+            "| {}runs | Track-RMSE [rad] | Sync-RMSE [rad] (± std over seeds) | peak \\|u\\| [V] |\n|{}---:|---:|---:|---:|\n",
+            self.keys
+                .iter()
+                .map(|k| format!("{k} | "))
+                .collect::<String>(),
             "---|".repeat(self.keys.len())
         );
         for m in &self.means {
-            let vals: Vec<&str> = m.labels.iter().map(|(_, v)| v.as_str()).collect();
+            let vals: String = m.labels.iter().map(|(_, v)| format!("{v} | ")).collect();
             let _ = writeln!(
                 table,
-                "| {} | {} | {:.5} | {:.7} ± {:.7} | {:.3} |",
-                vals.join(" | "),
-                m.runs,
-                m.track_rmse,
-                m.sync_rmse,
-                m.sync_rmse_std,
-                m.peak_u
+                "| {}{} | {:.5} | {:.7} ± {:.7} | {:.3} |",
+                vals, m.runs, m.track_rmse, m.sync_rmse, m.sync_rmse_std, m.peak_u
             );
         }
         table
     }
 }
 
+/// The leading CSV fields of a row: each swept key's value followed by a comma (nothing
+/// for a sweep over seeds alone).
+fn key_fields(labels: &[(String, String)]) -> String {
+    labels.iter().map(|(_, v)| format!("{v},")).collect()
+}
+
 /// Writes a sweep into `dir`: `sweep.csv` (one row per case), `means.csv` (one row per
 /// combination) and `sweep.svg` (mean Sync-RMSE against the first key, one line per value
-/// of the others).
+/// of the others; with no key, each seed's Sync-RMSE).
 pub fn write_sweep(dir: &OutDir, sw: &Sweep) -> Result<()> {
-    let keys = sw.keys.join(",");
+    let keys: String = sw.keys.iter().map(|k| format!("{k},")).collect();
     let mut csv = format!(
-        "{keys},seed,track_rmse,sync_rmse,lumped_lost,retries,commands_lost,clock_error_max_ns,group_stop_s,peak_u_v\n"
+        "{keys}seed,track_rmse,sync_rmse,lumped_lost,retries,commands_lost,clock_error_max_ns,group_stop_s,peak_u_v\n"
     );
     for (c, r) in sw.cases.iter().zip(&sw.results) {
-        let vals: Vec<&str> = c.labels.iter().map(|(_, v)| v.as_str()).collect();
         let _ = writeln!(
             csv,
-            "{},{},{:.9},{:.9},{},{},{},{:.0},{},{:.6}",
-            vals.join(","),
+            "{}{},{:.9},{:.9},{},{},{},{:.0},{},{:.6}",
+            key_fields(&c.labels),
             c.seed,
             r.track_rmse,
             r.sync_rmse,
@@ -538,13 +541,12 @@ pub fn write_sweep(dir: &OutDir, sw: &Sweep) -> Result<()> {
     }
     dir.write("sweep.csv", &csv)?;
     let mut mcsv =
-        format!("{keys},runs,track_rmse_mean,sync_rmse_mean,sync_rmse_std,peak_u_mean_v\n");
+        format!("{keys}runs,track_rmse_mean,sync_rmse_mean,sync_rmse_std,peak_u_mean_v\n");
     for m in &sw.means {
-        let vals: Vec<&str> = m.labels.iter().map(|(_, v)| v.as_str()).collect();
         let _ = writeln!(
             mcsv,
-            "{},{},{:.9},{:.9},{:.9},{:.6}",
-            vals.join(","),
+            "{}{},{:.9},{:.9},{:.9},{:.6}",
+            key_fields(&m.labels),
             m.runs,
             m.track_rmse,
             m.sync_rmse,
@@ -557,9 +559,36 @@ pub fn write_sweep(dir: &OutDir, sw: &Sweep) -> Result<()> {
     Ok(())
 }
 
-/// Mean Sync-RMSE against the first key, one line per value of the others.
+/// Mean Sync-RMSE against the first key, one line per value of the others; with no key,
+/// each seed's Sync-RMSE.
 fn sweep_svg(sw: &Sweep) -> String {
     use ringsync_report::plot::{PALETTE, Series, line_chart};
+    let Some(first) = sw.keys.first() else {
+        let points = sw
+            .cases
+            .iter()
+            .zip(&sw.results)
+            .map(|(c, r)| (c.seed as f64, r.sync_rmse))
+            .collect();
+        let series = [Series {
+            name: "Sync-RMSE".into(),
+            colour: PALETTE[0],
+            points,
+            extent: None,
+        }];
+        let mean = sw.means.first().map_or(f64::NAN, |m| m.sync_rmse);
+        return line_chart(
+            &format!(
+                "Sync-RMSE of each seed ({}, {} seed{}, mean {mean:.7} rad)",
+                sw.origin,
+                sw.seeds,
+                if sw.seeds == 1 { "" } else { "s" }
+            ),
+            "seed",
+            "Sync-RMSE [rad]",
+            &series,
+        );
+    };
     let mut groups: Vec<(String, Vec<(f64, f64)>)> = Vec::new();
     for (k, m) in sw.means.iter().enumerate() {
         let name = m.labels[1..]
@@ -589,13 +618,12 @@ fn sweep_svg(sw: &Sweep) -> String {
         .collect();
     line_chart(
         &format!(
-            "Sync-RMSE against {} ({}, mean of {} seed{})",
-            sw.keys[0],
+            "Sync-RMSE against {first} ({}, mean of {} seed{})",
             sw.origin,
             sw.seeds,
             if sw.seeds == 1 { "" } else { "s" }
         ),
-        &sw.keys[0],
+        first,
         "Sync-RMSE [rad]",
         &series,
     )
