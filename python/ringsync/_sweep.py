@@ -222,7 +222,7 @@ def sweep(
     "control.law": ["pd", "sync"]}``), ``seeds`` seeds each (the scenario's seed, +1, …),
     as ``ringsync sweep SCENARIO --set KEY=V1,V2 … --seeds SEEDS``. ``overrides`` set keys
     of the base scenario first, as for :func:`ringsync.simulate`. A single value in the
-    grid counts as a list of one.
+    grid counts as a list of one; an empty grid runs the scenario alone over its seeds.
 
     Where the runs go:
 
