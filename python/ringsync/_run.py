@@ -365,7 +365,8 @@ class Check:
 
     ``verdict`` is ``"stable"`` (spectral radius < 1, every term modelled),
     ``"unstable"`` or ``"not shown"`` (a loop the check does not model: the lumped-only
-    plan, the coupled arm, the exact sign with K_N ≠ 0). ``report`` is the dict
+    plan's slaves running their own error or disturbance observers, the coupled arm, the
+    exact sign with K_N ≠ 0). ``report`` is the dict
     ``ringsync check --json`` prints. ``matrix`` is the closed-loop matrix behind the
     spectral radius, and :meth:`statespace` the same loop as a python-control system.
 
@@ -393,13 +394,16 @@ class Check:
         """Whether the verdict is ``"stable"``."""
         self.matrix: np.ndarray | None = matrix
         """The sampled closed loop's matrix M (z[k+1] = M·z[k], one step per cycle), states
-        × states, or None when the check does not model the loop. 9 states per axis i at
-        ``9*i … 9*i+8``: x [rad], ẋ [rad/s], the command held from the last cycle u[k−1]
-        [V], the three previous error samples e[k−1], e[k−2], e[k−3] [rad] and error rates
-        ė[k−1], ė[k−2], ė[k−3] [rad/s] (the history the estimators read); with
-        ``control.velocity = "observer"`` two more per axis (the observer's ê [rad], ė̂
-        [rad/s]), with ``control.dob_bandwidth`` > 0 three more (u[k−2], u[k−3], d̂ [V]),
-        so ``matrix.shape[0] // axes`` states per axis in all. The loop
+        × states, or None when the check does not model the loop. On the proposed plan 9
+        states per axis i at ``9*i … 9*i+8``: x [rad], ẋ [rad/s], the command held from the
+        last cycle u[k−1] [V], the three previous error samples e[k−1], e[k−2], e[k−3]
+        [rad] and error rates ė[k−1], ė[k−2], ė[k−3] [rad/s] (the history the estimators
+        read); with ``control.velocity = "observer"`` two more per axis (the observer's ê
+        [rad], ė̂ [rad/s]), with ``control.dob_bandwidth`` > 0 three more (u[k−2], u[k−3], d̂
+        [V]). On the lumped-only plan 11: x, ẋ, u[k−1], e[k−1..k−4], ė[k−1..k−4] (each
+        slave runs the law on this cycle's samples of the slaves up to it and last cycle's
+        of the others). ``matrix.shape[0] // axes`` states per axis in all, named in
+        ``report["discrete"]["state_names"]``. The loop
         regulates to x^d = 0 (e = −x) on the axes' linear part (no Coulomb friction, no
         saturation), with each axis's sample-to-actuation delay; its eigenvalues' largest
         modulus is :attr:`spectral_radius`."""
@@ -435,7 +439,7 @@ class Check:
         """The linearised sampled loop as a python-control discrete-time system,
         ``control.StateSpace(A, B, C, D, dt=T_cyc)``:
 
-        - ``A`` = :attr:`matrix` (9 states per axis: x, ẋ, u[k−1], e[k−1..k−3],
+        - ``A`` = :attr:`matrix` (on the proposed plan 9 states per axis: x, ẋ, u[k−1], e[k−1..k−3],
           ė[k−1..k−3]; see :attr:`matrix`), so its poles' largest modulus is
           :attr:`spectral_radius`;
         - ``B`` = 0 with one input per axis (``d[i]``): the loop regulates to x^d = 0 and
@@ -479,12 +483,10 @@ class Check:
         for i in range(n):
             c[i, per * i] = 1.0
         d = np.zeros((n, n))
-        per_axis = ["x", "v", "u_prev", "e1", "e2", "e3", "de1", "de2", "de3"]
-        # velocity = "observer" adds its estimate, a disturbance observer its commands and d̂.
-        if per in (11, 14):
-            per_axis += ["e_hat", "de_hat"]
-        if per in (12, 14):
-            per_axis += ["u_prev2", "u_prev3", "d_hat"]
+        # The check names an axis's states (with the observers', and on the lumped-only
+        # plan e4 and de4 too).
+        per_axis = list(self.report["discrete"]["state_names"])
+        assert len(per_axis) == per, (per_axis, per)
         states = [f"{name}[{i + 1}]" for i in range(n) for name in per_axis]
         return control.StateSpace(
             a,

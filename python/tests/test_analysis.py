@@ -52,10 +52,22 @@ def test_statespace_decays_like_the_spectral_radius() -> None:
 
 
 def test_a_loop_the_check_does_not_model_has_no_matrix() -> None:
-    c = ringsync.check("paper-2015", **{"ring.plan": "lumped-only"})
+    c = ringsync.check("paper-2015", **{"ring.plan": "lumped-only", "control.velocity": "observer"})
     assert c.matrix is None and c.spectral_radius is None
     with pytest.raises(ValueError, match="does not model the loop"):
         c.statespace()
+
+
+def test_the_lumped_only_loop_has_its_own_states() -> None:
+    c = ringsync.check("paper-2015", **{"ring.plan": "lumped-only"})
+    assert c.report["plan"] == "lumped-only" and c.stable
+    sys = c.statespace()
+    assert sys.nstates == 4 * 11
+    assert sys.state_labels[:11] == ["x[1]", "v[1]", "u_prev[1]", "e1[1]", "e2[1]", "e3[1]",
+                                     "e4[1]", "de1[1]", "de2[1]", "de3[1]", "de4[1]"]
+    assert max(abs(sys.poles())) == pytest.approx(c.spectral_radius, rel=1e-9)
+    # The same gains and law on the proposed plan give another loop.
+    assert c.spectral_radius != ringsync.check("paper-2015").spectral_radius
 
 
 @pytest.mark.parametrize(

@@ -206,8 +206,20 @@ fn check_exits_3_unless_it_can_vouch_for_the_loop() {
         (
             "lumped-only.toml",
             "[ring]\nplan = \"lumped-only\"\n",
+            0,
+            "Verdict: stable",
+        ),
+        (
+            "lumped-only-hot.toml",
+            "[ring]\nplan = \"lumped-only\"\n[control]\nkd = 15.0\n",
             3,
-            "Verdict: NOT SHOWN: the discrete-time check does not model the lumped-only plan",
+            "Verdict: UNSTABLE",
+        ),
+        (
+            "lumped-only-observer.toml",
+            "[ring]\nplan = \"lumped-only\"\n[control]\nvelocity = \"observer\"\n",
+            3,
+            "Verdict: NOT SHOWN: the discrete-time check does not model the slaves' own error or disturbance observers on the lumped-only plan",
         ),
     ] {
         let p = temp_file(name, text);
@@ -225,6 +237,18 @@ fn check_exits_3_unless_it_can_vouch_for_the_loop() {
     let extra = v["robust_term"]["extra_kd"].as_f64().expect("extra_kd");
     assert!((extra - 3024.0).abs() < 1e-6, "{extra}");
     assert!(v["discrete"]["spectral_radius"].as_f64().expect("rho") > 1.0);
+    // The lumped-only plan's loop names its own states; the proposed plan's its nine.
+    let (o, v) = check_json("lo-json.toml", "[ring]\nplan = \"lumped-only\"\n");
+    assert_eq!(o.status.code(), Some(0));
+    assert_eq!(v["plan"], "lumped-only");
+    assert_eq!(v["discrete"]["states"], 44);
+    assert_eq!(v["discrete"]["state_names"][6], "e4");
+    let (_, v) = check_json("p2p-json.toml", "");
+    assert_eq!(v["plan"], "p2p-lumped");
+    assert_eq!(
+        v["discrete"]["state_names"].as_array().map(Vec::len),
+        Some(9)
+    );
 }
 
 #[test]

@@ -202,8 +202,12 @@ pub struct DiscreteLoop {
     /// number of states.
     pub report: DiscreteReport,
     /// States per axis: [`PER_AXIS`], 2 more with the error observer, 3 more with the
-    /// disturbance observer.
+    /// disturbance observer ([`lumped_only_loop`]: 11).
     pub states_per_axis: usize,
+    /// The names of an axis's states, in their order ([`STATE_NAMES`], then `e_hat`,
+    /// `de_hat` with the error observer and `u_prev2`, `u_prev3`, `d_hat` with the
+    /// disturbance observer; [`LUMPED_ONLY_STATE_NAMES`] for the lumped-only plan).
+    pub state_names: Vec<&'static str>,
 }
 
 /// The sampled closed loop of [`discrete_check`] (same arguments) with its matrix M:
@@ -257,30 +261,7 @@ pub fn discrete_loop_with(
 ) -> Result<DiscreteLoop, ControlError> {
     let velocity = m.velocity;
     let n = law.axes();
-    check_len("axes", n, axes.len())?;
-    check_len("delays", n, delays.len())?;
-    check("t_cyc", t_cyc, 0.0, true, "> 0 s")?;
-    if let Some(est) = law.estimator().filter(|e| !e.is_linear_in_history()) {
-        return Err(ControlError::NotApplicable {
-            what: "the discrete-time stability check",
-            why: format!(
-                "it builds the loop from the last {DEPTH} samples alone, and estimator {} keeps state beyond them (not linear in the history)",
-                est.name()
-            ),
-        });
-    }
-    let mut disc = Vec::with_capacity(n);
-    for (i, (&(a, g), &d)) in axes.iter().zip(delays).enumerate() {
-        check(&format!("axes[{i}].a"), a, 0.0, false, ">= 0 1/s")?;
-        check(&format!("axes[{i}].g"), g, 0.0, true, "> 0 rad/(s²·V)")?;
-        disc.push(Discretised::new(a, g, t_cyc, d).ok_or_else(|| {
-            ControlError::InvalidParameter {
-                name: format!("delays[{i}]"),
-                value: d,
-                expected: "0 <= delay <= t_cyc".into(),
-            }
-        })?);
-    }
+    let disc = discretised(law, axes, t_cyc, delays)?;
     let obs = if matches!(velocity, VelocitySource::Observer(_)) {
         2
     } else {
@@ -365,23 +346,104 @@ pub fn discrete_loop_with(
             }
         }
     }
-    let schur = Schur::try_new(mat.clone(), 1e-13, 100_000).ok_or(ControlError::NoConvergence {
-        what: "Schur decomposition of the loop matrix",
-    })?;
-    let rho = schur
-        .complex_eigenvalues()
-        .iter()
-        .map(|l| l.norm())
-        .fold(0.0, f64::max);
-    Ok(DiscreteLoop {
-        matrix: mat,
-        report: DiscreteReport {
-            spectral_radius: rho,
-            states: dim,
-        },
-        states_per_axis: per,
-    })
+    let mut names = STATE_NAMES.to_vec();
+    if obs > 0 {
+        names.extend(["e_hat", "de_hat"]);
+    }
+    if m.dob.is_some() {
+        names.extend(["u_prev2", "u_prev3", "d_hat"]);
+    }
+    DiscreteLoop::of(mat, names)
 }
+
+/// The names of the check's [`PER_AXIS`] states of an axis, in their order (x, ẋ, u[k−1],
+/// e[k−1..k−3], ė[k−1..k−3]).
+pub const STATE_NAMES: [&str; PER_AXIS] =
+    ["x", "v", "u_prev", "e1", "e2", "e3", "de1", "de2", "de3"];
+
+impl DiscreteLoop {
+    /// The loop of matrix `matrix` whose axes each have the states `names`, with its
+    /// spectral radius (the Schur eigenvalues' largest modulus).
+    fn of(matrix: DMatrix<f64>, names: Vec<&'static str>) -> Result<Self, ControlError> {
+        let rho = spectral_radius(&matrix)?;
+        let states = matrix.nrows();
+        Ok(DiscreteLoop {
+            matrix,
+            report: DiscreteReport {
+                spectral_radius: rho,
+                states,
+            },
+            states_per_axis: names.len(),
+            state_names: names,
+        })
+    }
+}
+
+/// The largest modulus of `m`'s eigenvalues (its real Schur form's). A loop with large
+/// gains can keep the decomposition from converging: it is then balanced (a similarity by
+/// powers of two, so the same eigenvalues to the last bit of the arithmetic) and
+/// decomposed again, with the tolerance loosened step by step to 10⁻¹⁰.
+fn spectral_radius(m: &DMatrix<f64>) -> Result<f64, ControlError> {
+    let radius = |s: Schur<f64, nalgebra::Dyn>| {
+        s.complex_eigenvalues()
+            .iter()
+            .map(|l| l.norm())
+            .fold(0.0, f64::max)
+    };
+    if let Some(s) = Schur::try_new(m.clone(), 1e-13, 100_000) {
+        return Ok(radius(s));
+    }
+    let mut balanced = m.clone();
+    nalgebra::linalg::balancing::balance_parlett_reinsch(&mut balanced);
+    [1e-13, 1e-12, 1e-11, 1e-10]
+        .into_iter()
+        .find_map(|eps| Schur::try_new(balanced.clone(), eps, 100_000))
+        .map(radius)
+        .ok_or(ControlError::NoConvergence {
+            what: "Schur decomposition of the loop matrix",
+        })
+}
+
+/// The checks' common inputs, checked: `law` is linear in its history (else
+/// [`ControlError::NotApplicable`]), one linear axis `(a, g)` and one delay in
+/// [0, `t_cyc`] per axis of the law; each axis discretised over a cycle with its command
+/// switching at its delay.
+fn discretised(
+    law: &dyn ControlLaw,
+    axes: &[(f64, f64)],
+    t_cyc: f64,
+    delays: &[f64],
+) -> Result<Vec<Discretised>, ControlError> {
+    let n = law.axes();
+    check_len("axes", n, axes.len())?;
+    check_len("delays", n, delays.len())?;
+    check("t_cyc", t_cyc, 0.0, true, "> 0 s")?;
+    if let Some(est) = law.estimator().filter(|e| !e.is_linear_in_history()) {
+        return Err(ControlError::NotApplicable {
+            what: "the discrete-time stability check",
+            why: format!(
+                "it builds the loop from the last {DEPTH} samples alone, and estimator {} keeps state beyond them (not linear in the history)",
+                est.name()
+            ),
+        });
+    }
+    let mut disc = Vec::with_capacity(n);
+    for (i, (&(a, g), &d)) in axes.iter().zip(delays).enumerate() {
+        check(&format!("axes[{i}].a"), a, 0.0, false, ">= 0 1/s")?;
+        check(&format!("axes[{i}].g"), g, 0.0, true, "> 0 rad/(s²·V)")?;
+        disc.push(Discretised::new(a, g, t_cyc, d).ok_or_else(|| {
+            ControlError::InvalidParameter {
+                name: format!("delays[{i}]"),
+                value: d,
+                expected: "0 <= delay <= t_cyc".into(),
+            }
+        })?);
+    }
+    Ok(disc)
+}
+
+mod lumped_only;
+pub use lumped_only::{LUMPED_ONLY_STATE_NAMES, lumped_only_loop};
 
 #[cfg(test)]
 mod tests;

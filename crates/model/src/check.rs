@@ -2,9 +2,11 @@
 //! applied to a scenario, with the sample-to-actuation delays taken from the cycle plan.
 
 use ringsync_control::stability::{
-    ContinuousReport, DiscreteReport, continuous_conditions, discrete_loop_with,
+    ContinuousReport, DiscreteReport, continuous_conditions, discrete_loop_with, lumped_only_loop,
 };
-use ringsync_control::{ControlError, ControlLaw, Sign, SyncController, SyncParams, Trajectory};
+use ringsync_control::{
+    ControlError, ControlLaw, Sign, SyncController, SyncParams, Trajectory, VelocitySource,
+};
 use ringsync_plant::IndependentAxes;
 use ringsync_proto::plan::{FrameRef, Node};
 use ringsync_proto::{CyclePlan, PlanKind};
@@ -17,7 +19,7 @@ const SYNC: &str = ringsync_control::law::sync::ENTRY.name;
 
 /// Assumptions of the check that the paper does not make; printed with every result.
 pub const ASSUMPTIONS: &[&str] = &[
-    "all slaves sample at the synchronised cycle start; a command takes effect when its last bit reaches its slave (event-level cycle plan, loss-free)",
+    "all slaves sample at the synchronised cycle start; a command takes effect when its last bit reaches its slave (event-level cycle plan, loss-free); on the lumped-only plan, a slave's command when the lumped frame's last bit reaches it, the frame holding this cycle's samples of the slaves up to it and last cycle's of the others",
     "the discrete-time check linearises: Coulomb friction and drive saturation are left out, the axes regulate to a final position (x^d = 0)",
     "the robust term K_N·sat(Ė/φ) of the sync controller is linear inside its boundary layer with slope K_N/φ: the discrete-time check adds K_N,max/φ to K_D, with K_N,max the largest K_N = Δ_H‖ẍ^d‖ + Δ_C‖ẋ^d‖ at the evaluated points (a frozen worst case; outside the layer the term is bounded); with the exact sign (boundary_layer = 0) and K_N ≠ 0 the loop cannot be linearised and the check cannot vouch for it",
     "the paper's conditions are evaluated along the desired trajectory (x = x^d, ẋ = ẋ^d) at evenly spaced points",
@@ -57,7 +59,9 @@ impl RobustTerm {
 /// Why the discrete-time check did not run.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum NotModelled {
-    /// The lumped-only plan: its one-cycle-old data is not modelled yet.
+    /// The lumped-only plan with an error observer (`control.velocity = "observer"`) or a
+    /// disturbance observer in the slaves: each slave would run its own on its view of the
+    /// ring, which the check does not model.
     LumpedOnlyPlan,
     /// The coupled two-link arm (`plant.kind = "two-link-arm"`): the check models
     /// independent linear axes only.
@@ -69,7 +73,7 @@ impl NotModelled {
     pub fn reason(self) -> &'static str {
         match self {
             NotModelled::LumpedOnlyPlan => {
-                "the lumped-only plan is not modelled yet (its one-cycle-old data)"
+                "on the lumped-only plan every slave would run its own error observer (control.velocity = \"observer\") or disturbance observer on its view of the ring, which the check does not model"
             }
             NotModelled::CoupledPlant => {
                 "the plant is the coupled two-link arm (plant.kind = \"two-link-arm\"): the check models independent linear axes only, and the arm's inertia couples its joints and changes with its configuration"
@@ -85,8 +89,9 @@ pub enum Verdict {
     Stable,
     /// Spectral radius ≥ 1.
     Unstable,
-    /// The check cannot vouch for stability: the lumped-only plan or the coupled arm is not
-    /// modelled ([`NotModelled`]), or the exact sign with K_N ≠ 0 cannot be linearised.
+    /// The check cannot vouch for stability: the lumped-only plan's slaves running their own
+    /// observers or the coupled arm are not modelled ([`NotModelled`]), or the exact sign
+    /// with K_N ≠ 0 cannot be linearised.
     NotShown,
 }
 
@@ -99,17 +104,23 @@ pub struct CheckReport {
     pub law: &'static str,
     /// Estimator name.
     pub estimator: &'static str,
-    /// Sample-to-actuation delay of each axis [s].
+    /// The cycle plan checked.
+    pub plan: PlanKind,
+    /// Sample-to-actuation delay of each axis [s]: its command's arrival on the proposed
+    /// plan, the lumped frame's pass at its slave on the lumped-only plan.
     pub delays: Vec<f64>,
     /// The discrete-time check; `None` when it does not model the scenario.
     pub discrete: Option<DiscreteReport>,
     /// The closed-loop matrix M of the discrete-time check (z[k+1] = M·z[k] over one
-    /// cycle), row-major, `discrete.states` × `discrete.states`: 9 states per axis (11 with
-    /// `velocity = "observer"`), in the order of
-    /// [`ringsync_control::stability::discrete_loop_with`] (x [rad], ẋ [rad/s], u[k−1]
-    /// [V], e[k−1..k−3] [rad], ė[k−1..k−3] [rad/s], then the observer's ê [rad] and ė̂
-    /// [rad/s]); `None` with `discrete`.
+    /// cycle), row-major, `discrete.states` × `discrete.states`: the states of
+    /// [`CheckReport::state_names`] per axis, axis-major; `None` with `discrete`.
     pub discrete_matrix: Option<Vec<f64>>,
+    /// The names of an axis's states in the matrix, in their order: on the proposed plan
+    /// [`ringsync_control::stability::discrete_loop_with`]'s (x [rad], ẋ [rad/s], u[k−1]
+    /// [V], e[k−1..k−3] [rad], ė[k−1..k−3] [rad/s], then the error observer's ê, ė̂ and the
+    /// disturbance observer's u[k−2], u[k−3], d̂ when they run), on the lumped-only plan
+    /// [`ringsync_control::stability::LUMPED_ONLY_STATE_NAMES`]; empty without the matrix.
+    pub state_names: Vec<&'static str>,
     /// Why the discrete-time check did not run (`None` when it ran).
     pub not_modelled: Option<NotModelled>,
     /// How the robust term entered the discrete-time check.
@@ -143,6 +154,17 @@ pub enum CheckError {
     /// The analysis failed numerically.
     #[error("stability analysis: {0}")]
     Control(#[from] ControlError),
+}
+
+/// Sample-to-actuation delay of each axis [s] on the lumped-only plan: from the cycle start
+/// (the sampling instant, when the master sends the frame) to the lumped frame's last bit
+/// at the axis's slave, D_ci + the frame's wire time.
+pub fn lumped_only_passes(plan: &CyclePlan) -> Vec<f64> {
+    let wire = plan.lumped_only.lumped.frame_time[0];
+    plan.d_c
+        .iter()
+        .map(|&d| (d + wire).as_ns() as f64 * 1e-9)
+        .collect()
 }
 
 /// Sample-to-actuation delay of each axis [s] in the proposed plan: from the cycle start
@@ -198,13 +220,13 @@ pub fn check(s: &Scenario, points: usize) -> Result<CheckReport, CheckError> {
         RobustTerm::Off => s.law()?,
     };
     let coupled = s.plant.arm().is_some();
+    let linear: Vec<(f64, f64)> = models.iter().map(|m| m.linear_part()).collect();
     let (delays, discrete, not_modelled) = match s.ring.plan {
         PlanKind::P2pLumped if coupled => {
             (command_delays(&plan), None, Some(NotModelled::CoupledPlant))
         }
         PlanKind::P2pLumped => {
             let delays = command_delays(&plan);
-            let linear: Vec<(f64, f64)> = models.iter().map(|m| m.linear_part()).collect();
             let r = discrete_loop_with(
                 law.as_ref(),
                 &linear,
@@ -217,12 +239,36 @@ pub fn check(s: &Scenario, points: usize) -> Result<CheckReport, CheckError> {
             )?;
             (delays, Some(r), None)
         }
-        PlanKind::LumpedOnly if coupled => (Vec::new(), None, Some(NotModelled::CoupledPlant)),
-        PlanKind::LumpedOnly => (Vec::new(), None, Some(NotModelled::LumpedOnlyPlan)),
+        PlanKind::LumpedOnly if coupled => (
+            lumped_only_passes(&plan),
+            None,
+            Some(NotModelled::CoupledPlant),
+        ),
+        PlanKind::LumpedOnly => {
+            let passes = lumped_only_passes(&plan);
+            match s.velocity_source() {
+                VelocitySource::Observer(_) => (passes, None, Some(NotModelled::LumpedOnlyPlan)),
+                _ if s.dob_params().is_some() => (passes, None, Some(NotModelled::LumpedOnlyPlan)),
+                velocity => {
+                    let r = lumped_only_loop(
+                        law.as_ref(),
+                        &linear,
+                        s.ring.cycle.secs(),
+                        &passes,
+                        velocity,
+                    )?;
+                    (passes, Some(r), None)
+                }
+            }
+        }
     };
     let discrete_matrix = discrete
         .as_ref()
         .map(|l| l.matrix.transpose().as_slice().to_vec());
+    let state_names = discrete
+        .as_ref()
+        .map(|l| l.state_names.clone())
+        .unwrap_or_default();
     let discrete = discrete.map(|l| l.report);
     let continuous = if s.control.law == SYNC && !coupled {
         let plant = IndependentAxes::new(models);
@@ -242,9 +288,11 @@ pub fn check(s: &Scenario, points: usize) -> Result<CheckReport, CheckError> {
         scenario: s.name.clone(),
         law: s.law_name(),
         estimator: s.control.estimator.name(),
+        plan: s.ring.plan,
         delays,
         discrete,
         discrete_matrix,
+        state_names,
         not_modelled,
         robust,
         continuous,
@@ -348,14 +396,40 @@ mod tests {
     }
 
     #[test]
-    fn pd_has_no_paper_conditions_and_lumped_only_no_discrete_check() {
+    fn pd_has_no_paper_conditions_and_lumped_only_its_own_discrete_check() {
         let s = Scenario::from_toml(
             "[control]\nlaw = \"pd\"\n[ring]\nplan = \"lumped-only\"\n",
             "x",
         )
         .expect("valid");
         let r = check(&s, 11).expect("check");
-        assert!(r.continuous.is_none() && r.discrete.is_none() && r.discrete_matrix.is_none());
+        assert!(r.continuous.is_none() && r.not_modelled.is_none());
+        let d = r.discrete.expect("lumped-only loop");
+        assert_eq!(d.states, 4 * 11);
+        assert_eq!(r.state_names.len(), 11);
+        assert_eq!(r.discrete_matrix.as_ref().map(Vec::len), Some(44 * 44));
+        assert_eq!(r.verdict(), Verdict::Stable);
+        // Each slave takes the frame D_ci + its wire time (14.56 µs) after the cycle start:
+        // D_ci = i·0.31 + (i − 1)·1.0 µs.
+        let want = [14.87e-6, 16.18e-6, 17.49e-6, 18.80e-6];
+        for (d, w) in r.delays.iter().zip(want) {
+            assert!((d - w).abs() < 1e-12, "{d} vs {w}");
+        }
+        // Gains far too high are flagged on this plan too.
+        let hot = Scenario::from_toml(
+            "[control]\nlaw = \"pd\"\nkd = 159.1\n[ring]\nplan = \"lumped-only\"\n",
+            "hot",
+        )
+        .expect("valid");
+        assert_eq!(check(&hot, 11).expect("check").verdict(), Verdict::Unstable);
+        // The slaves' own observers are not modelled: said, not guessed.
+        let obs = Scenario::from_toml(
+            "[control]\nvelocity = \"observer\"\n[ring]\nplan = \"lumped-only\"\n",
+            "obs",
+        )
+        .expect("valid");
+        let r = check(&obs, 11).expect("check");
+        assert!(r.discrete.is_none() && r.state_names.is_empty());
         assert_eq!(r.not_modelled, Some(NotModelled::LumpedOnlyPlan));
         assert_eq!(r.verdict(), Verdict::NotShown);
     }

@@ -3,6 +3,7 @@
 use std::fmt::Write as _;
 
 use ringsync_model::check::{ASSUMPTIONS, CheckReport, NotModelled, RobustTerm, Verdict};
+use ringsync_proto::PlanKind;
 use serde_json::{Value, json};
 
 /// A readable report of `ringsync check`.
@@ -10,18 +11,24 @@ pub fn check_text(r: &CheckReport) -> String {
     let mut o = String::new();
     let _ = writeln!(
         o,
-        "Stability of scenario {} ({} controller, estimator {}, {} axes)",
+        "Stability of scenario {} ({} controller, estimator {}, {} axes, {} plan)",
         r.scenario,
         r.law,
         r.estimator,
-        r.delays.len().max(1)
+        r.delays.len().max(1),
+        r.plan.name()
     );
     match &r.discrete {
         Some(d) => {
             let delays: Vec<String> = r.delays.iter().map(|d| format!("{:.3}", d * 1e6)).collect();
             let _ = writeln!(
                 o,
-                "\nSample-to-actuation delays from the cycle plan [µs]: {}",
+                "\nSample-to-actuation delays from the cycle plan [µs]{}: {}",
+                if r.plan == PlanKind::LumpedOnly {
+                    " (each slave's command when the lumped frame passes it, on this cycle's samples up to it and last cycle's after it)"
+                } else {
+                    ""
+                },
                 delays.join(", ")
             );
             let _ = writeln!(
@@ -40,11 +47,11 @@ pub fn check_text(r: &CheckReport) -> String {
                     NotModelled::CoupledPlant.reason()
                 );
             }
-            Some(NotModelled::LumpedOnlyPlan) | None => {
-                let _ = writeln!(
-                    o,
-                    "\nDiscrete-time check: not available for the lumped-only plan yet (its one-cycle-old data is not modelled)."
-                );
+            Some(m @ NotModelled::LumpedOnlyPlan) => {
+                let _ = writeln!(o, "\nDiscrete-time check: not available: {}.", m.reason());
+            }
+            None => {
+                let _ = writeln!(o, "\nDiscrete-time check: not available.");
             }
         },
     }
@@ -129,7 +136,7 @@ pub fn verdict_text(r: &CheckReport) -> &'static str {
             "NOT SHOWN: the discrete-time check models independent linear axes, not the coupled two-link arm (plant.kind = \"two-link-arm\")"
         }
         (Verdict::NotShown, false) => {
-            "NOT SHOWN: the discrete-time check does not model the lumped-only plan"
+            "NOT SHOWN: the discrete-time check does not model the slaves' own error or disturbance observers on the lumped-only plan"
         }
         (Verdict::NotShown, true) => {
             "NOT SHOWN: the check cannot vouch for stability with K_N != 0 and the exact sign; set control.boundary_layer > 0 to have it modelled"
@@ -143,11 +150,13 @@ pub fn check_json(r: &CheckReport) -> Value {
         "scenario": r.scenario,
         "law": r.law,
         "estimator": r.estimator,
+        "plan": r.plan.name(),
         "delays_ns": r.delays.iter().map(|d| (d * 1e9).round() as i64).collect::<Vec<_>>(),
         "discrete": r.discrete.map(|d| json!({
             "spectral_radius": d.spectral_radius,
             "states": d.states,
             "stable": d.is_stable(),
+            "state_names": r.state_names,
         })),
         "not_modelled": r.not_modelled.map(NotModelled::reason),
         "robust_term": match r.robust {

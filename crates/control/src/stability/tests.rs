@@ -268,3 +268,166 @@ fn the_loop_matrix_is_the_one_checked() {
         .fold(0.0, f64::max);
     assert!((rho - r.spectral_radius).abs() <= 1e-9 * r.spectral_radius);
 }
+
+/// The frame passes of a lumped-only ring of four: slave i takes the frame about 13 µs
+/// after the cycle start, 1.3 µs later per hop.
+const PASSES: [f64; 4] = [13.1e-6, 14.4e-6, 15.7e-6, 17.0e-6];
+
+/// The lumped-only loop's spectral radius predicts how fast a ring of slaves, each running
+/// its own controller on its own view (this cycle's samples of the slaves up to itself,
+/// last cycle's of those after it), decays from an offset: for the sync law on the
+/// reported and the differenced velocity, and for PD.
+#[test]
+fn lumped_only_radius_matches_simulated_decay() {
+    let sync = || {
+        SyncController::new(
+            Gains::uniform(4, 3.182, 1.591, 0.75),
+            SyncParams {
+                estimator: EstimatorKind::Paper,
+                ..SyncParams::reference()
+            },
+        )
+        .expect("law")
+    };
+    for velocity in [VelocitySource::Reported, VelocitySource::Differenced] {
+        lumped_only_decay_matches(&sync, velocity);
+    }
+    let pd = || Pd::new(Gains::uniform(4, 3.182, 1.591, 0.0), false).expect("pd");
+    lumped_only_decay_matches(&pd, VelocitySource::Reported);
+}
+
+#[allow(clippy::needless_range_loop)] // one index over several per-axis arrays
+fn lumped_only_decay_matches<L: ControlLaw>(make: &dyn Fn() -> L, velocity: VelocitySource) {
+    let models = reference_axes();
+    let axes = linear(&models);
+    let t_cyc = 1e-3;
+    let l = lumped_only_loop(&make(), &axes, t_cyc, &PASSES, velocity).expect("check");
+    assert_eq!((l.states_per_axis, l.report.states), (11, 44));
+    let rho = l.report.spectral_radius;
+    let mut slaves: Vec<Controller<L>> =
+        (0..4).map(|_| Controller::new(make(), velocity)).collect();
+    let mut x: Vec<(f64, f64)> = (0..4).map(|i| (0.05 * (i as f64 + 1.0), 0.0)).collect();
+    // Each axis's sample of the cycle before: what the frame still holds downstream.
+    let mut before = x.clone();
+    let mut fb = Feedback::new(4);
+    let mut input = ControlInput::new(4, t_cyc);
+    let mut out = ControlOutput::new(4);
+    let mut u_prev = [0.0; 4];
+    let mut norms = Vec::new();
+    for m in 0..3000 {
+        let t = m as f64 * t_cyc;
+        norms.push(x.iter().map(|s| s.0 * s.0).sum::<f64>().sqrt());
+        let mut u = [0.0; 4];
+        for i in 0..4 {
+            for j in 0..4 {
+                let (s, ts) = if j <= i || m == 0 {
+                    (x[j], t)
+                } else {
+                    (before[j], t - t_cyc)
+                };
+                fb.position[j] = s.0;
+                fb.velocity[j] = s.1;
+                fb.sample_time[j] = ts;
+                fb.desired[j] = State::default();
+                // New to slave i either way: a sample it had not seen.
+                fb.fresh[j] = !(m == 0 && j > i && i > 0);
+            }
+            input.apply_time.fill(t + PASSES[i]);
+            slaves[i].update(&fb, &input, &mut out).expect("update");
+            u[i] = out.u_raw[i];
+        }
+        before.clone_from(&x);
+        for (i, model) in models.iter().enumerate() {
+            let (mut p, mut v) = x[i];
+            model.step(&mut p, &mut v, u_prev[i], PASSES[i]);
+            model.step(&mut p, &mut v, u[i], t_cyc - PASSES[i]);
+            x[i] = (p, v);
+        }
+        u_prev = u;
+    }
+    let (a, b) = (norms[1500], norms[2999]);
+    let rate = (b / a).powf(1.0 / 1499.0);
+    assert!(
+        (rate - rho).abs() < 2e-4,
+        "{velocity:?}: simulated {rate} vs ρ {rho}"
+    );
+}
+
+/// With one slave there is nothing downstream: the lumped-only loop is the proposed plan's
+/// with the pass as the delay (two more states, e[k−4] and ė[k−4], that nothing reads).
+/// PD reads each axis's own error alone, fresh at its own slave: the same loop on four
+/// axes too. The sync law couples the axes, and the stale view changes its loop.
+#[test]
+fn lumped_only_differs_from_the_proposed_plan_only_downstream() {
+    let one = linear(&reference_axes()[..1]);
+    let law = Pd::new(Gains::uniform(1, 3.182, 30.0, 0.0), false).expect("pd");
+    for v in [VelocitySource::Reported, VelocitySource::Differenced] {
+        let lo = lumped_only_loop(&law, &one, 1e-3, &PASSES[..1], v).expect("lumped-only");
+        let m = Measurement {
+            velocity: v,
+            dob: None,
+        };
+        let p2p = discrete_loop_with(&law, &one, 1e-3, &PASSES[..1], &m).expect("p2p");
+        let (a, b) = (lo.report.spectral_radius, p2p.report.spectral_radius);
+        assert!((a - b).abs() < 1e-9, "{v:?}: {a} vs {b}");
+    }
+    let axes = linear(&reference_axes());
+    let radii = |law: &dyn ControlLaw| {
+        let lo = lumped_only_loop(law, &axes, 1e-3, &PASSES, VelocitySource::Reported)
+            .expect("lumped-only");
+        assert_eq!(lo.state_names, LUMPED_ONLY_STATE_NAMES);
+        let p2p = discrete_check(law, &axes, 1e-3, &PASSES).expect("p2p");
+        (lo.report.spectral_radius, p2p.spectral_radius)
+    };
+    for kd in [1.591, 30.0, 40.0] {
+        let pd = Pd::new(Gains::uniform(4, 3.182, kd, 0.0), false).expect("pd");
+        let (lo, p2p) = radii(&pd);
+        assert!((lo - p2p).abs() < 1e-12, "PD, K_D {kd}: {lo} vs {p2p}");
+    }
+    // K_D = 20: both unstable, the stale view much more so (ρ 1.47 against 1.11).
+    let (lo, p2p) = radii(&sync_law(20.0));
+    assert!(lo > p2p + 0.3 && p2p > 1.0, "{lo} vs {p2p}");
+    let law = sync_law(1.591);
+    let obs = VelocitySource::Observer(crate::law::ErrorObserver {
+        bandwidth_hz: 100.0,
+    });
+    assert!(matches!(
+        lumped_only_loop(&law, &axes, 1e-3, &PASSES, obs),
+        Err(ControlError::NotApplicable { .. })
+    ));
+}
+
+/// The spectral radius is found for every gain: a loop with large gains once failed the
+/// Schur decomposition's convergence (K_D = 60, 80.3455, 120 V·s/rad with the sync law on
+/// the reference delays); such a loop is balanced first. The radius grows smoothly with K_D.
+#[test]
+fn every_gain_gets_a_spectral_radius() {
+    let axes = linear(&reference_axes());
+    let delays = [122.34e-6, 141.72e-6, 161.10e-6, 180.48e-6];
+    let mut last: Option<(f64, f64, f64)> = None;
+    for step in 0..=320 {
+        let kd = 1.591 + step as f64 * 0.5;
+        let law = sync_law(kd);
+        let p2p = discrete_check(&law, &axes, 1e-3, &delays)
+            .expect("p2p")
+            .spectral_radius;
+        let lo = lumped_only_loop(&law, &axes, 1e-3, &PASSES, VelocitySource::Reported)
+            .expect("lumped-only")
+            .report
+            .spectral_radius;
+        if let Some((k0, a, b)) = last {
+            assert!(
+                (p2p - a).abs() < 0.1 && (lo - b).abs() < 0.1,
+                "K_D {k0} → {kd}: {a} → {p2p}, {b} → {lo}"
+            );
+        }
+        last = Some((kd, p2p, lo));
+    }
+    for kd in [60.0, 80.3455, 120.0] {
+        let law = sync_law(kd);
+        assert!(
+            discrete_check(&law, &axes, 1e-3, &delays).is_ok(),
+            "K_D {kd}"
+        );
+    }
+}
