@@ -19,6 +19,9 @@
 //! column by column by running the law's own `compute` on unit states, so what is checked is
 //! exactly the code that runs. Velocity feedback is the reported (exact) velocity.
 //!
+//! The lumped-only plan of ref. [3], where each slave runs the law itself on samples of
+//! mixed age, has a loop of its own: [`lumped_only_loop`].
+//!
 //! What the discrete-time check assumes of the law: its command is a function of the
 //! history and the inputs alone ([`ControlLaw::compute`] is pure), linear in the history
 //! once the robust term is off, and its estimator, if any, is linear and time-invariant in
