@@ -71,6 +71,15 @@ fn spectral_radius_matches_simulated_decay() {
     });
 }
 
+/// Axis `model` from state (x, ẋ) `s` over one cycle `t_cyc` [s]: the old command
+/// `u.0` [V] until `at` [s], then the new one `u.1`.
+fn one_cycle(model: &AxisModel, s: (f64, f64), u: (f64, f64), at: f64, t_cyc: f64) -> (f64, f64) {
+    let (mut x, mut v) = s;
+    model.step(&mut x, &mut v, u.0, at);
+    model.step(&mut x, &mut v, u.1, t_cyc - at);
+    (x, v)
+}
+
 #[allow(clippy::needless_range_loop)] // one index over several per-axis arrays
 fn decay_matches(meas: Measurement) {
     let models = reference_axes();
@@ -113,12 +122,11 @@ fn decay_matches(meas: Measurement) {
         norms.push((0..4).map(|i| fb.position[i].powi(2)).sum::<f64>().sqrt());
         ctl.update(&fb, &input, &mut out).expect("update");
         for (i, model) in models.iter().enumerate() {
-            let (mut x, mut v) = (
+            let s = (
                 ringsync_plant::Plant::position(&plant, i),
                 ringsync_plant::Plant::velocity(&plant, i),
             );
-            model.step(&mut x, &mut v, u_prev[i], DELAYS[i]);
-            model.step(&mut x, &mut v, out.u_raw[i], 1e-3 - DELAYS[i]);
+            let (x, v) = one_cycle(model, s, (u_prev[i], out.u_raw[i]), DELAYS[i], 1e-3);
             plant.set_state(i, x, v);
         }
         u_prev.copy_from_slice(&out.u_raw);
@@ -338,10 +346,7 @@ fn lumped_only_decay_matches<L: ControlLaw>(make: &dyn Fn() -> L, velocity: Velo
         }
         before.clone_from(&x);
         for (i, model) in models.iter().enumerate() {
-            let (mut p, mut v) = x[i];
-            model.step(&mut p, &mut v, u_prev[i], PASSES[i]);
-            model.step(&mut p, &mut v, u[i], t_cyc - PASSES[i]);
-            x[i] = (p, v);
+            x[i] = one_cycle(model, x[i], (u_prev[i], u[i]), PASSES[i], t_cyc);
         }
         u_prev = u;
     }
