@@ -21,6 +21,7 @@ const SYNC: &str = ringsync_control::law::sync::ENTRY.name;
 pub const ASSUMPTIONS: &[&str] = &[
     "all slaves sample at the synchronised cycle start; a command takes effect when its last bit reaches its slave (event-level cycle plan, loss-free); on the lumped-only plan, a slave's command when the lumped frame's last bit reaches it, the frame holding this cycle's samples of the slaves up to it and last cycle's of the others",
     "the discrete-time check linearises: Coulomb friction and drive saturation are left out, the axes regulate to a final position (x^d = 0)",
+    "a slave's reported velocity is the axis's exact velocity at the sample: the encoder difference over axis.velocity_window (125 µs by default) is not modelled, nor its quantisation; near the edge of stability the window's lag can add damping (docs/simulator.md, \"ringsync check\")",
     "the robust term K_N·sat(Ė/φ) of the sync controller is linear inside its boundary layer with slope K_N/φ: the discrete-time check adds K_N,max/φ to K_D, with K_N,max the largest K_N = Δ_H‖ẍ^d‖ + Δ_C‖ẋ^d‖ at the evaluated points (a frozen worst case; outside the layer the term is bounded); with the exact sign (boundary_layer = 0) and K_N ≠ 0 the loop cannot be linearised and the check cannot vouch for it",
     "the paper's conditions are evaluated along the desired trajectory (x = x^d, ẋ = ẋ^d) at evenly spaced points",
 ];

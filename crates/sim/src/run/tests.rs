@@ -621,14 +621,14 @@ fn lumped_only_commands_take_effect_when_the_check_says() {
 /// stay smooth on one side and chatter on the other: the sync law, whose slaves see the
 /// downstream axes a cycle late, with K_D 5 % under and over the K_D at which the check's
 /// spectral radius crosses 1 (ρ 1.05 there: the proposed plan's loop with the same gains is
-/// still stable). Over the edge the unstable mode, at about 0.41 of the cycle rate, grows
+/// still stable; its own edge is checked the same way). Over the edge the unstable mode, at about 0.41 of the cycle rate, grows
 /// until the drives' ±10 V bound it: the command jumps volts from cycle to cycle while the
 /// positions, filtered by the axes, still follow. The simulated ring is made what the check
 /// linearises: ideal clocks, no Coulomb friction, 28-bit encoders whose velocity is read
 /// over 5 µs (the check takes the exact velocity; the default 125 µs window's lag adds
 /// damping and moves the edge).
 #[test]
-fn the_lumped_only_check_finds_the_simulated_edge_of_stability() {
+fn the_check_finds_the_simulated_edge_of_stability_on_both_plans() {
     let ring = |kd: f64, plan: &str| {
         let mut s = scenario(&format!(
             "duration = \"2s\"\n{IDEAL}[ring]\nplan = \"{plan}\"\n[control]\nlaw = \"sync\"\nkd = {kd}\n"
@@ -645,16 +645,20 @@ fn the_lumped_only_check_finds_the_simulated_edge_of_stability() {
         r.discrete.expect("modelled").spectral_radius
     };
     // Bisect K_D for ρ = 1 between a stable and an unstable gain.
-    let (mut lo, mut hi) = (1.591, 159.1);
-    assert!(rho(lo, "lumped-only") < 1.0 && rho(hi, "lumped-only") > 1.0);
-    for _ in 0..40 {
-        let mid = 0.5 * (lo + hi);
-        if rho(mid, "lumped-only") < 1.0 {
-            lo = mid;
-        } else {
-            hi = mid;
+    let edge = |plan: &str| {
+        let (mut lo, mut hi) = (1.591, 159.1);
+        assert!(rho(lo, plan) < 1.0 && rho(hi, plan) > 1.0);
+        for _ in 0..40 {
+            let mid = 0.5 * (lo + hi);
+            if rho(mid, plan) < 1.0 {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
         }
-    }
+        lo
+    };
+    let lo = edge("lumped-only");
     assert!(rho(1.05 * lo, "p2p-lumped") < 1.0);
     // The mean change of the command from one cycle start to the next over the last second
     // [V].
@@ -677,7 +681,17 @@ fn the_lumped_only_check_finds_the_simulated_edge_of_stability() {
         under < 1.0 && over > 5.0,
         "K_D {lo}: {under} V under, {over} V over"
     );
-    // The same gain on the proposed plan, every axis's sample fresh: smooth.
+    // The same gain on the proposed plan, every axis's sample fresh: smooth. Its own edge,
+    // further out, is found likewise.
     let p2p = chatter(1.05 * lo, "p2p-lumped");
     assert!(p2p < 1.0, "{p2p} V");
+    let e = edge("p2p-lumped");
+    let (under, over) = (
+        chatter(0.95 * e, "p2p-lumped"),
+        chatter(1.05 * e, "p2p-lumped"),
+    );
+    assert!(
+        under < 1.0 && over > 5.0,
+        "K_D {e}: {under} V under, {over} V over"
+    );
 }
