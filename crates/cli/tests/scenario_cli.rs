@@ -209,9 +209,16 @@ fn check_exits_3_unless_it_can_vouch_for_the_loop() {
             0,
             "Verdict: stable",
         ),
+        // K_D = 17: past the lumped-only plan's edge (15.6), inside the proposed plan's (28.5).
+        (
+            "p2p-warm.toml",
+            "[control]\nkd = 17.0\n",
+            0,
+            "Verdict: stable",
+        ),
         (
             "lumped-only-hot.toml",
-            "[ring]\nplan = \"lumped-only\"\n[control]\nkd = 15.0\n",
+            "[ring]\nplan = \"lumped-only\"\n[control]\nkd = 17.0\n",
             3,
             "Verdict: UNSTABLE",
         ),

@@ -230,22 +230,54 @@ pub fn discrete_loop(
 
 /// What the controller adds around the law, for [`discrete_loop_with`]: where ė comes from,
 /// and the disturbance observer.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct Measurement {
-    /// The source of ė.
+    /// The source of ė (the paper's: the slave's velocity).
     pub velocity: VelocitySource,
     /// The disturbance observer's parameters, if one runs ([`crate::dob`]).
     pub dob: Option<crate::dob::DobParams>,
+    /// With [`VelocitySource::Reported`]: over how long before the sample each axis's
+    /// drive measures the velocity it reports [s], the mean (x(t) − x(t − w))/w with the
+    /// command held ([`Discretised::window_velocity`]); empty: the exact velocity at the
+    /// sample. A window must end after the command's effect (w ≤ T_cyc − delay).
+    pub velocity_window: Vec<f64>,
 }
 
-impl Default for Measurement {
-    /// The paper's: the slave's velocity, no observer.
-    fn default() -> Self {
-        Measurement {
-            velocity: VelocitySource::Reported,
-            dob: None,
-        }
+/// The reported velocity's coefficients [c_v, c_u] on each axis's (ẋ, u[k−1]) at the
+/// sample: [1, 0] for the exact velocity, else the mean over `m.velocity_window`
+/// (see [`Measurement::velocity_window`]).
+fn reported_velocity(
+    m: &Measurement,
+    axes: &[(f64, f64)],
+    t_cyc: f64,
+    delays: &[f64],
+) -> Result<Vec<[f64; 2]>, ControlError> {
+    if m.velocity_window.is_empty() || !matches!(m.velocity, VelocitySource::Reported) {
+        return Ok(vec![[1.0, 0.0]; axes.len()]);
     }
+    check_len("velocity windows", axes.len(), m.velocity_window.len())?;
+    axes.iter()
+        .zip(delays)
+        .zip(&m.velocity_window)
+        .enumerate()
+        .map(|(i, ((&(a, g), &d), &w))| {
+            if w > t_cyc - d {
+                return Err(ControlError::NotApplicable {
+                    what: "the discrete-time stability check",
+                    why: format!(
+                        "axis {i}'s velocity window ({:.1} µs) reaches back past its command's effect ({:.1} µs before the next sample): the check holds one command over the window",
+                        w * 1e6,
+                        (t_cyc - d) * 1e6
+                    ),
+                });
+            }
+            Discretised::window_velocity(a, g, w).ok_or_else(|| ControlError::InvalidParameter {
+                name: format!("velocity_window[{i}]"),
+                value: w,
+                expected: "> 0 s".into(),
+            })
+        })
+        .collect()
 }
 
 /// [`discrete_loop`] with the controller's measurement `m`. ė as the controller takes it
@@ -276,10 +308,13 @@ pub fn discrete_loop_with(
         check_len("disturbance observer axes", n, d.c.len())?;
     }
     let per = dob_at + if m.dob.is_some() { 3 } else { 0 };
-    // ė at the sample from the axis's states s (9 or 11): (ė, the observer's new (ê, ė̂)).
-    let rate = |s: &[f64]| -> (f64, [f64; 2]) {
+    let reported = reported_velocity(m, axes, t_cyc, delays)?;
+    // ė at the sample from axis i's states s (9 or 11): (ė, the observer's new (ê, ė̂)).
+    let rate = |i: usize, s: &[f64]| -> (f64, [f64; 2]) {
         match velocity {
-            VelocitySource::Reported => (-s[1], [0.0; 2]),
+            VelocitySource::Reported => {
+                (-(reported[i][0] * s[1] + reported[i][1] * s[2]), [0.0; 2])
+            }
             VelocitySource::Differenced => ((-s[0] - s[3]) / t_cyc, [0.0; 2]),
             VelocitySource::Observer(o) => {
                 let (e, de) = ErrorObserver::step((s[9], s[10]), -s[0], t_cyc, o.gains(t_cyc));
@@ -302,7 +337,7 @@ pub fn discrete_loop_with(
             let s = &z[i * per..(i + 1) * per];
             // Regulation to x^d = 0: e = −x, ė from the velocity source.
             hist.e[i] = [-s[0], s[3], s[4], s[5]];
-            hist.de[i] = [rate(s).0, s[6], s[7], s[8]];
+            hist.de[i] = [rate(i, s).0, s[6], s[7], s[8]];
             hist.count[i] = 4;
             hist.t[i] = 0.0;
         }
@@ -326,7 +361,7 @@ pub fn discrete_loop_with(
                     (out.u_raw[i] - d_hat, [u_prev, u2, d_hat])
                 }
             };
-            let (de, observed) = rate(s);
+            let (de, observed) = rate(i, s);
             let mut next = [0.0; PER_AXIS + 5];
             let base = [
                 d.phi[0][0] * x + d.phi[0][1] * v + d.gamma1[0] * u_prev + d.gamma0[0] * u,

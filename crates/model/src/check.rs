@@ -2,7 +2,8 @@
 //! applied to a scenario, with the sample-to-actuation delays taken from the cycle plan.
 
 use ringsync_control::stability::{
-    ContinuousReport, DiscreteReport, continuous_conditions, discrete_loop_with, lumped_only_loop,
+    ContinuousReport, DiscreteReport, Measurement, continuous_conditions, discrete_loop_with,
+    lumped_only_loop,
 };
 use ringsync_control::{
     ControlError, ControlLaw, Sign, SyncController, SyncParams, Trajectory, VelocitySource,
@@ -21,7 +22,7 @@ const SYNC: &str = ringsync_control::law::sync::ENTRY.name;
 pub const ASSUMPTIONS: &[&str] = &[
     "all slaves sample at the synchronised cycle start; a command takes effect when its last bit reaches its slave (event-level cycle plan, loss-free); on the lumped-only plan, a slave's command when the lumped frame's last bit reaches it, the frame holding this cycle's samples of the slaves up to it and last cycle's of the others",
     "the discrete-time check linearises: Coulomb friction and drive saturation are left out, the axes regulate to a final position (x^d = 0)",
-    "a slave's reported velocity is the axis's exact velocity at the sample: the encoder difference over axis.velocity_window (125 µs by default) is not modelled, nor its quantisation; near the edge of stability the window's lag can add damping (docs/simulator.md, \"ringsync check\")",
+    "a slave's reported velocity is the mean over axis.velocity_window (125 µs by default) of the linear axis with its command held, without the encoder's quantisation",
     "the robust term K_N·sat(Ė/φ) of the sync controller is linear inside its boundary layer with slope K_N/φ: the discrete-time check adds K_N,max/φ to K_D, with K_N,max the largest K_N = Δ_H‖ẍ^d‖ + Δ_C‖ẋ^d‖ at the evaluated points (a frozen worst case; outside the layer the term is bounded); with the exact sign (boundary_layer = 0) and K_N ≠ 0 the loop cannot be linearised and the check cannot vouch for it",
     "the paper's conditions are evaluated along the desired trajectory (x = x^d, ẋ = ẋ^d) at evenly spaced points",
 ];
@@ -67,6 +68,10 @@ pub enum NotModelled {
     /// The coupled two-link arm (`plant.kind = "two-link-arm"`): the check models
     /// independent linear axes only.
     CoupledPlant,
+    /// An axis's velocity window reaches back past its command's effect in the cycle before
+    /// (`axis.velocity_window` > T_cyc − delay): the reported velocity would span two
+    /// commands, and the check holds one over the window.
+    VelocityWindow,
 }
 
 impl NotModelled {
@@ -75,6 +80,9 @@ impl NotModelled {
         match self {
             NotModelled::LumpedOnlyPlan => {
                 "on the lumped-only plan every slave would run its own error observer (control.velocity = \"observer\") or disturbance observer on its view of the ring, which the check does not model"
+            }
+            NotModelled::VelocityWindow => {
+                "an axis's velocity window (axis.velocity_window) reaches back past its command's effect in the cycle before, so its reported velocity spans two commands, which the check does not model"
             }
             NotModelled::CoupledPlant => {
                 "the plant is the coupled two-link arm (plant.kind = \"two-link-arm\"): the check models independent linear axes only, and the arm's inertia couples its joints and changes with its configuration"
@@ -222,10 +230,31 @@ pub fn check(s: &Scenario, points: usize) -> Result<CheckReport, CheckError> {
     };
     let coupled = s.plant.arm().is_some();
     let linear: Vec<(f64, f64)> = models.iter().map(|m| m.linear_part()).collect();
+    // How the law takes ė: each drive reports the mean velocity over its axis's window.
+    let measurement = Measurement {
+        velocity: s.velocity_source(),
+        dob: s.dob_params(),
+        velocity_window: (0..models.len())
+            .map(|i| s.axis_spec(i).map_or(0.0, |a| a.velocity_window.secs()))
+            .collect(),
+    };
+    // A window reaching back past the command's effect spans two commands.
+    let spans_two = |delays: &[f64]| {
+        matches!(measurement.velocity, VelocitySource::Reported)
+            && delays
+                .iter()
+                .zip(&measurement.velocity_window)
+                .any(|(d, w)| *w > s.ring.cycle.secs() - d)
+    };
     let (delays, discrete, not_modelled) = match s.ring.plan {
         PlanKind::P2pLumped if coupled => {
             (command_delays(&plan), None, Some(NotModelled::CoupledPlant))
         }
+        PlanKind::P2pLumped if spans_two(&command_delays(&plan)) => (
+            command_delays(&plan),
+            None,
+            Some(NotModelled::VelocityWindow),
+        ),
         PlanKind::P2pLumped => {
             let delays = command_delays(&plan);
             let r = discrete_loop_with(
@@ -233,10 +262,7 @@ pub fn check(s: &Scenario, points: usize) -> Result<CheckReport, CheckError> {
                 &linear,
                 s.ring.cycle.secs(),
                 &delays,
-                &ringsync_control::stability::Measurement {
-                    velocity: s.velocity_source(),
-                    dob: s.dob_params(),
-                },
+                &measurement,
             )?;
             (delays, Some(r), None)
         }
@@ -247,16 +273,17 @@ pub fn check(s: &Scenario, points: usize) -> Result<CheckReport, CheckError> {
         ),
         PlanKind::LumpedOnly => {
             let passes = lumped_only_passes(&plan);
-            match s.velocity_source() {
+            match measurement.velocity {
+                _ if spans_two(&passes) => (passes, None, Some(NotModelled::VelocityWindow)),
                 VelocitySource::Observer(_) => (passes, None, Some(NotModelled::LumpedOnlyPlan)),
-                _ if s.dob_params().is_some() => (passes, None, Some(NotModelled::LumpedOnlyPlan)),
-                velocity => {
+                _ if measurement.dob.is_some() => (passes, None, Some(NotModelled::LumpedOnlyPlan)),
+                _ => {
                     let r = lumped_only_loop(
                         law.as_ref(),
                         &linear,
                         s.ring.cycle.secs(),
                         &passes,
-                        velocity,
+                        &measurement,
                     )?;
                     (passes, Some(r), None)
                 }
@@ -433,6 +460,18 @@ mod tests {
         assert!(r.discrete.is_none() && r.state_names.is_empty());
         assert_eq!(r.not_modelled, Some(NotModelled::LumpedOnlyPlan));
         assert_eq!(r.verdict(), Verdict::NotShown);
+    }
+
+    /// A velocity window that reaches back past the command's effect is said, not guessed:
+    /// 900 µs against the proposed plan's 877.66 µs from the last command to the next sample.
+    #[test]
+    fn a_window_spanning_two_commands_is_not_shown() {
+        let s = Scenario::from_toml("[[axis]]\nvelocity_window = \"900us\"\n", "w").expect("valid");
+        let r = check(&s, 11).expect("check");
+        assert_eq!(r.not_modelled, Some(NotModelled::VelocityWindow));
+        assert_eq!(r.verdict(), Verdict::NotShown);
+        let s = Scenario::from_toml("[[axis]]\nvelocity_window = \"800us\"\n", "w").expect("valid");
+        assert!(check(&s, 11).expect("check").discrete.is_some());
     }
 
     /// The check models independent linear axes: on the two-link arm it does not analyse

@@ -294,6 +294,20 @@ impl Discretised {
             ],
         })
     }
+
+    /// The mean velocity over the window of `w` [s] that ends at a sample, (x(t) −
+    /// x(t − w))/w, of ẍ = g·u − a·ẋ with the command u held over the window: the
+    /// coefficients [c_v, c_u] of v(t) [rad/s] and u [V], so that the mean is c_v·v(t) +
+    /// c_u·u (what a drive reports as its velocity from two encoder readings; for a small
+    /// window about the velocity w/2 earlier). `None` unless w > 0.
+    pub fn window_velocity(a: f64, g: f64, w: f64) -> Option<[f64; 2]> {
+        if w.is_nan() || w <= 0.0 {
+            return None;
+        }
+        // Back from t by w: x(t − w) = x(t) + φ(−w)·v(t) + g·ψ(−w)·u.
+        let (ph, ps) = phi_psi(a, -w);
+        Some([-ph / w, -g * ps / w])
+    }
 }
 
 /// The model of one axis.

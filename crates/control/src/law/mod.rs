@@ -265,10 +265,11 @@ pub trait ControlLaw: Send {
     }
 }
 
-/// Where the velocity error ė comes from.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// Where the velocity error ė comes from (the paper's: the slave's velocity).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub enum VelocitySource {
     /// ė = ẋ^d − v with the velocity the slave reports.
+    #[default]
     Reported,
     /// ė = (e[m] − e[m−1]) / (t_m − t_{m−1}) from successive position samples (0 for the
     /// first sample).

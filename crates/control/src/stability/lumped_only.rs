@@ -13,7 +13,7 @@
 
 use nalgebra::DMatrix;
 
-use super::{DiscreteLoop, discretised};
+use super::{DiscreteLoop, Measurement, discretised, reported_velocity};
 use crate::error::ControlError;
 use crate::estimator::{DEPTH, ErrorHistory};
 use crate::law::{ControlInput, ControlLaw, ControlOutput, VelocitySource};
@@ -27,32 +27,35 @@ pub const LUMPED_ONLY_STATE_NAMES: [&str; 11] = [
 /// The sampled closed loop of the lumped-only plan: `law` run by every slave on its view
 /// of the ring (see the module's docs), on linear axes `(a, g)`, period `t_cyc` [s], slave
 /// i's frame pass (its command's effect) `passes[i]` [s] after the sampling instant
-/// (0 ≤ pass ≤ T_cyc), ė from `velocity`. The matrix's states are
-/// [`LUMPED_ONLY_STATE_NAMES`] per axis, axis-major; regulation to x^d = 0 as in
-/// [`super::discrete_loop`]. Refused ([`ControlError::NotApplicable`]) for an estimator
-/// that is not linear in the history and for the error observer (each slave would run one
+/// (0 ≤ pass ≤ T_cyc), ė as `m` says (the reported velocity, exact or over its window, or
+/// differenced samples). The matrix's states are [`LUMPED_ONLY_STATE_NAMES`] per axis,
+/// axis-major; regulation to x^d = 0 as in [`super::discrete_loop`]. Refused
+/// ([`ControlError::NotApplicable`]) for an estimator that is not linear in the history,
+/// and for the error observer and the disturbance observer (each slave would run its own
 /// on its own view: not modelled).
 pub fn lumped_only_loop(
     law: &dyn ControlLaw,
     axes: &[(f64, f64)],
     t_cyc: f64,
     passes: &[f64],
-    velocity: VelocitySource,
+    m: &Measurement,
 ) -> Result<DiscreteLoop, ControlError> {
-    if matches!(velocity, VelocitySource::Observer(_)) {
+    let velocity = m.velocity;
+    if matches!(velocity, VelocitySource::Observer(_)) || m.dob.is_some() {
         return Err(ControlError::NotApplicable {
             what: "the lumped-only plan's discrete-time check",
-            why: "each slave would run its own error observer on its view of the ring, which the check does not model".into(),
+            why: "each slave would run its own error or disturbance observer on its view of the ring, which the check does not model".into(),
         });
     }
     let disc = discretised(law, axes, t_cyc, passes)?;
+    let reported = reported_velocity(m, axes, t_cyc, passes)?;
     let n = law.axes();
     let per = LUMPED_ONLY_STATE_NAMES.len();
-    // ė of this cycle's sample from an axis's states (e[k] = −x).
-    let rate = |s: &[f64]| -> f64 {
+    // ė of axis j's sample this cycle from its states s (e[k] = −x).
+    let rate = |j: usize, s: &[f64]| -> f64 {
         match velocity {
             VelocitySource::Differenced => (-s[0] - s[3]) / t_cyc,
-            _ => -s[1],
+            _ => -(reported[j][0] * s[1] + reported[j][1] * s[2]),
         }
     };
     let dim = per * n;
@@ -71,7 +74,7 @@ pub fn lumped_only_loop(
                 let s = &z[j * per..(j + 1) * per];
                 if j <= i {
                     hist.e[j] = [-s[0], s[3], s[4], s[5]];
-                    hist.de[j] = [rate(s), s[7], s[8], s[9]];
+                    hist.de[j] = [rate(j, s), s[7], s[8], s[9]];
                     hist.t[j] = 0.0;
                 } else {
                     hist.e[j] = [s[3], s[4], s[5], s[6]];
@@ -96,7 +99,7 @@ pub fn lumped_only_loop(
                 s[3],
                 s[4],
                 s[5],
-                rate(s),
+                rate(i, s),
                 s[7],
                 s[8],
                 s[9],

@@ -54,7 +54,7 @@ fn spectral_radius_matches_simulated_decay() {
     for velocity in [VelocitySource::Reported, VelocitySource::Differenced, obs] {
         decay_matches(Measurement {
             velocity,
-            dob: None,
+            ..Measurement::default()
         });
     }
     // With the disturbance observer on the axes' own model.
@@ -66,8 +66,8 @@ fn spectral_radius_matches_simulated_decay() {
         u_max: vec![10.0; 4],
     };
     decay_matches(Measurement {
-        velocity: VelocitySource::Reported,
         dob: Some(dob),
+        ..Measurement::default()
     });
 }
 
@@ -150,7 +150,7 @@ fn the_velocity_source_is_part_of_the_loop() {
     let rho = |velocity| {
         let m = Measurement {
             velocity,
-            dob: None,
+            ..Measurement::default()
         };
         discrete_loop_with(&pd, &axes, 1e-3, &DELAYS, &m)
             .expect("check")
@@ -164,7 +164,7 @@ fn the_velocity_source_is_part_of_the_loop() {
     });
     let m = Measurement {
         velocity: obs,
-        dob: None,
+        ..Measurement::default()
     };
     let l = discrete_loop_with(&pd, &axes, 1e-3, &DELAYS, &m).expect("check");
     assert_eq!((l.states_per_axis, l.report.states), (11, 44));
@@ -309,7 +309,11 @@ fn lumped_only_decay_matches<L: ControlLaw>(make: &dyn Fn() -> L, velocity: Velo
     let models = reference_axes();
     let axes = linear(&models);
     let t_cyc = 1e-3;
-    let l = lumped_only_loop(&make(), &axes, t_cyc, &PASSES, velocity).expect("check");
+    let m = Measurement {
+        velocity,
+        ..Measurement::default()
+    };
+    let l = lumped_only_loop(&make(), &axes, t_cyc, &PASSES, &m).expect("check");
     assert_eq!((l.states_per_axis, l.report.states), (11, 44));
     let rho = l.report.spectral_radius;
     let mut slaves: Vec<Controller<L>> =
@@ -367,18 +371,18 @@ fn lumped_only_differs_from_the_proposed_plan_only_downstream() {
     let one = linear(&reference_axes()[..1]);
     let law = Pd::new(Gains::uniform(1, 3.182, 30.0, 0.0), false).expect("pd");
     for v in [VelocitySource::Reported, VelocitySource::Differenced] {
-        let lo = lumped_only_loop(&law, &one, 1e-3, &PASSES[..1], v).expect("lumped-only");
         let m = Measurement {
             velocity: v,
-            dob: None,
+            ..Measurement::default()
         };
+        let lo = lumped_only_loop(&law, &one, 1e-3, &PASSES[..1], &m).expect("lumped-only");
         let p2p = discrete_loop_with(&law, &one, 1e-3, &PASSES[..1], &m).expect("p2p");
         let (a, b) = (lo.report.spectral_radius, p2p.report.spectral_radius);
         assert!((a - b).abs() < 1e-9, "{v:?}: {a} vs {b}");
     }
     let axes = linear(&reference_axes());
     let radii = |law: &dyn ControlLaw| {
-        let lo = lumped_only_loop(law, &axes, 1e-3, &PASSES, VelocitySource::Reported)
+        let lo = lumped_only_loop(law, &axes, 1e-3, &PASSES, &Measurement::default())
             .expect("lumped-only");
         assert_eq!(lo.state_names, LUMPED_ONLY_STATE_NAMES);
         let p2p = discrete_check(law, &axes, 1e-3, &PASSES).expect("p2p");
@@ -397,7 +401,16 @@ fn lumped_only_differs_from_the_proposed_plan_only_downstream() {
         bandwidth_hz: 100.0,
     });
     assert!(matches!(
-        lumped_only_loop(&law, &axes, 1e-3, &PASSES, obs),
+        lumped_only_loop(
+            &law,
+            &axes,
+            1e-3,
+            &PASSES,
+            &Measurement {
+                velocity: obs,
+                ..Measurement::default()
+            }
+        ),
         Err(ControlError::NotApplicable { .. })
     ));
 }
@@ -416,7 +429,7 @@ fn every_gain_gets_a_spectral_radius() {
         let p2p = discrete_check(&law, &axes, 1e-3, &delays)
             .expect("p2p")
             .spectral_radius;
-        let lo = lumped_only_loop(&law, &axes, 1e-3, &PASSES, VelocitySource::Reported)
+        let lo = lumped_only_loop(&law, &axes, 1e-3, &PASSES, &Measurement::default())
             .expect("lumped-only")
             .report
             .spectral_radius;
@@ -434,5 +447,107 @@ fn every_gain_gets_a_spectral_radius() {
             discrete_check(&law, &axes, 1e-3, &delays).is_ok(),
             "K_D {kd}"
         );
+    }
+}
+
+/// One cycle of the loop matrix is one cycle of the controllers on the stepped axes, to
+/// rounding, where the drives report their mean velocity over a window: four `Controller`s
+/// (one per slave, each on its view: the lumped-only plan) or one (the proposed plan), the
+/// axes stepped forward through the command's switch and the window's start, the velocity
+/// reported as the difference of the two positions. The sync law near the lumped-only
+/// plan's edge, where the window matters.
+#[test]
+#[allow(clippy::needless_range_loop)] // one index over several per-axis arrays
+fn one_step_of_the_matrix_is_one_cycle_of_the_controllers() {
+    let models = reference_axes();
+    let axes = linear(&models);
+    let t_cyc = 1e-3;
+    let w = 125e-6;
+    let meas = Measurement {
+        velocity_window: vec![w; 4],
+        ..Measurement::default()
+    };
+    let law = || sync_law(12.0);
+    for lumped in [true, false] {
+        let delays = if lumped { PASSES } else { DELAYS };
+        let l = if lumped {
+            lumped_only_loop(&law(), &axes, t_cyc, &delays, &meas).expect("lumped-only")
+        } else {
+            discrete_loop_with(&law(), &axes, t_cyc, &delays, &meas).expect("p2p")
+        };
+        let per = l.states_per_axis;
+        let slaves = if lumped { 4 } else { 1 };
+        let mut ctl: Vec<_> = (0..slaves)
+            .map(|_| Controller::new(law(), VelocitySource::Reported))
+            .collect();
+        // Per cycle at its sample: (x, ẋ, reported ẋ) per axis, and the command held.
+        type Sample = (Vec<(f64, f64, f64)>, [f64; 4]);
+        let mut rec: Vec<Sample> = Vec::new();
+        let mut s: Vec<(f64, f64)> = (0..4).map(|i| (1e-3 * (i as f64 + 1.0), 0.0)).collect();
+        let mut vrep: Vec<f64> = vec![0.0; 4];
+        let mut u_prev = [0.0; 4];
+        let (mut fb, mut input, mut out) = (
+            Feedback::new(4),
+            ControlInput::new(4, t_cyc),
+            ControlOutput::new(4),
+        );
+        for m in 0..60 {
+            let t = m as f64 * t_cyc;
+            rec.push(((0..4).map(|i| (s[i].0, s[i].1, vrep[i])).collect(), u_prev));
+            let mut u = [0.0; 4];
+            for (k, c) in ctl.iter_mut().enumerate() {
+                for j in 0..4 {
+                    let stale = lumped && j > k && m > 0;
+                    let (x, _, v) = if stale { rec[m - 1].0[j] } else { rec[m].0[j] };
+                    fb.position[j] = x;
+                    fb.velocity[j] = v;
+                    fb.sample_time[j] = if stale { t - t_cyc } else { t };
+                    fb.desired[j] = State::default();
+                    fb.fresh[j] = true;
+                    input.apply_time[j] = t + if lumped { delays[k] } else { delays[j] };
+                }
+                c.update(&fb, &input, &mut out).expect("update");
+                if lumped {
+                    u[k] = out.u_raw[k];
+                } else {
+                    u = [out.u_raw[0], out.u_raw[1], out.u_raw[2], out.u_raw[3]];
+                }
+            }
+            for (i, model) in models.iter().enumerate() {
+                let (mut x, mut v) = s[i];
+                model.step(&mut x, &mut v, u_prev[i], delays[i]);
+                model.step(&mut x, &mut v, u[i], t_cyc - delays[i] - w);
+                let back = x;
+                model.step(&mut x, &mut v, u[i], w);
+                s[i] = (x, v);
+                vrep[i] = (x - back) / w;
+            }
+            u_prev = u;
+        }
+        let z = |m: usize| {
+            let mut z = vec![0.0; 4 * per];
+            for i in 0..4 {
+                let b = i * per;
+                let (x, v, _) = rec[m].0[i];
+                z[b] = x;
+                z[b + 1] = v;
+                z[b + 2] = rec[m].1[i];
+                let depth = (per - 3) / 2;
+                for q in 1..=depth {
+                    z[b + 2 + q] = -rec[m - q].0[i].0;
+                    z[b + 2 + depth + q] = -rec[m - q].0[i].2;
+                }
+            }
+            nalgebra::DVector::from_vec(z)
+        };
+        for m in [10, 30, 58] {
+            let (pred, got) = (&l.matrix * z(m), z(m + 1));
+            let err = (&pred - &got).abs().max();
+            assert!(
+                err < 1e-9 * got.abs().max(),
+                "lumped {lumped}, cycle {m}: {err:e} of {:e}",
+                got.abs().max()
+            );
+        }
     }
 }

@@ -202,3 +202,26 @@ fn bad_parameters_are_named() {
         Err(PlantError::LengthMismatch { .. })
     ));
 }
+
+/// The window's mean velocity is what two positions w apart give, stepping the axis
+/// forward over the window with the command held: for a damped axis, an undamped one (the
+/// series branch) and several windows.
+#[test]
+fn window_velocity_is_the_difference_of_two_positions() {
+    for (a, g) in [(2.5, 64.0), (0.0, 60.0), (1e-6, 40.0), (80.0, 10.0)] {
+        let ax = TorqueAxis::new(1.0 / g, 1.0, Friction::viscous(a / g), 1e9).expect("axis");
+        for w in [1e-6, 125e-6, 900e-6] {
+            let [cv, cu] = Discretised::window_velocity(a, g, w).expect("window");
+            let (v0, u) = (1.7, -3.2);
+            let (mut x, mut v) = (0.4, v0);
+            ax.step(&mut x, &mut v, u, w);
+            let mean = (x - 0.4) / w;
+            let got = cv * v + cu * u;
+            assert!(
+                (got - mean).abs() < 1e-9 * (1.0 + mean.abs()),
+                "a {a} w {w}: {got} vs {mean}"
+            );
+        }
+    }
+    assert!(Discretised::window_velocity(1.0, 1.0, 0.0).is_none());
+}

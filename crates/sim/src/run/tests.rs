@@ -624,9 +624,8 @@ fn lumped_only_commands_take_effect_when_the_check_says() {
 /// still stable; its own edge is checked the same way). Over the edge the unstable mode, at about 0.41 of the cycle rate, grows
 /// until the drives' ±10 V bound it: the command jumps volts from cycle to cycle while the
 /// positions, filtered by the axes, still follow. The simulated ring is made what the check
-/// linearises: ideal clocks, no Coulomb friction, 28-bit encoders whose velocity is read
-/// over 5 µs (the check takes the exact velocity; the default 125 µs window's lag adds
-/// damping and moves the edge).
+/// linearises: ideal clocks, no Coulomb friction, 28-bit encoders (their velocity read over
+/// the default 125 µs window, which the check models).
 #[test]
 fn the_check_finds_the_simulated_edge_of_stability_on_both_plans() {
     let ring = |kd: f64, plan: &str| {
@@ -636,7 +635,6 @@ fn the_check_finds_the_simulated_edge_of_stability_on_both_plans() {
         for a in &mut s.axis {
             a.coulomb_fraction = 0.0;
             a.encoder_bits = 28;
-            a.velocity_window = ringsync_model::scenario::Dur(ringsync_proto::Duration::from_us(5));
         }
         s
     };
