@@ -20,7 +20,7 @@ const SYNC: &str = ringsync_control::law::sync::ENTRY.name;
 
 /// Assumptions of the check that the paper does not make; printed with every result.
 pub const ASSUMPTIONS: &[&str] = &[
-    "all slaves sample at the synchronised cycle start; a command takes effect when its last bit reaches its slave (event-level cycle plan, loss-free); on the lumped-only plan, a slave's command when the lumped frame's last bit reaches it, the frame holding this cycle's samples of the slaves up to it and last cycle's of the others",
+    "all slaves sample at the same synchronised instant, clock.sample_lead before the cycle start (the cycle start by default); a command takes effect when its last bit reaches its slave (event-level cycle plan, loss-free); on the lumped-only plan, a slave's command when the lumped frame's last bit reaches it, the frame holding this cycle's samples of the slaves up to it and last cycle's of the others",
     "the discrete-time check linearises: Coulomb friction and drive saturation are left out, the axes regulate to a final position (x^d = 0)",
     "a slave's reported velocity is the mean over axis.velocity_window (125 µs by default) of the linear axis with its command held, without the encoder's quantisation",
     "the robust term K_N·sat(Ė/φ) of the sync controller is linear inside its boundary layer with slope K_N/φ: the discrete-time check adds K_N,max/φ to K_D, with K_N,max the largest K_N = Δ_H‖ẍ^d‖ + Δ_C‖ẋ^d‖ at the evaluated points (a frozen worst case; outside the layer the term is bounded); with the exact sign (boundary_layer = 0) and K_N ≠ 0 the loop cannot be linearised and the check cannot vouch for it",
@@ -72,6 +72,10 @@ pub enum NotModelled {
     /// (`axis.velocity_window` > T_cyc − delay): the reported velocity would span two
     /// commands, and the check holds one over the window.
     VelocityWindow,
+    /// A command takes effect more than a cycle after its sample (`clock.sample_lead` + its
+    /// delay > T_cyc): the check holds each command from its effect to the next one within
+    /// a cycle.
+    LateCommand,
 }
 
 impl NotModelled {
@@ -80,6 +84,9 @@ impl NotModelled {
         match self {
             NotModelled::LumpedOnlyPlan => {
                 "on the lumped-only plan every slave would run its own error observer (control.velocity = \"observer\") or disturbance observer on its view of the ring, which the check does not model"
+            }
+            NotModelled::LateCommand => {
+                "a command takes effect more than a cycle after its sample (clock.sample_lead plus its delay exceeds the cycle), which the check does not model"
             }
             NotModelled::VelocityWindow => {
                 "an axis's velocity window (axis.velocity_window) reaches back past its command's effect in the cycle before, so its reported velocity spans two commands, which the check does not model"
@@ -115,8 +122,9 @@ pub struct CheckReport {
     pub estimator: &'static str,
     /// The cycle plan checked.
     pub plan: PlanKind,
-    /// Sample-to-actuation delay of each axis [s]: its command's arrival on the proposed
-    /// plan, the lumped frame's pass at its slave on the lumped-only plan.
+    /// Sample-to-actuation delay of each axis [s]: from the sample (`clock.sample_lead`
+    /// before the cycle start) to its command's arrival on the proposed plan, to the lumped
+    /// frame's pass at its slave on the lumped-only plan.
     pub delays: Vec<f64>,
     /// The discrete-time check; `None` when it does not model the scenario.
     pub discrete: Option<DiscreteReport>,
@@ -165,9 +173,9 @@ pub enum CheckError {
     Control(#[from] ControlError),
 }
 
-/// Sample-to-actuation delay of each axis [s] on the lumped-only plan: from the cycle start
-/// (the sampling instant, when the master sends the frame) to the lumped frame's last bit
-/// at the axis's slave, D_ci + the frame's wire time.
+/// Delay of each axis's command [s] on the lumped-only plan: from the cycle start (when the
+/// master sends the frame) to the lumped frame's last bit at the axis's slave, D_ci + the
+/// frame's wire time. The check adds `clock.sample_lead`: the sample comes that much earlier.
 pub fn lumped_only_passes(plan: &CyclePlan) -> Vec<f64> {
     let wire = plan.lumped_only.lumped.frame_time[0];
     plan.d_c
@@ -176,8 +184,9 @@ pub fn lumped_only_passes(plan: &CyclePlan) -> Vec<f64> {
         .collect()
 }
 
-/// Sample-to-actuation delay of each axis [s] in the proposed plan: from the cycle start
-/// (the sampling instant) to the last bit of the axis's command at its slave.
+/// Delay of each axis's command [s] in the proposed plan: from the cycle start to the last
+/// bit of the axis's command at its slave. The check adds `clock.sample_lead`: the sample
+/// comes that much earlier.
 pub fn command_delays(plan: &CyclePlan) -> Vec<f64> {
     let tl = plan.timeline();
     (1..=plan.slaves())
@@ -246,9 +255,24 @@ pub fn check(s: &Scenario, points: usize) -> Result<CheckReport, CheckError> {
                 .zip(&measurement.velocity_window)
                 .any(|(d, w)| *w > s.ring.cycle.secs() - d)
     };
+    let late = |delays: &[f64]| delays.iter().any(|d| *d > s.ring.cycle.secs());
+    // From the sample, clock.sample_lead before the cycle start, to the command's effect.
+    let lead = s.clock.sample_lead.secs();
+    let command_delays = |plan: &CyclePlan| -> Vec<f64> {
+        command_delays(plan).into_iter().map(|d| d + lead).collect()
+    };
+    let lumped_only_passes = |plan: &CyclePlan| -> Vec<f64> {
+        lumped_only_passes(plan)
+            .into_iter()
+            .map(|d| d + lead)
+            .collect()
+    };
     let (delays, discrete, not_modelled) = match s.ring.plan {
         PlanKind::P2pLumped if coupled => {
             (command_delays(&plan), None, Some(NotModelled::CoupledPlant))
+        }
+        PlanKind::P2pLumped if late(&command_delays(&plan)) => {
+            (command_delays(&plan), None, Some(NotModelled::LateCommand))
         }
         PlanKind::P2pLumped if spans_two(&command_delays(&plan)) => (
             command_delays(&plan),
@@ -274,6 +298,7 @@ pub fn check(s: &Scenario, points: usize) -> Result<CheckReport, CheckError> {
         PlanKind::LumpedOnly => {
             let passes = lumped_only_passes(&plan);
             match measurement.velocity {
+                _ if late(&passes) => (passes, None, Some(NotModelled::LateCommand)),
                 _ if spans_two(&passes) => (passes, None, Some(NotModelled::VelocityWindow)),
                 VelocitySource::Observer(_) => (passes, None, Some(NotModelled::LumpedOnlyPlan)),
                 _ if measurement.dob.is_some() => (passes, None, Some(NotModelled::LumpedOnlyPlan)),
@@ -459,6 +484,34 @@ mod tests {
         let r = check(&obs, 11).expect("check");
         assert!(r.discrete.is_none() && r.state_names.is_empty());
         assert_eq!(r.not_modelled, Some(NotModelled::LumpedOnlyPlan));
+        assert_eq!(r.verdict(), Verdict::NotShown);
+    }
+
+    /// A sampling lead moves every delay by itself; a command that lands more than a cycle
+    /// after its sample is not modelled, and said.
+    #[test]
+    fn a_sampling_lead_lengthens_every_delay() {
+        let base = check(&Scenario::default(), 11).expect("check");
+        let s = Scenario::from_toml("[clock]\nsample_lead = \"300us\"\n", "lead").expect("valid");
+        let r = check(&s, 11).expect("check");
+        for (a, b) in r.delays.iter().zip(&base.delays) {
+            assert!((a - b - 300e-6).abs() < 1e-12, "{a} vs {b}");
+        }
+        assert!(r.discrete.is_some());
+        // Sixteen slaves: slave 11's command arrives 508.26 µs into the 1 ms cycle, 1.008 ms
+        // after a sample taken 500 µs early.
+        let late = Scenario::from_toml(
+            "[ring]\nslaves = 16\n[clock]\nsample_lead = \"500us\"\n",
+            "late",
+        )
+        .expect("valid");
+        let r = check(&late, 11).expect("check");
+        assert!(
+            (r.delays[10] - 1008.26e-6).abs() < 1e-12,
+            "{}",
+            r.delays[10]
+        );
+        assert_eq!(r.not_modelled, Some(NotModelled::LateCommand));
         assert_eq!(r.verdict(), Verdict::NotShown);
     }
 

@@ -47,7 +47,11 @@ pub fn check_text(r: &CheckReport) -> String {
                     NotModelled::CoupledPlant.reason()
                 );
             }
-            Some(m @ (NotModelled::LumpedOnlyPlan | NotModelled::VelocityWindow)) => {
+            Some(
+                m @ (NotModelled::LumpedOnlyPlan
+                | NotModelled::VelocityWindow
+                | NotModelled::LateCommand),
+            ) => {
                 let _ = writeln!(o, "\nDiscrete-time check: not available: {}.", m.reason());
             }
             None => {
@@ -134,6 +138,9 @@ pub fn verdict_text(r: &CheckReport) -> &'static str {
         (Verdict::Unstable, _) => "UNSTABLE: the linearised sampled loop has spectral radius >= 1",
         (Verdict::NotShown, false) if r.not_modelled == Some(NotModelled::CoupledPlant) => {
             "NOT SHOWN: the discrete-time check models independent linear axes, not the coupled two-link arm (plant.kind = \"two-link-arm\")"
+        }
+        (Verdict::NotShown, false) if r.not_modelled == Some(NotModelled::LateCommand) => {
+            "NOT SHOWN: the discrete-time check does not model a command that takes effect more than a cycle after its sample"
         }
         (Verdict::NotShown, false) if r.not_modelled == Some(NotModelled::VelocityWindow) => {
             "NOT SHOWN: the discrete-time check does not model a velocity window that spans two commands (axis.velocity_window > T_cyc − the command's delay)"

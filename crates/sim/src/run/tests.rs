@@ -621,7 +621,8 @@ fn lumped_only_commands_take_effect_when_the_check_says() {
 /// stay smooth on one side and chatter on the other: the sync law, whose slaves see the
 /// downstream axes a cycle late, with K_D 5 % under and over the K_D at which the check's
 /// spectral radius crosses 1 (ρ 1.05 there: the proposed plan's loop with the same gains is
-/// still stable; its own edge is checked the same way). Over the edge the unstable mode, at about 0.41 of the cycle rate, grows
+/// still stable; its own edge is checked the same way, and with the slaves sampling 300 µs
+/// before the cycle start). Over the edge the unstable mode, at about 0.41 of the cycle rate, grows
 /// until the drives' ±10 V bound it: the command jumps volts from cycle to cycle while the
 /// positions, filtered by the axes, still follow. The simulated ring is made what the check
 /// linearises: ideal clocks, no Coulomb friction, 28-bit encoders (their velocity read over
@@ -629,8 +630,12 @@ fn lumped_only_commands_take_effect_when_the_check_says() {
 #[test]
 fn the_check_finds_the_simulated_edge_of_stability_on_both_plans() {
     let ring = |kd: f64, plan: &str| {
+        // "p2p-lumped+lead": the proposed plan sampling 300 µs before the cycle start.
+        let (plan, lead) = plan
+            .split_once('+')
+            .map_or((plan, "0us"), |(p, _)| (p, "300us"));
         let mut s = scenario(&format!(
-            "duration = \"2s\"\n{IDEAL}[ring]\nplan = \"{plan}\"\n[control]\nlaw = \"sync\"\nkd = {kd}\n"
+            "duration = \"2s\"\n{IDEAL}sample_lead = \"{lead}\"\n[ring]\nplan = \"{plan}\"\n[control]\nlaw = \"sync\"\nkd = {kd}\n"
         ));
         for a in &mut s.axis {
             a.coulomb_fraction = 0.0;
