@@ -688,13 +688,14 @@ fn the_check_finds_the_simulated_edge_of_stability_on_both_plans() {
     // further out, is found likewise.
     let p2p = chatter(1.05 * lo, "p2p-lumped");
     assert!(p2p < 1.0, "{p2p} V");
-    let e = edge("p2p-lumped");
-    let (under, over) = (
-        chatter(0.95 * e, "p2p-lumped"),
-        chatter(1.05 * e, "p2p-lumped"),
-    );
-    assert!(
-        under < 1.0 && over > 5.0,
-        "K_D {e}: {under} V under, {over} V over"
-    );
+    for plan in ["p2p-lumped", "p2p-lumped+lead"] {
+        let e = edge(plan);
+        let (under, over) = (chatter(0.95 * e, plan), chatter(1.05 * e, plan));
+        assert!(
+            under < 1.0 && over > 5.0,
+            "{plan}, K_D {e}: {under} V under, {over} V over"
+        );
+    }
+    // The lead lengthens every sample-to-actuation delay: the edge comes down.
+    assert!(edge("p2p-lumped+lead") < 0.9 * edge("p2p-lumped"));
 }
