@@ -258,62 +258,45 @@ pub fn check(s: &Scenario, points: usize) -> Result<CheckReport, CheckError> {
     let late = |delays: &[f64]| delays.iter().any(|d| *d > s.ring.cycle.secs());
     // From the sample, clock.sample_lead before the cycle start, to the command's effect.
     let lead = s.clock.sample_lead.secs();
-    let command_delays = |plan: &CyclePlan| -> Vec<f64> {
-        command_delays(plan).into_iter().map(|d| d + lead).collect()
+    let delays: Vec<f64> = match s.ring.plan {
+        PlanKind::P2pLumped => command_delays(&plan),
+        PlanKind::LumpedOnly => lumped_only_passes(&plan),
+    }
+    .into_iter()
+    .map(|d| d + lead)
+    .collect();
+    let lumped_only = s.ring.plan == PlanKind::LumpedOnly;
+    let not_modelled = if coupled {
+        Some(NotModelled::CoupledPlant)
+    } else if late(&delays) {
+        Some(NotModelled::LateCommand)
+    } else if spans_two(&delays) {
+        Some(NotModelled::VelocityWindow)
+    } else if lumped_only
+        && (matches!(measurement.velocity, VelocitySource::Observer(_))
+            || measurement.dob.is_some())
+    {
+        Some(NotModelled::LumpedOnlyPlan)
+    } else {
+        None
     };
-    let lumped_only_passes = |plan: &CyclePlan| -> Vec<f64> {
-        lumped_only_passes(plan)
-            .into_iter()
-            .map(|d| d + lead)
-            .collect()
-    };
-    let (delays, discrete, not_modelled) = match s.ring.plan {
-        PlanKind::P2pLumped if coupled => {
-            (command_delays(&plan), None, Some(NotModelled::CoupledPlant))
-        }
-        PlanKind::P2pLumped if late(&command_delays(&plan)) => {
-            (command_delays(&plan), None, Some(NotModelled::LateCommand))
-        }
-        PlanKind::P2pLumped if spans_two(&command_delays(&plan)) => (
-            command_delays(&plan),
-            None,
-            Some(NotModelled::VelocityWindow),
-        ),
-        PlanKind::P2pLumped => {
-            let delays = command_delays(&plan);
-            let r = discrete_loop_with(
-                law.as_ref(),
-                &linear,
-                s.ring.cycle.secs(),
-                &delays,
-                &measurement,
-            )?;
-            (delays, Some(r), None)
-        }
-        PlanKind::LumpedOnly if coupled => (
-            lumped_only_passes(&plan),
-            None,
-            Some(NotModelled::CoupledPlant),
-        ),
-        PlanKind::LumpedOnly => {
-            let passes = lumped_only_passes(&plan);
-            match measurement.velocity {
-                _ if late(&passes) => (passes, None, Some(NotModelled::LateCommand)),
-                _ if spans_two(&passes) => (passes, None, Some(NotModelled::VelocityWindow)),
-                VelocitySource::Observer(_) => (passes, None, Some(NotModelled::LumpedOnlyPlan)),
-                _ if measurement.dob.is_some() => (passes, None, Some(NotModelled::LumpedOnlyPlan)),
-                _ => {
-                    let r = lumped_only_loop(
-                        law.as_ref(),
-                        &linear,
-                        s.ring.cycle.secs(),
-                        &passes,
-                        &measurement,
-                    )?;
-                    (passes, Some(r), None)
-                }
-            }
-        }
+    let t_cyc = s.ring.cycle.secs();
+    let discrete = match not_modelled {
+        Some(_) => None,
+        None if lumped_only => Some(lumped_only_loop(
+            law.as_ref(),
+            &linear,
+            t_cyc,
+            &delays,
+            &measurement,
+        )?),
+        None => Some(discrete_loop_with(
+            law.as_ref(),
+            &linear,
+            t_cyc,
+            &delays,
+            &measurement,
+        )?),
     };
     let discrete_matrix = discrete
         .as_ref()
