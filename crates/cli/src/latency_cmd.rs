@@ -37,6 +37,11 @@ pub(crate) fn latency(args: &LatencyArgs) -> Result<Outcome, CliError> {
         realtime: args.realtime.settings(),
         verbose: true,
     };
+    args.realtime.check(args.cycle)?;
+    // A --json that cannot be written fails now, not after the probe.
+    if let Some(path) = &args.json {
+        ringsync::output::writable(path)?;
+    }
     let stop = ringsync::layers::runtime::stop_flag();
     let r = ringsync::rt::latency(&opts, stop)?;
     let mut text = ringsync::rt::latency_text(&r, &opts);

@@ -155,6 +155,27 @@ pub struct RealtimeArgs {
 }
 
 impl RealtimeArgs {
+    /// Refuses a `--spin` longer than the cycle `t_cyc` and a `--cpu` this host does not
+    /// have.
+    pub fn check(&self, t_cyc: Duration) -> Result<(), CliError> {
+        if self.spin > t_cyc {
+            return Err(CliError::Usage(format!(
+                "--spin {} is longer than the cycle ({t_cyc}): expected 0 ..= the cycle",
+                self.spin
+            )));
+        }
+        if let Some(cpu) = self.cpu {
+            let cpus = std::thread::available_parallelism().map_or(1, usize::from);
+            if cpu >= cpus {
+                return Err(CliError::Usage(format!(
+                    "--cpu {cpu}: this host gives the run CPUs 0 ..= {}",
+                    cpus - 1
+                )));
+            }
+        }
+        Ok(())
+    }
+
     /// The settings these options ask for.
     pub fn settings(&self) -> Realtime {
         Realtime {
@@ -192,6 +213,29 @@ pub(crate) fn rt(args: &RtArgs) -> Result<Outcome, CliError> {
         )));
     }
     let n = s.axes_count();
+    args.realtime.check(args.cycle.unwrap_or(s.ring.cycle.0))?;
+    // The faults must fall inside the run, or they would silently never happen.
+    let run_for = args.duration.unwrap_or(s.duration.0);
+    for (flag, at) in [("--kill-at", args.kill_at), ("--flap-at", args.flap_at)] {
+        if let Some(at) = at
+            && at >= run_for
+        {
+            let s = |d: Duration| d.as_ns() as f64 * 1e-9;
+            return Err(CliError::Usage(format!(
+                "{flag} {} s is not inside the run ({} s): the fault would never happen",
+                s(at),
+                s(run_for)
+            )));
+        }
+    }
+    if let Some(d) = args.flap_for
+        && d <= Duration::ZERO
+    {
+        return Err(CliError::Usage(format!(
+            "--flap-for {} s: the link must stay down for some time (e.g. 8ms)",
+            d.as_ns() as f64 * 1e-9
+        )));
+    }
     let flap = match (&args.flap_link, args.flap_at, args.flap_for) {
         (Some(link), Some(at), Some(down_for)) => Some(Flap {
             from: Flap::parse_link(link, n)

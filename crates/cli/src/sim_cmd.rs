@@ -18,8 +18,8 @@ pub struct SimArgs {
     /// whole when the run ends (created if missing).
     #[arg(long, value_name = "DIR")]
     out: PathBuf,
-    /// Seed for every random draw, instead of the scenario's.
-    #[arg(long)]
+    /// Seed for every random draw, instead of the scenario's (0 … 2^63 − 1).
+    #[arg(long, value_parser = clap::value_parser!(u64).range(..=ringsync::sweep::MAX_SEED))]
     seed: Option<u64>,
     /// Set a scenario key, e.g. `control.law=pd` or `faults.loss=0.01` (repeatable;
     /// the dotted keys of `sweep --set`, one value each).
@@ -54,6 +54,15 @@ pub(crate) fn out_dir(out: &Path, scenario: &Loaded) -> Result<OutDir, CliError>
         dir.keep_out(Path::new(&scenario.origin))?;
     }
     Ok(dir)
+}
+
+/// Parses `--jobs`: at least one thread.
+fn jobs(s: &str) -> Result<usize, String> {
+    match s.parse::<usize>() {
+        Ok(0) => Err("at least 1 thread".into()),
+        Ok(n) => Ok(n),
+        Err(e) => Err(format!("{e}; expected a number of threads, at least 1")),
+    }
 }
 
 /// Runs `ringsync sim`: exit status 3 when the run ends in a group stop.
@@ -144,7 +153,7 @@ pub struct ReproduceArgs {
           value_parser = clap::value_parser!(u32).range(1..=i64::from(ringsync::reproduce::MAX_SEEDS)))]
     seeds: u32,
     /// Parallel simulations (default: the number of CPUs).
-    #[arg(long)]
+    #[arg(long, value_parser = jobs)]
     jobs: Option<usize>,
 }
 
@@ -211,7 +220,7 @@ pub struct SweepArgs {
     #[arg(long, value_name = "DIR")]
     out: PathBuf,
     /// Parallel simulations (default: the number of CPUs).
-    #[arg(long)]
+    #[arg(long, value_parser = jobs)]
     jobs: Option<usize>,
 }
 

@@ -543,7 +543,16 @@ fn a_group_stop_exits_3_with_its_results_written() {
         "{}",
         String::from_utf8_lossy(&o.stderr)
     );
-    assert!(String::from_utf8_lossy(&o.stdout).contains("GROUP STOP at"));
+    let text = String::from_utf8_lossy(&o.stdout);
+    let stop = text
+        .lines()
+        .find(|l| l.contains("GROUP STOP at"))
+        .expect("the stop is told");
+    // In words, axes counted from 1: not the reason's debug form.
+    assert!(
+        stop.contains("following error on axis ") && !stop.contains('{'),
+        "{stop}"
+    );
     let v: serde_json::Value =
         serde_json::from_slice(&std::fs::read(out.join("summary.json")).expect("written"))
             .expect("json");

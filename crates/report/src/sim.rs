@@ -36,8 +36,7 @@ fn stop_json(stop: &Option<(f64, StopReason)>) -> Value {
     }
 }
 
-/// A group stop's reason in text: a monitor's trip in words (axis 1-based), the other
-/// reasons as they always were written.
+/// A group stop's reason in words, axes counted from 1 as everywhere in the outputs.
 pub fn stop_reason_text(r: &StopReason) -> String {
     match *r {
         StopReason::SyncTrip { axis, error } => format!(
@@ -57,7 +56,21 @@ pub fn stop_reason_text(r: &StopReason) -> String {
             axis + 1,
             last + 1
         ),
-        other => format!("{other:?}"),
+        StopReason::FollowingError { axis, error } => format!(
+            "following error on axis {} (e = {error:+.5} rad beyond faults.following_error_limit)",
+            axis + 1
+        ),
+        StopReason::CommandMismatch {
+            axis,
+            sent,
+            applied,
+        } => format!(
+            "command mismatch on axis {} (sent {sent:+.4} V, the slave applied {applied:+.4} V)",
+            axis + 1
+        ),
+        StopReason::AxisFault { axis }
+        | StopReason::NoResponse { axis }
+        | StopReason::NoFeedback { axis } => format!("{} on axis {}", r.name(), axis + 1),
     }
 }
 

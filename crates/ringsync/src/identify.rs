@@ -14,6 +14,10 @@ use crate::load::Loaded;
 /// The file a run directory keeps its scenario in ([`write_scenario`]).
 pub const SCENARIO_FILE: &str = "scenario.toml";
 
+/// How [`SCENARIO_FILE`] starts (a comment naming where the scenario came from): it marks a
+/// directory as a run's results, which the next run into it may replace.
+pub const SCENARIO_HEADER: &str = "# The scenario of this run, from ";
+
 /// One axis identified, beside the scenario's own values.
 #[derive(Debug, Clone, PartialEq)]
 pub struct IdentifiedAxis {
@@ -46,7 +50,7 @@ pub fn write_scenario(dir: &crate::OutDir, run: &Loaded, seed: Option<u64>) -> R
     };
     dir.write(
         SCENARIO_FILE,
-        format!("# The scenario of this run, from {}.\n{text}", run.origin),
+        format!("{SCENARIO_HEADER}{}.\n{text}", run.origin.escape_default()),
     )
 }
 

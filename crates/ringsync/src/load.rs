@@ -88,7 +88,7 @@ pub fn with_values(base: &Loaded, items: &[(String, String)]) -> Result<Loaded> 
             Ok(a)
         })
         .collect::<Result<Vec<_>>>()?;
-    let case = crate::sweep::cases(base, &axes, 1, false)?
+    let case = crate::sweep::set_cases(base, &axes)?
         .into_iter()
         .next()
         .ok_or_else(|| crate::Error::Failed("no case was made".into()))?;
@@ -112,6 +112,9 @@ pub fn with_values(base: &Loaded, items: &[(String, String)]) -> Result<Loaded> 
 /// # Ok::<(), ringsync::Error>(())
 /// ```
 pub fn key_value(kv: &str) -> Result<(String, String)> {
+    if let Some((k, v)) = kv.split_once('=') {
+        crate::sweep::one_line(k.trim(), v)?;
+    }
     kv.split_once('=')
         .map(|(k, v)| (k.trim().to_string(), v.trim().to_string()))
         .filter(|(k, v)| !k.is_empty() && !v.is_empty())

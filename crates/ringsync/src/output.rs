@@ -6,8 +6,13 @@
 //! outside DIR (`--pcap FILE`) is written to `.FILE.tmp-<pid>` beside it and renamed after
 //! DIR; inside DIR it goes into the new directory with the rest.
 //!
+//! A file named by an option that is a symbolic link is written where the link points (the
+//! link stays); one that is not a regular file (`/dev/stdout`, a FIFO, a device) is written
+//! straight to, with nothing renamed over it.
+//!
 //! An existing DIR is replaced only when it is empty or holds a result of ringsync (a
-//! `summary.json` or `sweep.csv`), so that `--out .` or `--out ~` cannot remove anything else.
+//! `summary.json`, a `sweep.csv`, or the `scenario.toml` every run writes), so that `--out .`
+//! or `--out ~` cannot remove anything else.
 //! Temporary directories left by a killed run (whose process is gone) are removed by the
 //! next run into the same DIR.
 
@@ -17,6 +22,74 @@ use crate::error::{Error, Result};
 
 /// Files at the top of a directory that mark it as ringsync's results, safe to replace.
 const RESULT_MARKERS: &[&str] = &["summary.json", "sweep.csv"];
+
+/// Where a file named by an option goes.
+#[derive(Debug, PartialEq)]
+enum Target {
+    /// A regular file, or none yet: written beside it, then renamed into place. The path
+    /// has its symbolic links followed, so that a link stays a link.
+    File(PathBuf),
+    /// A device, a FIFO or a socket (`/dev/stdout`): written straight to.
+    Special(PathBuf),
+}
+
+/// Where the file `path` goes (see [`Target`]); a directory, or a path through a file, is
+/// refused.
+fn target(path: &Path) -> Result<Target> {
+    let mut p = path.to_path_buf();
+    // A link that points at nothing yet: follow it to where the file will be.
+    for _ in 0..40 {
+        match std::fs::metadata(&p) {
+            Ok(m) if m.is_dir() => {
+                return Err(Error::Input(format!(
+                    "{} is a directory, not a file",
+                    path.display()
+                )));
+            }
+            Ok(m) if m.is_file() => {
+                let real = p
+                    .canonicalize()
+                    .map_err(|e| failure(e, format!("cannot resolve {}", path.display())))?;
+                return Ok(Target::File(real));
+            }
+            Ok(_) => return Ok(Target::Special(p)),
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => match std::fs::read_link(&p) {
+                Ok(to) => {
+                    p = match p.parent() {
+                        Some(dir) if to.is_relative() => dir.join(to),
+                        _ => to,
+                    }
+                }
+                Err(_) => {
+                    not_under_a_file(path, &p)?;
+                    return Ok(Target::File(p));
+                }
+            },
+            Err(e) if e.kind() == std::io::ErrorKind::NotADirectory => {
+                not_under_a_file(path, &p)?;
+                return Err(failure(e, format!("cannot write {}", path.display())));
+            }
+            Err(e) => return Err(failure(e, format!("cannot write {}", path.display()))),
+        }
+    }
+    Err(Error::Input(format!(
+        "{} is a chain of more than 40 symbolic links",
+        path.display()
+    )))
+}
+
+/// Refuses `p` (given as `shown`) when one of its ancestors is a file: nothing can be
+/// created below it.
+fn not_under_a_file(shown: &Path, p: &Path) -> Result<()> {
+    if let Some(file) = p.ancestors().skip(1).find(|a| a.is_file()) {
+        return Err(Error::Input(format!(
+            "{}: {} is a file, not a directory",
+            shown.display(),
+            file.display()
+        )));
+    }
+    Ok(())
+}
 
 /// A results directory being written; see the module documentation.
 #[derive(Debug)]
@@ -91,7 +164,10 @@ fn remove_stale(path: &Path) {
 fn replaceable(dir: &Path) -> Result<bool> {
     let mut entries =
         std::fs::read_dir(dir).map_err(|e| failure(e, format!("cannot read {}", dir.display())))?;
-    Ok(entries.next().is_none() || RESULT_MARKERS.iter().any(|m| dir.join(m).is_file()))
+    Ok(entries.next().is_none()
+        || RESULT_MARKERS.iter().any(|m| dir.join(m).is_file())
+        || std::fs::read_to_string(dir.join(crate::identify::SCENARIO_FILE))
+            .is_ok_and(|t| t.starts_with(crate::identify::SCENARIO_HEADER)))
 }
 
 impl OutDir {
@@ -113,10 +189,11 @@ impl OutDir {
             }
             if !replaceable(&path)? {
                 return Err(Error::Input(format!(
-                    "{option} {shown} is not empty and holds no ringsync results (summary.json or sweep.csv): the run replaces {option} as a whole, so choose a new or empty directory"
+                    "{option} {shown} is not empty and holds no ringsync results (summary.json, sweep.csv or a run's scenario.toml): the run replaces {option} as a whole, so choose a new or empty directory"
                 )));
             }
         } else if let Some(parent) = path.parent() {
+            not_under_a_file(Path::new(&format!("{option} {shown}")), &path)?;
             std::fs::create_dir_all(parent)
                 .map_err(|e| failure(e, format!("cannot create {}", parent.display())))?;
         }
@@ -202,9 +279,13 @@ impl OutDir {
         {
             return self.stream_path(&inside.to_string_lossy());
         }
-        let tmp = sibling(path, "tmp", std::process::id());
+        let path = match target(path)? {
+            Target::Special(p) => return Ok(p),
+            Target::File(p) => p,
+        };
+        let tmp = sibling(&path, "tmp", std::process::id());
         if !self.beside.iter().any(|(t, _)| *t == tmp) {
-            self.beside.push((tmp.clone(), path.to_path_buf()));
+            self.beside.push((tmp.clone(), path));
         }
         Ok(tmp)
     }
@@ -263,10 +344,39 @@ impl Drop for OutDir {
     }
 }
 
-/// Writes one file atomically: to `.NAME.tmp-<pid>` beside it, then renamed into place.
+/// Checks, before a long run, that [`write_file`] could write `path`: its directory is
+/// there (nothing is created).
+pub fn writable(path: &Path) -> Result<()> {
+    if let Target::File(p) = target(path)?
+        && let Some(dir) = p.parent()
+        && !dir.as_os_str().is_empty()
+        && !dir.is_dir()
+    {
+        return Err(Error::Input(format!(
+            "{} cannot be written: its directory {} does not exist",
+            path.display(),
+            dir.display()
+        )));
+    }
+    Ok(())
+}
+
+/// Writes one file atomically: to `.NAME.tmp-<pid>` beside it, then renamed into place (a
+/// symbolic link is followed; a device or FIFO such as `/dev/stdout` is written straight
+/// to).
 pub fn write_file(path: &Path, bytes: impl AsRef<[u8]>) -> Result<()> {
-    let tmp = sibling(path, "tmp", std::process::id());
-    let done = std::fs::write(&tmp, bytes).and_then(|()| std::fs::rename(&tmp, path));
+    let real = match target(path)? {
+        Target::Special(p) => {
+            return std::fs::OpenOptions::new()
+                .write(true)
+                .open(&p)
+                .and_then(|mut f| std::io::Write::write_all(&mut f, bytes.as_ref()))
+                .map_err(|e| failure(e, format!("cannot write {}", path.display())));
+        }
+        Target::File(p) => p,
+    };
+    let tmp = sibling(&real, "tmp", std::process::id());
+    let done = std::fs::write(&tmp, bytes).and_then(|()| std::fs::rename(&tmp, &real));
     if let Err(e) = done {
         let _ = std::fs::remove_file(&tmp);
         return Err(failure(e, format!("cannot write {}", path.display())));
@@ -371,6 +481,92 @@ mod tests {
             .commit()
             .expect("commit");
         assert_eq!(files(&base), ["notes.txt", "run"]);
+        // A run's own directory, whatever it was asked to write, is a result.
+        let run = base.join("trace-only");
+        std::fs::create_dir_all(&run).expect("dir");
+        std::fs::write(run.join("trace.parquet"), "x").expect("write");
+        std::fs::write(
+            run.join(crate::identify::SCENARIO_FILE),
+            format!("{}paper-2015.\n", crate::identify::SCENARIO_HEADER),
+        )
+        .expect("write");
+        OutDir::create("--out", &run)
+            .expect("a run's directory")
+            .commit()
+            .expect("commit");
+        // Nothing can be created below a file.
+        let e = OutDir::create("--out", &base.join("notes.txt").join("run")).expect_err("file");
+        assert!(
+            matches!(&e, Error::Input(m) if m.contains("notes.txt is a file, not a directory")),
+            "{e}"
+        );
+        let _ = std::fs::remove_dir_all(&base);
+    }
+
+    /// A file given by an option: a link is written through (it stays a link), a device is
+    /// written straight to (it stays a device), a directory or a path through a file is
+    /// refused.
+    #[test]
+    fn single_files_keep_what_their_path_is() {
+        use std::os::unix::fs::FileTypeExt;
+        let base = scratch("single");
+        let real = base.join("real.svg");
+        std::fs::write(&real, "old").expect("write");
+        let link = base.join("link.svg");
+        std::os::unix::fs::symlink("real.svg", &link).expect("link");
+        write_file(&link, "new").expect("through the link");
+        assert!(
+            std::fs::symlink_metadata(&link)
+                .expect("meta")
+                .file_type()
+                .is_symlink()
+        );
+        assert_eq!(std::fs::read_to_string(&real).expect("read"), "new");
+        // A link to a file not there yet creates the file and keeps the link.
+        let dangling = base.join("later.svg");
+        std::os::unix::fs::symlink("made.svg", &dangling).expect("link");
+        write_file(&dangling, "made").expect("through a dangling link");
+        assert_eq!(
+            std::fs::read_to_string(base.join("made.svg")).expect("read"),
+            "made"
+        );
+        assert!(
+            std::fs::symlink_metadata(&dangling)
+                .expect("meta")
+                .file_type()
+                .is_symlink()
+        );
+        let null = Path::new("/dev/null");
+        write_file(null, "discarded").expect("a device");
+        assert!(
+            std::fs::metadata(null)
+                .expect("meta")
+                .file_type()
+                .is_char_device()
+        );
+        let mut d = OutDir::create("--out", &base.join("run")).expect("create");
+        assert_eq!(d.stream_file(null).expect("stream"), null);
+        d.commit().expect("commit");
+        assert!(
+            std::fs::metadata(null)
+                .expect("meta")
+                .file_type()
+                .is_char_device()
+        );
+        let e = write_file(&base, "x").expect_err("a directory");
+        assert!(
+            matches!(&e, Error::Input(m) if m.contains("is a directory")),
+            "{e}"
+        );
+        let e = write_file(&real.join("x.svg"), "x").expect_err("below a file");
+        assert!(
+            matches!(&e, Error::Input(m) if m.contains("real.svg is a file, not a directory")),
+            "{e}"
+        );
+        assert_eq!(
+            files(&base),
+            ["later.svg", "link.svg", "made.svg", "real.svg", "run"]
+        );
         let _ = std::fs::remove_dir_all(&base);
     }
 }

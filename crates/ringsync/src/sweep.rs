@@ -60,13 +60,24 @@ impl std::str::FromStr for SweepAxis {
                 "'{key}' is not a scenario key like ring.slaves"
             )));
         }
-        let values: Vec<String> = values
-            .split(',')
-            .map(|v| v.trim().to_string())
-            .filter(|v| !v.is_empty())
-            .collect();
-        if values.is_empty() {
+        one_line(key, values)?;
+        let values: Vec<String> = values.split(',').map(|v| v.trim().to_string()).collect();
+        if values.iter().all(|v| v.is_empty()) {
             return Err(Error::Input(format!("'{s}' gives no values")));
+        }
+        if values.iter().any(|v| v.is_empty()) {
+            return Err(Error::Input(format!(
+                "'{s}' has an empty value between commas: expected KEY=V1,V2,…"
+            )));
+        }
+        if let Some((_, v)) = values
+            .iter()
+            .enumerate()
+            .find(|(i, v)| values[..*i].contains(v))
+        {
+            return Err(Error::Input(format!(
+                "'{s}' gives {key} the value {v} twice: each value is one case, run over every seed"
+            )));
         }
         Ok(SweepAxis {
             key: key.to_string(),
@@ -75,13 +86,71 @@ impl std::str::FromStr for SweepAxis {
     }
 }
 
-/// Parses `v` as a TOML value; a bare word is taken as a string.
-fn toml_value(v: &str) -> toml::Value {
-    toml::from_str::<toml::Table>(&format!("x = {v}"))
-        .ok()
-        .and_then(|mut t| t.remove("x"))
-        .unwrap_or_else(|| toml::Value::String(v.to_string()))
+/// Refuses a value of `key` with a line break or another control character: a value is
+/// one TOML value on one line (the rest of a second line would be dropped, or read as
+/// another key).
+pub(crate) fn one_line(key: &str, value: &str) -> Result<()> {
+    if let Some(c) = value.chars().find(|c| c.is_control()) {
+        return Err(Error::Input(format!(
+            "the value of {key} holds the control character {}: a value is one line",
+            c.escape_default()
+        )));
+    }
+    Ok(())
 }
+
+/// Parses `v`, the value of `key`, as a TOML value; a bare word is taken as a string (so is
+/// anything that is not exactly one value). An integer beyond TOML's is refused.
+fn toml_value(key: &str, v: &str) -> Result<toml::Value> {
+    if let Ok(n) = v.replace('_', "").parse::<i128>()
+        && i64::try_from(n).is_err()
+    {
+        return Err(Error::Input(format!(
+            "{key} = {v} is beyond the integers a scenario holds (-2^63 … 2^63 - 1)"
+        )));
+    }
+    Ok(toml::from_str::<toml::Table>(&format!("x = {v}"))
+        .ok()
+        .filter(|t| t.len() == 1)
+        .and_then(|mut t| t.remove("x"))
+        .unwrap_or_else(|| toml::Value::String(v.to_string())))
+}
+
+/// Refuses a grid that gives a key twice, or a key and a key inside it (`control` and
+/// `control.alpha`): the later would overwrite the earlier and the rows be mislabelled.
+/// `seed` is no sweep key unless `seed_key` (a single run's `--set seed=S`): each case runs
+/// over the seeds from the scenario's own.
+fn check_grid(axes: &[SweepAxis], seed_key: bool) -> Result<()> {
+    for (i, a) in axes.iter().enumerate() {
+        if !seed_key && a.key == "seed" {
+            return Err(Error::Input(
+                "seed is not a key to sweep: each case runs over `seeds` seeds from the scenario's own seed (set that in the scenario)".into(),
+            ));
+        }
+        for b in &axes[..i] {
+            let inside = |x: &str, y: &str| {
+                x.strip_prefix(y)
+                    .is_some_and(|r| r.starts_with('.') || r.starts_with('['))
+            };
+            if a.key == b.key {
+                return Err(Error::Input(format!(
+                    "{} is given twice: give each key once, with all its values",
+                    a.key
+                )));
+            }
+            if inside(&a.key, &b.key) || inside(&b.key, &a.key) {
+                return Err(Error::Input(format!(
+                    "{} and {} overlap: one would overwrite the other",
+                    b.key, a.key
+                )));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The largest seed a scenario holds (TOML integers are signed 64-bit).
+pub const MAX_SEED: u64 = i64::MAX as u64;
 
 /// Sets `key` (dotted; `axis.KEY` sets KEY in every `[[axis]]` table, `axis[i].KEY` in the
 /// i-th, 0-based) to `value` in a scenario's TOML table.
@@ -228,7 +297,25 @@ pub fn stop_reason(r: &ringsync_proto::node::StopReason) -> String {
 /// With `auto_cycle`, a case whose cycle is too short for its ring gets the shortest cycle
 /// that holds it, plus 10 %, rounded up to 100 µs. Every case is validated here: the error
 /// names the case and its bad key.
+///
+/// A key given twice, two keys one inside the other, or `seed` as a key are refused.
 pub fn cases(base: &Loaded, axes: &[SweepAxis], seeds: u32, auto_cycle: bool) -> Result<Vec<Case>> {
+    check_grid(axes, false)?;
+    make_cases(base, axes, seeds, auto_cycle)
+}
+
+/// [`cases`] for `--set` values of a single run (`seed` may be set).
+pub(crate) fn set_cases(base: &Loaded, axes: &[SweepAxis]) -> Result<Vec<Case>> {
+    check_grid(axes, true)?;
+    make_cases(base, axes, 1, false)
+}
+
+fn make_cases(
+    base: &Loaded,
+    axes: &[SweepAxis],
+    seeds: u32,
+    auto_cycle: bool,
+) -> Result<Vec<Case>> {
     let origin = &base.origin;
     let table: toml::Table = toml::from_str(&base.text).map_err(|e| ScenarioError::Syntax {
         origin: clip(origin, ECHO_CHARS).into_owned(),
@@ -251,7 +338,7 @@ pub fn cases(base: &Loaded, axes: &[SweepAxis], seeds: u32, auto_cycle: bool) ->
     for labels in combos {
         let mut t = table.clone();
         for (k, v) in &labels {
-            set(&mut t, k, toml_value(v))?;
+            set(&mut t, k, toml_value(k, v)?)?;
         }
         let with = || {
             let l: Vec<String> = labels.iter().map(|(k, v)| format!("{k}={v}")).collect();
@@ -280,10 +367,16 @@ pub fn cases(base: &Loaded, axes: &[SweepAxis], seeds: u32, auto_cycle: bool) ->
             origin: with(),
             message: e.to_string(),
         })?;
-        for k in 0..u64::from(seeds.max(1)) {
-            let seed = s.seed.wrapping_add(k);
+        let last = s.seed.saturating_add(u64::from(seeds.max(1)) - 1);
+        let last = i64::try_from(last).map_err(|_| {
+            Error::Input(format!(
+                "{}: the seeds {} … {last} go beyond {MAX_SEED}, the largest seed a scenario holds",
+                with(),
+                s.seed
+            ))
+        })?;
+        for seed in s.seed..=last as u64 {
             let mut tk = t.clone();
-            // TOML integers are i64: a seed beyond travels as its two's complement.
             tk.insert("seed".into(), toml::Value::Integer(seed as i64));
             let scenario = toml::to_string(&tk)
                 .map_err(|e| Error::Failed(format!("cannot write the case {}: {e}", with())))?;

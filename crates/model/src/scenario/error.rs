@@ -90,6 +90,26 @@ pub fn clip_middle(text: &str, max_chars: usize) -> std::borrow::Cow<'_, str> {
     format!("{head}…{tail}").into()
 }
 
+/// `x` for a message: as written up to a billion, in scientific notation beyond (or below a
+/// thousandth), so that 1e300 does not print 300 digits.
+pub(crate) fn short_number(x: f64) -> String {
+    if x == 0.0 || !x.is_finite() || (1e-3..1e9).contains(&x.abs()) {
+        format!("{x}")
+    } else {
+        format!("{x:e}")
+    }
+}
+
+/// `x` with `d` decimals, or in scientific notation with `d` where that would be long or
+/// show nothing.
+pub(crate) fn fixed(x: f64, d: usize) -> String {
+    if x == 0.0 || !x.is_finite() || (1e-3..1e9).contains(&x.abs()) {
+        format!("{x:.d$}")
+    } else {
+        format!("{x:.d$e}")
+    }
+}
+
 /// Longest echo of a source line or value in a [`ScenarioError`] [characters].
 pub const ECHO_CHARS: usize = 120;
 
@@ -101,12 +121,16 @@ pub(crate) fn control_error(e: &ControlError) -> ScenarioError {
             value,
             expected,
         } => {
-            // Gains are reported as kp[2]: in the scenario that is control.kp (axis 2).
+            // Gains are reported as kp[2]: in the scenario that is control.kp (axis 2); a
+            // drive's limit u_max[2] comes from the axis's table. The trajectory's names
+            // are the library's: its keys are the scenario's.
             let key = match name.split_once('[') {
+                Some(("u_max", rest)) => format!("axis[{}].u_max", rest.trim_end_matches(']')),
                 Some((g, rest)) => format!("control.{g} (axis {})", rest.trim_end_matches(']')),
+                None if *name == "v_peak" => "control.peak_speed".to_string(),
                 None => format!("control.{name}"),
             };
-            out_of_range(key, value, expected.to_string())
+            out_of_range(key, short_number(*value), expected.to_string())
         }
         other => out_of_range("control", "?", other.to_string()),
     }

@@ -555,9 +555,12 @@ impl Default for ControlSpec {
     }
 }
 
-/// `[trajectory]`: the desired motion of every axis.
+/// `[trajectory]`: the desired motion of every axis. `kind` defaults to `cosine`, and a
+/// cosine's missing keys to the reference scenario's (`[trajectory]` with `period = "3s"`
+/// alone is the reference cosine at another period); a trapezoid or a sequence needs all
+/// of its keys.
 #[derive(Debug, Clone, PartialEq, Deserialize)]
-#[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
+#[serde(try_from = "RawTrajectory")]
 pub enum TrajectorySpec {
     /// x^d = A·(1 − cos(2πt/P)), A = peak_speed·P/(2π).
     Cosine {
@@ -584,6 +587,82 @@ pub enum TrajectorySpec {
         /// a_max [rad/s²].
         a_max: f64,
     },
+}
+
+/// `[trajectory]` as written: every key of every kind optional, checked against the kind
+/// by [`TrajectorySpec`]'s `TryFrom`.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawTrajectory {
+    kind: Option<String>,
+    peak_speed: Option<f64>,
+    period: Option<Dur>,
+    distance: Option<f64>,
+    v_max: Option<f64>,
+    a_max: Option<f64>,
+    targets: Option<Vec<(f64, f64)>>,
+}
+
+impl TryFrom<RawTrajectory> for TrajectorySpec {
+    type Error = String;
+    fn try_from(r: RawTrajectory) -> Result<Self, String> {
+        let kind = r.kind.as_deref().unwrap_or("cosine");
+        let given = [
+            ("peak_speed", r.peak_speed.is_some()),
+            ("period", r.period.is_some()),
+            ("distance", r.distance.is_some()),
+            ("v_max", r.v_max.is_some()),
+            ("a_max", r.a_max.is_some()),
+            ("targets", r.targets.is_some()),
+        ];
+        let only = |keys: &[&str]| match given.iter().find(|(k, on)| *on && !keys.contains(k)) {
+            Some((k, _)) => Err(format!(
+                "unknown field `{k}` for kind = \"{kind}\", expected {}",
+                keys.iter()
+                    .map(|k| format!("`{k}`"))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            )),
+            None => Ok(()),
+        };
+        let need = |k: &str, v: Option<f64>| {
+            v.ok_or_else(|| format!("missing field `{k}` (kind = \"{kind}\" needs it)"))
+        };
+        match kind {
+            "cosine" => {
+                only(&["peak_speed", "period"])?;
+                let TrajectorySpec::Cosine { peak_speed, period } = TrajectorySpec::default()
+                else {
+                    return Err("the reference trajectory is a cosine".into());
+                };
+                Ok(TrajectorySpec::Cosine {
+                    peak_speed: r.peak_speed.unwrap_or(peak_speed),
+                    period: r.period.unwrap_or(period),
+                })
+            }
+            "trapezoid" => {
+                only(&["distance", "v_max", "a_max"])?;
+                Ok(TrajectorySpec::Trapezoid {
+                    distance: need("distance", r.distance)?,
+                    v_max: need("v_max", r.v_max)?,
+                    a_max: need("a_max", r.a_max)?,
+                })
+            }
+            "sequence" => {
+                only(&["targets", "v_max", "a_max"])?;
+                Ok(TrajectorySpec::Sequence {
+                    targets: r.targets.ok_or_else(|| {
+                        "missing field `targets` (kind = \"sequence\" needs it)".to_string()
+                    })?,
+                    v_max: need("v_max", r.v_max)?,
+                    a_max: need("a_max", r.a_max)?,
+                })
+            }
+            other => Err(format!(
+                "unknown variant `{other}`, expected one of `cosine`, `trapezoid`, `sequence`"
+            )),
+        }
+    }
 }
 
 impl Default for TrajectorySpec {

@@ -46,6 +46,74 @@ fn a_partial_file_overrides_only_its_keys() {
     assert_eq!(s.axis_models().expect("axes").len(), 8);
 }
 
+/// A partial `[trajectory]` is the reference cosine with what it gives; a trapezoid needs
+/// its keys, and keys of another kind are refused.
+#[test]
+fn a_partial_trajectory_table_takes_the_reference_cosine() {
+    let s = Scenario::from_toml("[trajectory]\nperiod = \"3s\"\n", "t").expect("valid");
+    let r = Scenario::default();
+    match (&s.trajectory, &r.trajectory) {
+        (
+            TrajectorySpec::Cosine { peak_speed, period },
+            TrajectorySpec::Cosine { peak_speed: p0, .. },
+        ) => {
+            assert_eq!(*peak_speed, *p0);
+            assert_eq!(period.0, Duration::from_ms(3000));
+        }
+        other => panic!("{other:?}"),
+    }
+    let e = err("[trajectory]\nkind = \"trapezoid\"\ndistance = 3.0\nv_max = 1.0\n");
+    assert!(e.contains("missing field `a_max`"), "{e}");
+    let e = err("[trajectory]\nperiod = \"3s\"\ndistance = 3.0\n");
+    assert!(
+        e.contains("unknown field `distance` for kind = \"cosine\""),
+        "{e}"
+    );
+    let e = err("[trajectory]\nkind = \"spiral\"\n");
+    assert!(e.contains("unknown variant `spiral`"), "{e}");
+    let e = err("[trajectory]\nperiodd = \"3s\"\n");
+    assert!(e.contains("periodd"), "{e}");
+}
+
+/// Messages name the key the user wrote and keep huge values short.
+#[test]
+fn messages_name_the_written_key_in_short_numbers() {
+    let e = err("[trajectory]\npeak_speed = 0\n");
+    assert!(e.starts_with("trajectory.peak_speed = 0 "), "{e}");
+    let e = err("[[axis]]\nu_max = 0\n");
+    assert!(e.starts_with("axis[0].u_max = 0 "), "{e}");
+    let e = err("[trajectory]\npeak_speed = 1e300\n");
+    assert!(e.contains("velocities up to 2.0e300 rad/s"), "{e}");
+    assert!(e.len() < 400, "{e}");
+    let e = err("[ring]\ncycle = \"1s\"\n");
+    assert!(
+        e.contains("once a cycle of ring.cycle = 1000000.000 µs")
+            && e.contains("loop factor is 101.987"),
+        "{e}"
+    );
+    let e = err("[faults]\nsilent_slave = 1\nsilent_from = \"-1s\"\n");
+    assert!(e.starts_with("faults.silent_from = "), "{e}");
+    let e = err("[ring]\nslaves = 65535\n");
+    assert!(
+        e.contains("ring.cycle = \"1000.000 µs\" is out of range: allowed at least ")
+            && e.contains("for 65535 slaves (the plan's eq. 1;"),
+        "{e}"
+    );
+}
+
+/// A gain list longer than the ring would leave values unused: refused, named.
+#[test]
+fn a_gain_list_longer_than_the_ring_is_refused() {
+    let e = err("[control]\nkp = [1, 2, 3, 4, 5]\n");
+    assert!(
+        e.contains("control.kp = [1, 2, 3, 4, 5]") && e.contains("at most 4"),
+        "{e}"
+    );
+    let e = err("[ring]\nslaves = 2\n[control]\nlaw = \"pd\"\nkd = [1, 2, 3]\n");
+    assert!(e.contains("control.kd") && e.contains("at most 2"), "{e}");
+    assert!(Scenario::from_toml("[control]\nkp = [1, 2, 3, 4]\n", "t").is_ok());
+}
+
 #[test]
 fn unknown_keys_name_the_key_and_the_line() {
     let e = err("[ring]\nslaves = 4\nslavez = 5\n");

@@ -144,8 +144,22 @@ impl Scenario {
             }
             other => out_of_range("ring", "?", other.to_string()),
         })?;
-        plan.check_fits_for(self.ring.plan)
-            .map_err(|e| out_of_range("ring.cycle", self.ring.cycle, e.to_string()))?;
+        plan.check_fits_for(self.ring.plan).map_err(|e| match e {
+            ringsync_proto::PlanError::CycleTooShort {
+                slaves,
+                needed,
+                short,
+                basis,
+                ..
+            } => out_of_range(
+                "ring.cycle",
+                self.ring.cycle,
+                format!(
+                    "at least {needed} for {slaves} slaves (the plan's {basis}; short by {short})"
+                ),
+            ),
+            other => out_of_range("ring.cycle", self.ring.cycle, other.to_string()),
+        })?;
         // Each link the scenario breaks: the broken ring's cycle must fit too, or the master
         // would drop the last slices and stop the group for the want of a response.
         for b in &self.faults.break_link {
@@ -218,6 +232,13 @@ impl Scenario {
                 "0 (none) ..= ring.slaves",
             ));
         }
+        if f.silent_from.0.is_negative() {
+            return Err(out_of_range(
+                "faults.silent_from",
+                f.silent_from,
+                ">= 0 s (from the run's start)",
+            ));
+        }
         for b in &f.break_link {
             if !(1..=self.ring.slaves + 1).contains(&b.link) {
                 return Err(out_of_range(
@@ -281,6 +302,18 @@ impl Scenario {
         ] {
             if matches!(list, PerAxis::Each(v) if v.is_empty()) {
                 return Err(out_of_range(key, "[]", "a number or a non-empty list"));
+            }
+            // A longer list than the ring has axes would leave values unused, unsaid.
+            if let PerAxis::Each(v) = list
+                && v.len() > n
+            {
+                return Err(out_of_range(
+                    key,
+                    list,
+                    format!(
+                        "a number or a list of at most {n} (one per axis of ring.slaves = {n}; a shorter list is used in turn)"
+                    ),
+                ));
             }
         }
         // Before anything that uses the axes in turn (i % axis.len()).
@@ -372,8 +405,10 @@ impl Scenario {
                     "faults.brake_gain",
                     k,
                     format!(
-                        "a gain the slaves' brake (u = −K_b·v once a cycle) can use on axis[{}]: its loop factor is {factor:.3}, it must stay under {bound:.3}",
-                        i % self.axis.len().max(1)
+                        "a gain the slaves' brake (u = −K_b·v once a cycle of ring.cycle = {}) can use on axis[{}]: its loop factor is {}, it must stay under {bound:.3}",
+                        self.ring.cycle.0,
+                        i % self.axis.len().max(1),
+                        super::error::fixed(factor, 3)
                     ),
                 ));
             }
@@ -399,10 +434,14 @@ impl Scenario {
         // The constraint that the next resolution up breaks (velocity first: it binds first
         // for any motion faster than about 1 rad/s).
         let binding = if next <= 31 && fits_v(next) {
-            format!("positions up to {reach:.1} rad must fit the wire's i32 counts")
+            format!(
+                "positions up to {} rad must fit the wire's i32 counts",
+                super::error::fixed(reach, 1)
+            )
         } else {
             format!(
-                "velocities up to {speed:.1} rad/s ({VELOCITY_MARGIN} × the peak speed, room for overshoot and the stop) must fit the wire's i32 counts/s"
+                "velocities up to {} rad/s ({VELOCITY_MARGIN} × the peak speed, room for overshoot and the stop) must fit the wire's i32 counts/s",
+                super::error::fixed(speed, 1)
             )
         };
         EncoderBits {
