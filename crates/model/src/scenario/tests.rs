@@ -91,6 +91,10 @@ fn messages_name_the_written_key_in_short_numbers() {
             && e.contains("loop factor is 101.987"),
         "{e}"
     );
+    let e = err("[[axis]]\nrated_torque = nan\n");
+    assert!(e.starts_with("axis[0].rated_torque = NaN "), "{e}");
+    let e = err("[[axis]]\n[[axis]]\nj_over_ka = -1\n");
+    assert!(e.starts_with("axis[1].j_over_ka = -1 "), "{e}");
     let e = err("[faults]\nsilent_slave = 1\nsilent_from = \"-1s\"\n");
     assert!(e.starts_with("faults.silent_from = "), "{e}");
     let e = err("[ring]\nslaves = 65535\n");

@@ -322,6 +322,23 @@ impl Scenario {
         }
         self.law()?;
         for (i, a) in self.axis.iter().enumerate() {
+            // The keys the plant derives its inertia and torque constant from, each named
+            // on its own before the plant sees their quotients.
+            if a.model == AxisKind::Torque {
+                for (key, v, unit) in [
+                    ("rated_torque", a.rated_torque, "N·m"),
+                    ("j_over_ka", a.j_over_ka, "s²·V/rad"),
+                    ("u_max", a.u_max, "V"),
+                ] {
+                    if !(v.is_finite() && v > 0.0) {
+                        return Err(out_of_range(
+                            format!("axis[{i}].{key}"),
+                            super::error::short_number(v),
+                            format!("> 0 {unit}"),
+                        ));
+                    }
+                }
+            }
             if ns(a.velocity_window) <= 0 || a.velocity_window.0 > self.ring.cycle.0 {
                 return Err(out_of_range(
                     format!("axis[{i}].velocity_window"),
