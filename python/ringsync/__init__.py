@@ -78,3 +78,31 @@ __all__ = [
 for _cls in (Scenario, Run, Check, Plan, Sweep, Reproduction):
     _cls.__module__ = __name__
 del _cls
+
+# The exceptions come from the extension module; their examples are added here.
+ScenarioError.__doc__ = (ScenarioError.__doc__ or "") + """
+
+Example::
+
+    >>> import ringsync
+    >>> try:
+    ...     ringsync.load("paper-2015").set("faults.loss", 2.0)
+    ... except ringsync.ScenarioError as e:
+    ...     print("faults.loss = 2 is out of range: allowed 0 ..= 1" in str(e), isinstance(e, ValueError))
+    True True
+    >>> ringsync.simulate("paper-2015", seed=-1)  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+      ...
+    ringsync.ScenarioError: seed = -1 is out of range: allowed a whole number 0 ..= 9223372036854775807 (2^63 - 1: ...)
+"""
+RunError.__doc__ = (RunError.__doc__ or "") + """
+
+Example::
+
+    >>> import ringsync
+    >>> try:
+    ...     ringsync.simulate("paper-2015", duration="0.1s").save("/proc/ringsync-run")
+    ... except ringsync.RunError as e:
+    ...     print("could not write:", type(e).__name__, isinstance(e, RuntimeError))
+    could not write: RunError True
+"""

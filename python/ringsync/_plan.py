@@ -4,10 +4,11 @@
 from __future__ import annotations
 
 import copy
+from collections.abc import Iterator, Mapping
 from typing import TYPE_CHECKING, Any
 
 from . import _ringsync as _rs
-from ._run import _pandas, _pyplot
+from ._run import _check_axes, _pandas, _pyplot
 from ._scenario import Scenario, ScenarioLike, load
 
 if TYPE_CHECKING:
@@ -16,7 +17,7 @@ if TYPE_CHECKING:
 __all__ = ["Plan", "plan", "Reproduction", "reproduce"]
 
 
-class Plan:
+class Plan(Mapping[str, Any]):
     """The cycle plan of a scenario's ring (eq. 1-2): every term in integer nanoseconds,
     as ``ringsync plan --json`` prints it.
 
@@ -30,8 +31,10 @@ class Plan:
     ring holds); ``event`` has the frame-by-frame (event-level) figures, ``lumped_only`` the
     plan of ref. [3], ``params`` the ring's figures. docs/planner.md names every key.
 
-    ``plan["t_syn_ns"]`` reads a term; :meth:`to_dict` gives the whole object; :meth:`plot`
-    draws the cycle.
+    A plan reads like a read-only dict of its top-level keys: ``plan["t_syn_ns"]`` reads a
+    term (KeyError for a key it lacks), ``plan.get(key, default)``, ``list(plan)``,
+    ``len(plan)``, ``dict(plan)``; :meth:`to_dict` gives the whole object as a deep copy;
+    :meth:`plot` draws the cycle.
 
     Example::
 
@@ -41,6 +44,8 @@ class Plan:
         True
         >>> p.min_t_cyc < p.t_cyc                     # [s]
         True
+        >>> "t_syn_ns" in list(p), p.get("nope", 0)
+        (True, 0)
     """
 
     def __init__(self, data: dict[str, Any], timeline: Any, scenario: Scenario) -> None:
@@ -54,14 +59,17 @@ class Plan:
         """The scenario whose ring this is."""
 
     def __getitem__(self, key: str) -> Any:
+        """The term ``key`` as ``ringsync plan --json`` gives it (e.g. ``"t_syn_ns"`` [ns]);
+        KeyError when the plan has no such key."""
         return self._data[key]
 
-    def __contains__(self, key: object) -> bool:
-        return key in self._data
+    def __iter__(self) -> Iterator[str]:
+        """The plan's top-level keys, in ``ringsync plan --json``'s order."""
+        return iter(self._data)
 
-    def keys(self) -> list[str]:
-        """The plan's keys (as ``ringsync plan --json``)."""
-        return list(self._data)
+    def __len__(self) -> int:
+        """How many top-level keys the plan has."""
+        return len(self._data)
 
     @property
     def t_cyc(self) -> float:
@@ -129,7 +137,8 @@ class Plan:
         way to the last slave D_ms and back D_snm), T_rest, the point-to-point slices (one
         per slave), the reserve slices and the idle rest. ``zoom=True`` shows only the used
         part (up to the shortest cycle). Needs matplotlib (``pip install
-        'ringsync[plot]'``); draws into ``ax`` when given. Returns the figure.
+        'ringsync[plot]'``); draws into ``ax`` (a matplotlib ``Axes``, else TypeError) when
+        given. Returns the figure.
 
         Example::
 
@@ -139,6 +148,7 @@ class Plan:
             'time in the cycle [µs]'
         """
         plt = _pyplot("Plan.plot()")
+        _check_axes("Plan.plot()", ax)
         if ax is None:
             fig, ax = plt.subplots(figsize=(9.0, 2.6))
         else:
@@ -260,10 +270,14 @@ class Reproduction:
 
 def reproduce(scenario: ScenarioLike | None = None, *, seeds: int = 8, **overrides: Any) -> Reproduction:
     """Reproduces the paper's Table 1 on ``scenario`` (default ``paper-2015``) as
-    ``ringsync reproduce`` does, for ``seeds`` seeds (the scenario's seed, +1, …): six runs
+    ``ringsync reproduce`` does, for ``seeds`` seeds (the scenario's seed, +1, …; a whole
+    number 1 ..= 10 000, numpy integers too, as ``ringsync reproduce --seeds``): six runs
     per seed (PD, sync, ring-coupled × the two plans), in parallel inside Rust, the GIL
     released. ``overrides`` set scenario keys first. The first seed's rows are the
     numbers ``ringsync reproduce`` prints.
+
+    Raises :class:`ringsync.ScenarioError` for a bad scenario, key or value, or ``seeds``
+    out of range (naming it).
 
     Example::
 
@@ -272,8 +286,6 @@ def reproduce(scenario: ScenarioLike | None = None, *, seeds: int = 8, **overrid
         >>> rows["p2p-lumped", "sync"]["sync_rmse"] < rows["p2p-lumped", "pd"]["sync_rmse"]
         True
     """
-    if isinstance(seeds, bool) or not isinstance(seeds, int) or not 1 <= seeds <= 10_000:
-        raise ValueError(f"seeds must be a whole number from 1 to 10000, not {seeds!r}")
     s = load("paper-2015" if scenario is None else scenario)
     if overrides:
         s = s.set(**overrides)

@@ -13,11 +13,29 @@ import numpy.typing as npt
 __version__: str
 
 class ScenarioError(ValueError):
-    """A scenario, key or value is invalid, or a scenario name or file is unknown; the
-    message is the CLI's one line."""
+    """A scenario, key or value is invalid, a scenario name or file is unknown, or an
+    argument (a seed, a count, a directory) is out of its range; the message is one line
+    (the CLI's for a scenario) naming the key or argument and what is allowed.
+
+    Example::
+
+        >>> ringsync.simulate("paper-2015", seed=-1)
+        Traceback (most recent call last):
+          ...
+        ringsync.ScenarioError: seed = -1 is out of range: allowed a whole number 0 ..= 9223372036854775807 (...)
+    """
 
 class RunError(RuntimeError):
-    """The work failed (I/O, an internal error, a Rust panic); the input was fine."""
+    """The work failed (I/O, an internal error, a Rust panic); the input was fine.
+
+    Example::
+
+        >>> try:
+        ...     ringsync.simulate("paper-2015", duration="0.1s").save("/proc/ringsync-run")
+        ... except ringsync.RunError as e:
+        ...     print(type(e).__name__)
+        RunError
+    """
 
 def scenarios() -> list[str]:
     """The names of the built-in scenarios."""
@@ -30,7 +48,8 @@ def parse(text: str, origin: str) -> dict[str, Any]:
     law, hash (hex)."""
 
 def from_dict(d: dict[str, Any]) -> str:
-    """A dict of dotted keys and/or nested tables as TOML text."""
+    """A dict of dotted keys and/or nested tables as TOML text (a value nested more than 32
+    levels deep, or containing itself, is a ScenarioError naming its key)."""
 
 def with_values(text: str, origin: str, items: list[tuple[str, Any]]) -> tuple[str, str]:
     """The scenario with the (dotted key, value) items set and validated, as
@@ -68,31 +87,33 @@ class SimRun:
     def text(self) -> str:
         """The CLI's lines on the run."""
     def save(self, dir: str) -> None:
-        """Writes the CLI's files into ``dir`` (replaced as a whole)."""
+        """Writes the CLI's files into ``dir`` (replaced as a whole); an empty ``dir`` is a
+        ScenarioError."""
 
 def simulate(text: str, origin: str, seed: int | None = None) -> SimRun:
-    """Simulates the scenario (its seed replaced when given), keeping the trace."""
+    """Simulates the scenario (its seed replaced when given: a whole number 0 ..= 2**63 - 1,
+    else ScenarioError), keeping the trace."""
 
 def rt(
     text: str, origin: str, prediction_seeds: int = 8, transport: str = "udp", stamps: str = "phy"
 ) -> SimRun:
     """Runs the scenario in real time (``ringsync rt``) over ``transport`` ("udp" or
-    "veth") with ``stamps`` ("phy" or "software"); Ctrl-C ends it early
-    (KeyboardInterrupt)."""
+    "veth") with ``stamps`` ("phy" or "software"), with ``prediction_seeds`` (0 ..= 10 000)
+    seeds of the simulator's predictions; Ctrl-C ends it early (KeyboardInterrupt)."""
 
 def check(
     text: str, origin: str, points: int = 4001
 ) -> tuple[dict[str, Any], str, bool, npt.NDArray[np.float64] | None, float]:
     """(``ringsync check --json``'s object, its text, whether stable, the discrete-time
     check's closed-loop matrix (states × states, 9 per axis; None when not modelled), the
-    cycle time T_cyc [s])."""
+    cycle time T_cyc [s]); ``points`` 1 ..= 1 000 000, as ``ringsync check --points``."""
 
 def plan(text: str, origin: str, events: bool = False) -> dict[str, Any]:
     """``ringsync plan --json``'s object for the scenario's ring (integer ns); with
     ``events`` the frame-by-frame ``timeline`` too."""
 
 def reproduce(text: str, origin: str, seeds: int) -> list[dict[str, Any]]:
-    """The paper's Table 1 on the scenario over ``seeds`` seeds: one dict per (seed, plan,
+    """The paper's Table 1 on the scenario over ``seeds`` seeds (1 ..= 10 000): one dict per (seed, plan,
     controller) with ``seed``, ``plan``, ``controller``, ``track_rmse``, ``sync_rmse``
     [rad], ``group_stop``."""
 
@@ -104,7 +125,8 @@ def sweep(
     jobs: int | None = None,
 ) -> dict[str, Any]:
     """``rows`` (one per run) and ``means`` (one per combination), values named by their
-    index in the grid; ``jobs``: threads used."""
+    index in the grid; ``seeds`` (1 ..= 1 000 000) and ``jobs`` (threads, 1 ..= 4096) as
+    used."""
 
 def sweep_cases(
     text: str, origin: str, grid: list[tuple[str, list[Any]]], seeds: int = 1

@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from . import _ringsync as _rs
+from ._ringsync import ScenarioError
 from ._scenario import Scenario, ScenarioLike, load
 
 if TYPE_CHECKING:
@@ -52,6 +53,15 @@ def _pyplot(what: str) -> Any:
     return plt
 
 
+def _check_axes(what: str, ax: Any) -> None:
+    """TypeError naming ``ax`` unless it is None or a matplotlib ``Axes`` (matplotlib is
+    imported by then)."""
+    from matplotlib.axes import Axes
+
+    if ax is not None and not isinstance(ax, Axes):
+        raise TypeError(f"{what}: ax must be a matplotlib Axes, not {type(ax).__name__}")
+
+
 def _with(scenario: ScenarioLike, overrides: dict[str, Any]) -> Scenario:
     s = load(scenario)
     return s.set(**overrides) if overrides else s
@@ -80,6 +90,13 @@ class Run:
     ``rms_u``, ``peak_u`` [V], ``saturations``, ``clock_error_rms_ns``. ``summary`` is the
     dict ``ringsync sim`` writes as summary.json, to the last bit.
 
+    The clock figures (``clock_error_max_ns``: the largest |error| of any slave clock;
+    ``clock_error_rms_ns`` per axis) count the **second half** of the run only, cycles k
+    with 2·k ≥ the planned cycles: the clocks once settled, as summary.json's and a
+    sweep's ``clock_error_max_ns`` count them. ``clock_error_ns``, the array, holds every cycle, the start-up included,
+    so ``abs(r.clock_error_ns).max()`` is over the whole run and usually larger; the
+    metric is ``abs(r.clock_error_ns[(r.metrics["cycles"] + 1) // 2:]).max()``.
+
     Example::
 
         >>> import ringsync
@@ -90,6 +107,12 @@ class Run:
         True
         >>> r.summary["controller"]
         'sync'
+        >>> import numpy as np
+        >>> settled = r.clock_error_ns[(r.metrics["cycles"] + 1) // 2:]   # the second half
+        >>> float(np.abs(settled).max()) == r.metrics["clock_error_max_ns"]
+        True
+        >>> float(np.abs(r.clock_error_ns).max()) >= r.metrics["clock_error_max_ns"]
+        True
     """
 
     time: np.ndarray
@@ -109,7 +132,8 @@ class Run:
     apply_time: np.ndarray
     """When each command took effect at its slave [s] (NaN if never), shape (cycles, axes)."""
     clock_error_ns: np.ndarray
-    """Slave clock minus true time at each cycle start [ns], shape (cycles, axes)."""
+    """Slave clock minus true time at each cycle start [ns], shape (cycles, axes): every
+    cycle, whereas ``metrics["clock_error_max_ns"]`` counts the second half only."""
 
     def __init__(self, core: _rs.SimRun, scenario: Scenario) -> None:
         """Made by :func:`simulate`; not called directly."""
@@ -123,7 +147,9 @@ class Run:
         for name in COLUMNS:
             setattr(self, name, cols[name])
         self.metrics: dict[str, Any] = core.metrics()
-        """The run's figures (see the class docstring); ``track_rmse``, ``sync_rmse`` [rad]."""
+        """The run's figures (see the class docstring); ``track_rmse``, ``sync_rmse`` [rad];
+        ``clock_error_max_ns`` [ns] and ``clock_error_rms_ns`` [ns] over the second half of
+        the run only (the settled clocks), unlike the array :attr:`clock_error_ns`."""
         self._summary: dict[str, Any] | None = None
 
     @property
@@ -226,8 +252,9 @@ class Run:
     def plot(self, *, fig: Any = None) -> Any:
         """Draws the run in three panels over time [s], one line per axis: tracking errors
         e [rad], synchronisation errors ε [rad], commands u [V]. Needs matplotlib
-        (``pip install 'ringsync[plot]'``); draws into ``fig`` when given. Returns the
-        figure (``fig.savefig("run.png")``; in Jupyter it shows itself).
+        (``pip install 'ringsync[plot]'``); draws into ``fig`` (a matplotlib ``Figure``,
+        else TypeError) when given. Returns the figure (``fig.savefig("run.png")``; in
+        Jupyter it shows itself).
 
         Example::
 
@@ -239,6 +266,11 @@ class Run:
         plt = _pyplot("Run.plot()")
         if fig is None:
             fig = plt.figure(figsize=(8.0, 7.0))
+        else:
+            from matplotlib.figure import FigureBase
+
+            if not isinstance(fig, FigureBase):
+                raise TypeError(f"Run.plot(): fig must be a matplotlib Figure, not {type(fig).__name__}")
         axs = fig.subplots(3, 1, sharex=True)
         n = self.x.shape[1]
         for what, label, ax in (
@@ -266,6 +298,9 @@ class Run:
         --out`` does: it must be new, empty, or hold earlier ringsync results. Returns the
         directory.
 
+        Raises :class:`ringsync.ScenarioError` for an empty path, a path that is a file, or a
+        directory holding other files; :class:`ringsync.RunError` when writing fails.
+
         Example::
 
             >>> import tempfile, os
@@ -292,12 +327,14 @@ def simulate(scenario: ScenarioLike, *, seed: int | None = None, **overrides: An
     axes) and returns the :class:`Run`: arrays, metrics, the CLI's summary.
 
     ``scenario`` is anything :func:`load` takes. ``seed`` replaces the scenario's seed
-    (as ``ringsync sim --seed``). ``overrides`` set scenario keys first, dotted keys through
+    (as ``ringsync sim --seed``): a whole number 0 ..= 2**63 − 1 (what a scenario's TOML
+    ``seed`` holds; numpy integers too, not bools). ``overrides`` set scenario keys first, dotted keys through
     ``**``: ``simulate("paper-2015", **{"control.alpha": 0.3})``, top-level ones directly:
     ``simulate("paper-2015", duration="1s")``. Same scenario and seed, same numbers, to the
     last bit, as ``ringsync sim``. The GIL is released while it runs.
 
-    Raises :class:`ringsync.ScenarioError` for a bad scenario, key or value.
+    Raises :class:`ringsync.ScenarioError` for a bad scenario, key or value, or a
+    ``seed`` out of range (naming it).
 
     Example::
 
@@ -326,7 +363,8 @@ def rt(
     root); ``stamps`` is how the slaves stamp the lumped frames their clocks follow:
     ``"phy"`` (as a PHY would) or ``"software"`` (when their loop reads them); the CLI's
     ``"kernel"`` stamps belong to its ring of node processes (``ringsync rt --processes``)
-    and are refused here (``ValueError``).
+    and are refused here. ``prediction_seeds`` is a whole number 0 ..= 10 000. Each
+    mistake raises :class:`ringsync.ScenarioError` (a ``ValueError``) naming it.
     Real-time scheduling is used when allowed, and ``summary["realtime"]`` says what was
     applied. The GIL is released; Ctrl-C ends the run early (KeyboardInterrupt once it has
     stopped).
@@ -348,12 +386,10 @@ def rt(
         >>> r.realtime, r.summary["transport"], r.e.shape[1]
         (True, 'udp', 4)
     """
-    if isinstance(prediction_seeds, bool) or not isinstance(prediction_seeds, int) or prediction_seeds < 0:
-        raise ValueError(f"prediction_seeds must be a whole number >= 0, not {prediction_seeds!r}")
     if transport not in ("udp", "veth"):
-        raise ValueError(f'unknown transport {transport!r}: use "udp" or "veth"')
+        raise ScenarioError(f'unknown transport {transport!r}: use "udp" or "veth"')
     if stamps not in ("phy", "software"):
-        raise ValueError(f'unknown stamps {stamps!r}: use "phy" or "software"')
+        raise ScenarioError(f'unknown stamps {stamps!r}: use "phy" or "software"')
     s = _with(scenario, overrides)
     return Run(_rs.rt(s.to_toml(), s.origin, prediction_seeds, transport, stamps), s)
 
@@ -512,12 +548,22 @@ class Check:
 
 def check(scenario: ScenarioLike, *, points: int = 4001, **overrides: Any) -> Check:
     """Checks a scenario's stability (``ringsync check``); ``points`` instants of the
-    motion evaluate the paper's conditions; ``overrides`` as for :func:`simulate`.
+    motion evaluate the paper's conditions (a whole number 1 ..= 1 000 000, as ``ringsync
+    check --points`` takes; the check's time grows with it); ``overrides`` as for
+    :func:`simulate`.
+
+    Raises:
+        ringsync.ScenarioError: a bad scenario, key or value, or ``points`` not a whole
+            number in 1 ..= 1 000 000 (the message names it).
 
     Example::
 
         >>> ringsync.check("paper-2015", **{"control.kp": 3000.0}).verdict
         'unstable'
+        >>> ringsync.check("paper-2015", points=0)
+        Traceback (most recent call last):
+          ...
+        ringsync.ScenarioError: points = 0 is out of range: allowed a whole number 1 ..= 1000000 (instants of the motion, as ringsync check --points)
     """
     s = _with(scenario, overrides)
     report, text, stable, matrix, t_cyc = _rs.check(s.to_toml(), s.origin, points)

@@ -9,6 +9,7 @@ from collections.abc import Iterator, Mapping
 from typing import Any, Union
 
 from . import _ringsync as _rs
+from ._ringsync import ScenarioError
 
 __all__ = ["Scenario", "ScenarioLike", "load", "scenarios", "laws"]
 
@@ -139,6 +140,18 @@ class Scenario(Mapping[str, Any]):
         return self._values
 
     def __getitem__(self, key: str) -> Any:
+        """The value in effect of the dotted ``key`` (``"control.alpha"``,
+        ``"axis[1].u_max"``); KeyError for a key the scenario lacks or that is not a
+        string, as a dict raises (so ``s.get(key, default)`` and ``key in s`` work).
+
+        Example::
+
+            >>> s = ringsync.load("paper-2015")
+            >>> s["axis[1].u_max"], s.get("control.nope", "none"), s.get(1, "none")
+            (10.0, 'none', 'none')
+        """
+        if not isinstance(key, str):
+            raise KeyError(key)
         node: Any = self._effective()
         for part in key.split("."):
             m = _INDEXED.match(part)
@@ -197,6 +210,8 @@ class Scenario(Mapping[str, Any]):
             ringsync.ScenarioError: faults.loss = 2 is out of range: allowed 0 ..= 1 (a probability)
         """
         pairs: list[tuple[str, Any]] = []
+        if key is not None and not isinstance(key, str):
+            raise ScenarioError(f'{key!r} is not a scenario key: keys are strings like "control.alpha"')
         if key is not None:
             if value is _MISSING:
                 raise TypeError("Scenario.set(key, value): the value is missing")

@@ -8,7 +8,8 @@ from collections.abc import Iterable, Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
 from . import _ringsync as _rs
-from ._run import _pandas, _pyplot
+from ._ringsync import ScenarioError
+from ._run import _check_axes, _pandas, _pyplot
 from ._scenario import Scenario, ScenarioLike, load
 
 if TYPE_CHECKING:
@@ -128,7 +129,10 @@ class Sweep:
         deviation as error bars, one line per combination of the other keys. With an
         empty grid (the scenario alone over its seeds) it draws each seed's value and
         their mean. Needs matplotlib (``pip install 'ringsync[plot]'``); draws into ``ax``
-        when given. Returns the figure.
+        (a matplotlib ``Axes``, else TypeError) when given. Returns the figure.
+
+        Raises ValueError naming ``metric`` when the rows have no such column or it is not
+        a number (``group_stop_reason``).
 
         Example::
 
@@ -144,6 +148,15 @@ class Sweep:
             raise ValueError(
                 f"Sweep.plot(): no column {metric!r}; the rows have {', '.join(self.rows[0]) if self.rows else 'none'}"
             )
+        def number(v: Any) -> bool:
+            return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+        values = [r[metric] for r in self.rows if r[metric] is not None]
+        if metric == "group_stop_reason" or not values or not all(number(v) for v in values):
+            numbers = [k for k in self.rows[0] if any(number(r[k]) for r in self.rows)]
+            what = "is None in every row" if not values and metric != "group_stop_reason" else "is not a number"
+            raise ValueError(f"Sweep.plot(): column {metric!r} {what}; plot one of {', '.join(numbers)}")
+        _check_axes("Sweep.plot()", ax)
         unit = ROW_COLUMNS.get(metric, "")
         if not self.grid:
             return self._plot_seeds(plt, metric, unit, ax)
@@ -219,15 +232,17 @@ def sweep(
     **overrides: Any,
 ) -> Sweep:
     """Runs every combination of ``grid``'s values (``{"faults.loss": [0, 0.01, 0.02],
-    "control.law": ["pd", "sync"]}``), ``seeds`` seeds each (the scenario's seed, +1, …),
-    as ``ringsync sweep SCENARIO --set KEY=V1,V2 … --seeds SEEDS``. ``overrides`` set keys
-    of the base scenario first, as for :func:`ringsync.simulate`. A single value in the
-    grid counts as a list of one; an empty grid runs the scenario alone over its seeds.
+    "control.law": ["pd", "sync"]}``: a dict of scenario key → list of values), ``seeds``
+    seeds each (the scenario's seed, +1, …; a whole number 1 ..= 1 000 000, numpy
+    integers too), as ``ringsync sweep SCENARIO --set KEY=V1,V2 … --seeds SEEDS``.
+    ``overrides`` set keys of the base scenario first, as for :func:`ringsync.simulate`. A
+    single value in the grid counts as a list of one; an empty grid runs the scenario alone
+    over its seeds.
 
     Where the runs go:
 
-    - ``executor=None`` (default): in parallel on ``jobs`` threads inside Rust (default:
-      the CPUs), the GIL released.
+    - ``executor=None`` (default): in parallel on ``jobs`` threads inside Rust (a whole
+      number 1 ..= 4096; default: the CPUs), the GIL released.
     - ``executor=`` a ``dask.distributed.Client``, or a scheduler address such as
       ``"tcp://10.0.0.5:8786"`` (a client is made and closed): on Dask. The first few runs
       are timed here (unless ``run_seconds`` [s], the time of one run, is given), then the
@@ -239,9 +254,10 @@ def sweep(
       same version). ``progress=True`` prints a line on standard error as tasks finish.
       Needs ``pip install 'ringsync[dask]'``.
 
-    Raises :class:`ringsync.ScenarioError` naming the case and its bad key or value;
-    TypeError or ValueError for an executor that is neither; ImportError (naming the
-    extra) when Dask is missing.
+    Raises :class:`ringsync.ScenarioError` naming the case and its bad key or value, or the
+    argument (``seeds``, ``jobs``, ``task_seconds``, ``run_seconds``) out of its range;
+    TypeError for a grid that is not a dict; TypeError or ValueError for an executor that
+    is neither; ImportError (naming the extra) when Dask is missing.
 
     Example::
 
@@ -263,26 +279,31 @@ def sweep(
         >>> on_dask.rows == sw.rows
         True
     """
-    if isinstance(seeds, bool) or not isinstance(seeds, int) or not 1 <= seeds <= 1_000_000:
-        raise ValueError(f"seeds must be a whole number of at least 1, not {seeds!r}")
+    if not isinstance(grid, Mapping):
+        raise TypeError(
+            "sweep(): grid must be a dict of scenario key → list of values, e.g. "
+            f'{{"faults.loss": [0.0, 0.01]}}, not {type(grid).__name__}'
+        )
     if executor is not None:
         from ._dask import check_executor
 
         check_executor(executor)
-        if not task_seconds >= 0:
-            raise ValueError(f"task_seconds must be >= 0 s, not {task_seconds!r}")
-        if run_seconds is not None and not run_seconds > 0:
-            raise ValueError(f"run_seconds must be > 0 s, not {run_seconds!r}")
+        if not _seconds(task_seconds) >= 0:
+            raise ScenarioError(f"task_seconds = {task_seconds!r} is out of range: allowed a number >= 0 [s]")
+        if run_seconds is not None and not _seconds(run_seconds) > 0:
+            raise ScenarioError(f"run_seconds = {run_seconds!r} is out of range: allowed a number > 0 [s], or None")
     s = load(scenario)
     if overrides:
         s = s.set(**overrides)
     g: dict[str, list[Any]] = {}
     for key, values in grid.items():
+        if not isinstance(key, str):
+            raise ScenarioError(f'{key!r} is not a scenario key: keys are strings like "control.alpha"')
         if isinstance(values, (str, bytes, Mapping)) or not isinstance(values, Iterable):
             values = [values]
         g[str(key)] = list(values)
         if not g[str(key)]:
-            raise ValueError(f"the grid gives no values for {key}")
+            raise ScenarioError(f"the grid gives no values for {key}: give a list of at least one value")
     items = list(g.items())
     tasks: list[int] | None = None
     if executor is None:
@@ -307,4 +328,15 @@ def sweep(
 
     rows = [named(r) for r in out["rows"]]
     means = [named(m) for m in out["means"]]
-    return Sweep(s, g, seeds, rows, means, int(out["jobs"]), tasks)
+    return Sweep(s, g, int(out["seeds"]), rows, means, int(out["jobs"]), tasks)
+
+
+def _seconds(v: Any) -> float:
+    """``v`` as a number of seconds, NaN (refused by the caller's comparison) when it is not
+    a real number or is a bool."""
+    if isinstance(v, bool):
+        return float("nan")
+    try:
+        return float(v)
+    except (TypeError, ValueError):
+        return float("nan")

@@ -85,7 +85,7 @@ def test_plan_terms_equal_the_cli(cli: Cli, args: list[str], overrides: dict[str
 
 
 def test_plan_error_names_the_problem() -> None:
-    with pytest.raises(ringsync.ScenarioError, match="too short"):
+    with pytest.raises(ringsync.ScenarioError, match="short by"):
         ringsync.plan(None, **{"ring.slaves": 64, "ring.cycle": "100us"})
 
 
@@ -151,3 +151,68 @@ def test_statespace_with_observers_names_their_states() -> None:
     assert sys.state_labels[:14][-5:] == ["e_hat[1]", "de_hat[1]", "u_prev2[1]", "u_prev3[1]", "d_hat[1]"]
     assert sys.C[1, 14] == 1.0 and sys.C[1].sum() == 1.0
     assert np.isclose(max(abs(sys.poles())), c.spectral_radius, rtol=1e-9)
+
+
+def test_check_points_are_a_bounded_whole_number() -> None:
+    import time
+
+    # 10**12 ran for ever (and ignored Ctrl-C); 0 became 1; -1 was an OverflowError.
+    for bad in (10**12, 1_000_001, 0, -1, 2**64, True, 4001.0):
+        t0 = time.monotonic()
+        with pytest.raises(ringsync.ScenarioError, match=r"^points = .*allowed a whole number 1 \.\.= 1000000"):
+            ringsync.check("paper-2015", points=bad)
+        assert time.monotonic() - t0 < 5.0
+    few = ringsync.check("paper-2015", points=np.int32(11))
+    assert few.report == ringsync.check("paper-2015", points=11).report
+    assert ringsync.check("paper-2015", points=1).stable
+
+
+def test_the_clock_metric_counts_the_second_half_the_array_every_cycle() -> None:
+    # With a group stop too: the half is of the cycles planned (metrics["cycles"]).
+    for run in (ringsync.simulate("paper-2015", duration="1s"),
+                ringsync.simulate('duration = "0.5s"\n[faults]\nsilent_slave = 3\nsilent_from = "400ms"\n')):
+        m = run.metrics
+        settled = run.clock_error_ns[(m["cycles"] + 1) // 2:]
+        assert float(np.abs(settled).max()) == m["clock_error_max_ns"]
+        rms = np.sqrt(np.mean(run.clock_error_ns[(m["cycles"] + 1) // 2:m["cycles"]] ** 2, axis=0))
+        assert rms == pytest.approx(m["clock_error_rms_ns"], rel=1e-9) or run.stopped
+    whole = ringsync.simulate("paper-2015", duration="1s")
+    # The start-up (clocks not yet synchronised) is in the array, not in the metric.
+    assert float(np.abs(whole.clock_error_ns).max()) > 10 * whole.metrics["clock_error_max_ns"]
+    assert "second half" in (ringsync.Run.__doc__ or "")
+
+
+def test_save_refuses_an_empty_path_and_a_foreign_directory_in_plain_words(tmp_path: Path) -> None:
+    run = ringsync.simulate("paper-2015", duration="0.1s")
+    with pytest.raises(ringsync.ScenarioError, match=r"^directory = '' is empty: give Run.save the path"):
+        run.save("")
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "notes.txt").write_text("keep me")
+    with pytest.raises(ringsync.ScenarioError) as e:
+        run.save(mine)
+    msg = str(e.value)
+    assert msg.startswith(f"the save directory {mine} is not empty and holds no ringsync results")
+    assert "the run replaces the save directory as a whole" in msg and "save:" not in msg
+    assert [p.name for p in mine.iterdir()] == ["notes.txt"]
+    assert run.save(tmp_path / "new") == str(tmp_path / "new")
+
+
+def test_plot_arguments_are_checked() -> None:
+    import matplotlib.pyplot as plt
+
+    sw = ringsync.sweep("paper-2015", {"control.law": ["pd", "sync"]}, seeds=1, duration="0.1s")
+    for column in ("group_stop_reason", "group_stop_s", "control.law"):
+        with pytest.raises(ValueError, match=f"Sweep.plot\\(\\): column '{column}' is"):
+            sw.plot(column)
+    with pytest.raises(TypeError, match="Sweep.plot\\(\\): ax must be a matplotlib Axes, not int"):
+        sw.plot(ax=5)
+    with pytest.raises(TypeError, match="Plan.plot\\(\\): ax must be a matplotlib Axes, not int"):
+        ringsync.plan().plot(ax=5)
+    run = ringsync.simulate("paper-2015", duration="0.1s")
+    with pytest.raises(TypeError, match="Run.plot\\(\\): fig must be a matplotlib Figure, not int"):
+        run.plot(fig=5)
+    fig, ax = plt.subplots()
+    assert sw.plot("seed", ax=ax) is fig and ringsync.plan().plot(ax=ax) is fig
+    assert run.plot(fig=plt.figure()) is not None
+    plt.close("all")

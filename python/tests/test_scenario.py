@@ -156,3 +156,115 @@ def test_a_broken_link_reshapes_the_ring_and_a_second_splits_it() -> None:
     assert stop["reason"] == "ring-split" and stop["isolated_slaves"] == [2, 3]
     with pytest.raises(ringsync.ScenarioError, match="faults.break_link"):
         ringsync.simulate("paper-2015", **{"faults.break_link": "7@1s"})
+
+
+def _nested_list(depth: int) -> list[object]:
+    x: list[object] = []
+    for _ in range(depth):
+        x = [x]
+    return x
+
+
+def _nested_dict(depth: int) -> object:
+    x: object = 1
+    for _ in range(depth):
+        x = {"a": x}
+    return x
+
+
+def test_a_value_nested_too_deep_or_containing_itself_is_a_scenario_error_not_a_crash() -> None:
+    import subprocess
+    import sys
+
+    # In a child first: before the depth limit, each of these ended the interpreter (SIGSEGV).
+    code = (
+        "import ringsync\n"
+        "a = []; a.append(a)\n"
+        "deep = []\n"
+        "for _ in range(3000):\n"
+        "    deep = [deep]\n"
+        "for call in (lambda: ringsync.load({'control.kp': a}),\n"
+        "             lambda: ringsync.load({'control.kp': deep})):\n"
+        "    try:\n"
+        "        call()\n"
+        "    except ringsync.ScenarioError as e:\n"
+        "        print('refused:', str(e).split(':')[0])\n"
+    )
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert p.returncode == 0, (p.returncode, p.stderr[-500:])
+    assert p.stdout.splitlines() == ["refused: control.kp", "refused: control.kp"]
+    # Every way in names the key the caller gave, in one line.
+    a: list[object] = []
+    a.append(a)
+    d: dict[str, object] = {}
+    d["x"] = d
+    np = pytest.importorskip("numpy")
+    obj = np.empty((), dtype=object)
+    obj[()] = obj  # a numpy object array holding itself
+    calls = {
+        "control.kp": [
+            lambda: ringsync.load({"control.kp": a}),
+            lambda: ringsync.load("paper-2015").set("control.kp", a),
+            lambda: ringsync.load("paper-2015").set("control.kp", _nested_list(20_000)),
+            lambda: ringsync.simulate("paper-2015", **{"control.kp": a}),
+            lambda: ringsync.sweep("paper-2015", {"control.kp": [a]}, seeds=1),
+            lambda: ringsync.load({"control.kp": obj}),
+        ],
+        "control": [lambda: ringsync.load({"control": d})],
+        "a": [lambda: ringsync.load(_nested_dict(3000))],  # type: ignore[arg-type]
+    }
+    for key, fs in calls.items():
+        for f in fs:
+            with pytest.raises(ringsync.ScenarioError, match="nested more than 32 levels deep") as e:
+                f()
+            assert str(e.value).startswith(f"{key}: ") and "\n" not in str(e.value)
+    # A few levels are fine (the library then judges the value).
+    assert ringsync.load({"axis": [{"u_max": 5.0}] * 4})["axis[3].u_max"] == 5.0
+
+
+def test_scenario_and_plan_are_read_only_mappings() -> None:
+    from collections.abc import Mapping
+
+    s = ringsync.load("paper-2015")
+    assert isinstance(s, Mapping)
+    with pytest.raises(KeyError):
+        s[1]  # type: ignore[index]
+    assert s.get(1, "d") == "d"  # type: ignore[call-overload]
+    assert s.get("control.nope", "d") == "d" and s.get("control.alpha") == 0.5
+    assert 1 not in s
+    p = ringsync.plan()
+    assert isinstance(p, Mapping)
+    keys = list(p)
+    assert keys[:3] == ["plan", "n", "t_cyc_ns"] and len(p) == len(keys) == len(p.to_dict())
+    assert dict(p) == p.to_dict() and list(p.keys()) == keys
+    assert p.get("n") == 4 and p.get("nope", 0) == 0 and p.get(1) is None  # type: ignore[call-overload]
+    assert dict(p.items())["t_cyc_ns"] == 1_000_000 and "t_syn_ns" in p and "nope" not in p
+    with pytest.raises(KeyError):
+        p["nope"]
+
+
+def test_whole_number_arguments_are_checked_and_named() -> None:
+    np = pytest.importorskip("numpy")
+    seed_range = r"allowed a whole number 0 \.\.= 9223372036854775807 \(2\^63 - 1"
+    for bad in (-1, 2**63, 2**64, 10**400):
+        with pytest.raises(ringsync.ScenarioError, match=rf"^seed = .* is out of range: {seed_range}"):
+            ringsync.simulate("paper-2015", seed=bad)
+    for bad in (True, np.bool_(True), 1.5, "3", 2.0):
+        with pytest.raises(ringsync.ScenarioError, match=rf"^seed = .*: {seed_range}"):
+            ringsync.simulate("paper-2015", seed=bad)  # type: ignore[arg-type]
+    assert ringsync.simulate("paper-2015", seed=2**63 - 1, duration="10ms").seed == 2**63 - 1
+    r = ringsync.simulate("paper-2015", seed=np.uint64(3), duration="0.1s")
+    assert r.seed == 3 and r.metrics == ringsync.simulate("paper-2015", seed=3, duration="0.1s").metrics
+    # Any other whole-number argument the same way: ScenarioError (a ValueError), never an
+    # OverflowError; numpy integers taken.
+    cases = [
+        ("jobs", lambda v: ringsync.sweep("paper-2015", {}, seeds=1, jobs=v, duration="10ms")),
+        ("seeds", lambda v: ringsync.reproduce(seeds=v, duration="10ms")),
+        ("prediction_seeds", lambda v: ringsync.rt("paper-2015", prediction_seeds=v)),
+    ]
+    for name, call in cases:
+        for bad in (-1, 2**64, True, 0.5):
+            with pytest.raises(ringsync.ScenarioError, match=rf"^{name} = "):
+                call(bad)
+    assert ringsync.sweep("paper-2015", {}, seeds=1, jobs=np.int8(2), duration="10ms").jobs == 2
+    assert len(ringsync.reproduce(seeds=np.int64(1), duration="10ms").rows) == 6

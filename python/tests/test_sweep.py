@@ -64,3 +64,40 @@ def test_bad_grids_are_errors() -> None:
         ringsync.sweep("paper-2015", {"faults.loss": [0.0]}, seeds=0)
     with pytest.raises(ValueError, match="no values"):
         ringsync.sweep("paper-2015", {"faults.loss": []}, seeds=1)
+
+
+def test_seeds_take_numpy_integers_and_say_their_range() -> None:
+    np = pytest.importorskip("numpy")
+    sw = ringsync.sweep("paper-2015", {"control.alpha": [0.25]}, seeds=np.int64(2), duration="0.1s")
+    assert sw.seeds == 2 and type(sw.seeds) is int and [r["seed"] for r in sw.rows] == [1, 2]
+    for bad in (0, -1, 1_000_001, 2**64, True, 1.0, np.bool_(True)):
+        with pytest.raises(ringsync.ScenarioError, match=r"^seeds = .*allowed a whole number 1 \.\.= 1000000"):
+            ringsync.sweep("paper-2015", {"control.alpha": [0.25]}, seeds=bad)
+    # reproduce's seeds alike, with its own cap (ringsync reproduce --seeds).
+    with pytest.raises(ringsync.ScenarioError, match=r"^seeds = 10001 .*1 \.\.= 10000"):
+        ringsync.reproduce(seeds=10_001)
+
+
+def test_a_grid_that_is_not_a_dict_is_a_type_error_naming_the_grid() -> None:
+    for grid in (None, [("control.alpha", [0.1])], "control.alpha"):
+        with pytest.raises(TypeError, match="grid must be a dict of scenario key → list of values"):
+            ringsync.sweep("paper-2015", grid, seeds=1)  # type: ignore[arg-type]
+    with pytest.raises(ringsync.ScenarioError, match="1 is not a scenario key"):
+        ringsync.sweep("paper-2015", {1: [0.1]}, seeds=1)  # type: ignore[dict-item]
+
+
+def test_a_grid_that_would_mislabel_its_rows_is_refused() -> None:
+    """A key and a key inside it, or ``seed`` as a key: refused before anything runs."""
+    with pytest.raises(ringsync.ScenarioError, match="overlap"):
+        ringsync.sweep(
+            "paper-2015",
+            {"control.alpha": [0.1], "control": [{"alpha": 0.2}]},
+            seeds=1,
+            duration="0.1s",
+        )
+    with pytest.raises(ringsync.ScenarioError, match="seed is not a key to sweep"):
+        ringsync.sweep("paper-2015", {"seed": [5, 9]}, seeds=2, duration="0.1s")
+    with pytest.raises(ringsync.ScenarioError, match="go beyond"):
+        ringsync.sweep(
+            ringsync.load("paper-2015").set("seed", 2**63 - 1), {}, seeds=3, duration="0.1s"
+        )

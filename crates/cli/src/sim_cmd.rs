@@ -56,12 +56,13 @@ pub(crate) fn out_dir(out: &Path, scenario: &Loaded) -> Result<OutDir, CliError>
     Ok(dir)
 }
 
-/// Parses `--jobs`: at least one thread.
+/// Parses `--jobs`: 1 ..= [`ringsync::sweep::MAX_JOBS`] threads.
 fn jobs(s: &str) -> Result<usize, String> {
+    let max = ringsync::sweep::MAX_JOBS;
     match s.parse::<usize>() {
-        Ok(0) => Err("at least 1 thread".into()),
-        Ok(n) => Ok(n),
-        Err(e) => Err(format!("{e}; expected a number of threads, at least 1")),
+        Ok(n) if (1..=max).contains(&n) => Ok(n),
+        Ok(_) => Err(format!("at least 1 thread, at most {max}")),
+        Err(e) => Err(format!("{e}; expected a number of threads, 1 ..= {max}")),
     }
 }
 

@@ -9,9 +9,31 @@ use crate::ScenarioError;
 /// What a scenario value may be, for error messages.
 const ALLOWED: &str = "a number, a string (durations with a unit, e.g. \"1ms\"), a bool, a list of these, or a table (dict)";
 
+/// The deepest nesting of lists and tables (dicts) inside one scenario value: a scenario is a
+/// few levels deep (`axis` is a list of tables), so anything deeper is a mistake, such as a
+/// list that contains itself. The limit keeps the conversion's recursion bounded.
+pub(crate) const MAX_DEPTH: usize = 32;
+
 /// A Python value as a TOML value; `key` names it in errors. Numpy scalars and arrays are
-/// taken by value (`int`, `float`, `bool`, `.tolist()`).
+/// taken by value (`int`, `float`, `bool`, `.tolist()`). A value nested more than
+/// [`MAX_DEPTH`] levels deep (or containing itself) is a `ScenarioError` naming `key`.
 pub(crate) fn to_toml(key: &str, v: &Bound<'_, PyAny>) -> PyResult<toml::Value> {
+    value(key, key, v, 0)
+}
+
+/// The error for a value of `root` nested deeper than [`MAX_DEPTH`].
+fn too_deep(root: &str) -> PyErr {
+    ScenarioError::new_err(crate::readable(&format!(
+        "{root}: the value is nested more than {MAX_DEPTH} levels deep (lists or tables inside each other, or a list or dict that contains itself): allowed {ALLOWED}, a few levels deep"
+    )))
+}
+
+/// [`to_toml`] at `depth` levels inside the value of `root` (the key the caller gave);
+/// `key` is where in it `v` is (`control.kp[2]`).
+fn value(root: &str, key: &str, v: &Bound<'_, PyAny>, depth: usize) -> PyResult<toml::Value> {
+    if depth > MAX_DEPTH {
+        return Err(too_deep(root));
+    }
     if v.is_instance_of::<PyBool>() {
         return Ok(toml::Value::Boolean(v.extract()?));
     }
@@ -30,24 +52,25 @@ pub(crate) fn to_toml(key: &str, v: &Bound<'_, PyAny>) -> PyResult<toml::Value> 
         return Ok(toml::Value::String(v.extract()?));
     }
     if let Ok(d) = v.cast::<PyDict>() {
-        return dict_to_table(key, d).map(toml::Value::Table);
+        return table(key, Some(root), d, depth + 1).map(toml::Value::Table);
     }
     if v.is_instance_of::<PyList>() || v.is_instance_of::<PyTuple>() {
         let items: PyResult<Vec<toml::Value>> = v
             .try_iter()?
             .enumerate()
-            .map(|(i, item)| to_toml(&format!("{key}[{i}]"), &item?))
+            .map(|(i, item)| value(root, &format!("{key}[{i}]"), &item?, depth + 1))
             .collect();
         return items.map(toml::Value::Array);
     }
-    // Numpy: bool_, integer and floating scalars, and arrays (by their nested lists).
+    // Numpy: bool_, integer and floating scalars, and arrays (by their nested lists; an
+    // object array may hold itself, so this counts as a level too).
     let np_type = v
         .get_type()
         .module()
         .map(|m| m.to_string())
         .unwrap_or_default();
     if np_type == "numpy" && v.hasattr("tolist")? {
-        return to_toml(key, &v.call_method0("tolist")?);
+        return value(root, key, &v.call_method0("tolist")?, depth + 1);
     }
     Err(ScenarioError::new_err(format!(
         "{key} = {} is not a scenario value: allowed {ALLOWED}",
@@ -66,6 +89,17 @@ pub(crate) fn repr(v: &Bound<'_, PyAny>) -> String {
 /// (`{"control": {"alpha": 0.3}}`) alike; `within` is the key of the dict itself ("" at
 /// the top).
 pub(crate) fn dict_to_table(within: &str, d: &Bound<'_, PyDict>) -> PyResult<toml::Table> {
+    table(within, None, d, 0)
+}
+
+/// [`dict_to_table`] at `depth` levels inside the value of `root` (None at the top: each
+/// key is then its own root).
+fn table(
+    within: &str,
+    root: Option<&str>,
+    d: &Bound<'_, PyDict>,
+    depth: usize,
+) -> PyResult<toml::Table> {
     let mut t = toml::Table::new();
     for (k, v) in d.iter() {
         let k: String = k.extract().map_err(|_| {
@@ -79,10 +113,55 @@ pub(crate) fn dict_to_table(within: &str, d: &Bound<'_, PyDict>) -> PyResult<tom
         } else {
             format!("{within}.{k}")
         };
-        let value = to_toml(&full, &v)?;
+        let value = value(root.unwrap_or(&full), &full, &v, depth)?;
         insert(&mut t, &k, value, &full)?;
     }
     Ok(t)
+}
+
+/// The whole number `v` given for the argument `name` of a public function, checked to be
+/// within `lo ..= hi`; `what` follows the range in the message (e.g. " (2^63 - 1, what a
+/// scenario's seed holds)"). Any integral value is taken (`int`, numpy integers: anything
+/// with `__index__`), a bool is not; anything else, or a number out of range, is a
+/// `ScenarioError` naming `name` and the range (never an `OverflowError`).
+pub(crate) fn whole(
+    name: &str,
+    v: &Bound<'_, PyAny>,
+    lo: u64,
+    hi: u64,
+    what: &str,
+) -> PyResult<u64> {
+    let shown = || crate::readable(&repr(v));
+    let allowed = format!("allowed a whole number {lo} ..= {hi}{what}");
+    let type_name = v
+        .get_type()
+        .name()
+        .map(|n| n.to_string())
+        .unwrap_or_default();
+    if v.is_instance_of::<PyBool>() || type_name == "bool_" || type_name == "bool" {
+        return Err(ScenarioError::new_err(format!(
+            "{name} = {} is a bool, not a number: {allowed}",
+            shown()
+        )));
+    }
+    let index = v
+        .py()
+        .import("operator")
+        .and_then(|m| m.getattr("index"))
+        .and_then(|index| index.call1((v,)));
+    let Ok(index) = index else {
+        return Err(ScenarioError::new_err(format!(
+            "{name} = {} is not a whole number: {allowed}",
+            shown()
+        )));
+    };
+    match index.extract::<i128>().ok().map(u64::try_from) {
+        Some(Ok(n)) if (lo..=hi).contains(&n) => Ok(n),
+        _ => Err(ScenarioError::new_err(format!(
+            "{name} = {} is out of range: {allowed}",
+            shown()
+        ))),
+    }
 }
 
 /// Inserts `value` at the dotted `key` of `t`, creating tables on the way and merging a

@@ -26,17 +26,19 @@ mod run;
 mod scenario;
 mod sweep;
 
+// The docstrings' examples are added by python/ringsync/__init__.py (an indented example
+// here would be a Rust doctest).
 create_exception!(
     ringsync,
     ScenarioError,
     PyValueError,
-    "A scenario, a scenario key or a value is invalid, or a scenario name or file is unknown.\n\nThe message is the one line the `ringsync` command prints for the same input (after `ringsync: error: `): it names the key, the value and what is allowed."
+    "A scenario, a scenario key or a value is invalid, a scenario name or file is unknown, or an argument (a seed, a count, a directory) is out of its range.\n\nA ValueError. The message is one line: for a scenario, the one the `ringsync` command prints for the same input (after `ringsync: error: `); it names the key or the argument, the value and what is allowed."
 );
 create_exception!(
     ringsync,
     RunError,
     PyRuntimeError,
-    "The work failed (I/O, an internal error); the input was fine. A Rust panic inside ringsync is raised as this error too, naming the panic."
+    "The work failed (I/O, an internal error); the input was fine. A RuntimeError. A Rust panic inside ringsync is raised as this error too, naming the panic, and the interpreter goes on."
 );
 
 /// Longest line of an error message [characters], as the CLI cuts it.
@@ -145,6 +147,41 @@ mod tests {
             assert!(e.is_instance_of::<ScenarioError>(py));
             assert!(e.is_instance_of::<pyo3::exceptions::PyValueError>(py));
             assert_eq!(e.value(py).to_string(), msg);
+        });
+    }
+
+    #[test]
+    fn a_list_that_holds_itself_is_an_error_naming_its_key() {
+        attached(|py| {
+            let a = pyo3::types::PyList::empty(py);
+            a.append(&a).expect("append");
+            let e = convert::to_toml("control.kp", &a).expect_err("too deep");
+            assert!(e.is_instance_of::<ScenarioError>(py));
+            assert!(
+                e.value(py)
+                    .to_string()
+                    .starts_with("control.kp: the value is nested more than 32 levels deep"),
+                "{e}"
+            );
+        });
+    }
+
+    #[test]
+    fn whole_numbers_are_checked_against_their_range() {
+        attached(|py| {
+            let check = |code: &std::ffi::CStr| {
+                let v = py.eval(code, None, None).expect("value");
+                convert::whole("points", &v, 1, 10, "").map_err(|e| e.value(py).to_string())
+            };
+            assert_eq!(check(c"7"), Ok(7));
+            assert_eq!(
+                check(c"0"),
+                Err("points = 0 is out of range: allowed a whole number 1 ..= 10".into())
+            );
+            assert!(check(c"-1").is_err_and(|m| m.contains("out of range")));
+            assert!(check(c"2**70").is_err_and(|m| m.contains("out of range")));
+            assert!(check(c"True").is_err_and(|m| m.contains("a bool")));
+            assert!(check(c"2.0").is_err_and(|m| m.contains("not a whole number")));
         });
     }
 

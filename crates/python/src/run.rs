@@ -7,7 +7,6 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use numpy::{PyArray1, PyArrayMethods};
-use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
@@ -15,8 +14,22 @@ use ringsync::layers::report::sim::{summary_json, write_trace_csv};
 use ringsync::layers::report::{check_json, check_text, plan_json};
 use ringsync::{OutDir, RunResult, Scenario, SimOptions, Trace, Verdict};
 
-use crate::convert::json_to_py;
-use crate::guard;
+use crate::convert::{json_to_py, whole};
+use crate::{ScenarioError, guard};
+
+/// The largest seed: a scenario's `seed` is a TOML integer (signed 64-bit).
+pub(crate) const MAX_SEED: u64 = i64::MAX.unsigned_abs();
+
+/// What follows the seeds' range in an error message.
+pub(crate) const SEED_RANGE: &str =
+    " (2^63 - 1: a scenario's seed is a signed 64-bit TOML integer)";
+
+/// The most points `check` evaluates the paper's conditions at (`ringsync check --points`
+/// takes 1 ..= 1 000 000 too).
+pub(crate) const MAX_POINTS: u64 = 1_000_000;
+
+/// The most prediction seeds of a real-time run (as many as `reproduce` takes).
+const MAX_PREDICTION_SEEDS: u64 = ringsync::reproduce::MAX_SEEDS as u64;
 
 /// A finished simulation (opaque to Python; `ringsync.Run` wraps it).
 #[pyclass(frozen, module = "ringsync._ringsync")]
@@ -32,11 +45,19 @@ pub struct SimRun {
     rt: Option<(serde_json::Value, String)>,
 }
 
-/// Simulates the scenario `text` (from `origin`), with `seed` instead of the scenario's
-/// when given, keeping the trace: what `ringsync sim` runs.
+/// Simulates the scenario `text` (from `origin`), with `seed` (0 ..= 2^63 - 1) instead of
+/// the scenario's when given, keeping the trace: what `ringsync sim` runs.
 #[pyfunction]
 #[pyo3(signature = (text, origin, seed=None))]
-fn simulate(py: Python<'_>, text: String, origin: String, seed: Option<u64>) -> PyResult<SimRun> {
+fn simulate(
+    py: Python<'_>,
+    text: String,
+    origin: String,
+    seed: Option<Bound<'_, PyAny>>,
+) -> PyResult<SimRun> {
+    let seed = seed
+        .map(|s| whole("seed", &s, 0, MAX_SEED, SEED_RANGE))
+        .transpose()?;
     guard(py, move || {
         let loaded = ringsync::parse(&text, &origin)?;
         let mut scenario = loaded.scenario;
@@ -74,27 +95,31 @@ impl SimRun {
 /// predictions from `prediction_seeds` seeds (0: none). Ctrl-C (KeyboardInterrupt) ends the
 /// run early; it is raised when the run has stopped and cleaned up.
 #[pyfunction]
-#[pyo3(signature = (text, origin, prediction_seeds=8, transport="udp", stamps="phy"))]
+#[pyo3(signature = (text, origin, prediction_seeds=None, transport="udp", stamps="phy"))]
 fn rt(
     py: Python<'_>,
     text: String,
     origin: String,
-    prediction_seeds: u64,
+    prediction_seeds: Option<Bound<'_, PyAny>>,
     transport: &str,
     stamps: &str,
 ) -> PyResult<SimRun> {
+    let prediction_seeds = match prediction_seeds {
+        Some(n) => whole("prediction_seeds", &n, 0, MAX_PREDICTION_SEEDS, "")?,
+        None => 8,
+    };
     let transport = match transport {
         "udp" => ringsync::TransportKind::Udp,
         "veth" => ringsync::TransportKind::Veth,
         other => {
-            return Err(PyValueError::new_err(format!(
+            return Err(ScenarioError::new_err(format!(
                 "unknown transport {other:?}: use \"udp\" or \"veth\""
             )));
         }
     };
-    let stamps: ringsync::Stamps = stamps.parse().map_err(PyValueError::new_err)?;
+    let stamps: ringsync::Stamps = stamps.parse().map_err(ScenarioError::new_err)?;
     if stamps == ringsync::Stamps::Kernel {
-        return Err(PyValueError::new_err(
+        return Err(ScenarioError::new_err(
             "stamps 'kernel' are for a ring of node processes (ringsync rt --processes): use phy or software",
         ));
     }
@@ -256,10 +281,18 @@ impl SimRun {
 
     /// Writes the CLI's files into `dir` (replaced as a whole, as `ringsync sim --out`
     /// replaces it): summary.json, trace.csv, the figures, report.html; for a real-time run
-    /// what `ringsync rt --out` writes: summary.json and trace.csv.
+    /// what `ringsync rt --out` writes: summary.json and trace.csv. An empty path is a
+    /// `ScenarioError`.
     fn save(&self, py: Python<'_>, dir: PathBuf) -> PyResult<()> {
+        if dir.as_os_str().is_empty() {
+            return Err(ScenarioError::new_err(
+                "directory = '' is empty: give Run.save the path of a new, empty or earlier results directory, e.g. 'out/run'",
+            ));
+        }
         guard(py, || {
-            let mut out = OutDir::create("save: directory", &dir)?;
+            // Named so that the library's messages read "the save directory DIR is not
+            // empty …: the run replaces the save directory as a whole …".
+            let mut out = OutDir::create("the save directory", &dir)?;
             if let Some((summary, _)) = &self.rt {
                 out.write(
                     "summary.json",
@@ -310,20 +343,33 @@ type Checked<'py> = (
     f64,
 );
 
-/// Checks the scenario `text` as `ringsync check --json` does: (report, text, stable,
-/// loop matrix, T_cyc [s]); the matrix is the one whose eigenvalues give the report's
-/// spectral radius (9 states per axis, see `ringsync_control::stability::discrete_loop`).
+/// Checks the scenario `text` as `ringsync check --json` does, the paper's conditions at
+/// `points` instants (1 ..= [`MAX_POINTS`], default 4001): (report, text, stable, loop
+/// matrix, T_cyc [s]); the matrix is the one whose eigenvalues give the report's spectral
+/// radius (9 states per axis, see `ringsync_control::stability::discrete_loop`).
 #[pyfunction]
-#[pyo3(signature = (text, origin, points=4001))]
+#[pyo3(signature = (text, origin, points=None))]
 fn check<'py>(
     py: Python<'py>,
     text: String,
     origin: String,
-    points: usize,
+    points: Option<Bound<'py, PyAny>>,
 ) -> PyResult<Checked<'py>> {
+    let points = match points {
+        Some(p) => whole(
+            "points",
+            &p,
+            1,
+            MAX_POINTS,
+            " (instants of the motion, as ringsync check --points)",
+        )?,
+        None => 4001,
+    };
+    let points = usize::try_from(points)
+        .map_err(|_| ScenarioError::new_err(format!("points = {points} is too many here")))?;
     let (json, text, stable, matrix, t_cyc) = guard(py, move || {
         let s = ringsync::parse(&text, &origin)?.scenario;
-        let r = ringsync::check(&s, points.max(1))?;
+        let r = ringsync::check(&s, points)?;
         let states = r.discrete.map_or(0, |d| d.states);
         Ok((
             check_json(&r),
@@ -359,17 +405,20 @@ fn plan<'py>(
     json_to_py(py, &json)
 }
 
-/// The paper's Table 1 reproduced on the scenario `text` over `seeds` seeds (the
-/// scenario's, +1, …), as `ringsync reproduce --seeds` runs it: one dict per (seed, plan,
-/// controller), seeds outermost, with `seed`, `plan`, `controller`, `track_rmse`,
-/// `sync_rmse` [rad] and `group_stop` (bool).
+/// The paper's Table 1 reproduced on the scenario `text` over `seeds` seeds (1 ..=
+/// 10 000: the scenario's, +1, …), as `ringsync reproduce --seeds` runs it: one dict per
+/// (seed, plan, controller), seeds outermost, with `seed`, `plan`, `controller`,
+/// `track_rmse`, `sync_rmse` [rad] and `group_stop` (bool).
 #[pyfunction]
 fn reproduce<'py>(
     py: Python<'py>,
     text: String,
     origin: String,
-    seeds: u32,
+    seeds: Bound<'py, PyAny>,
 ) -> PyResult<Vec<Bound<'py, PyDict>>> {
+    let max = ringsync::reproduce::MAX_SEEDS;
+    let seeds = whole("seeds", &seeds, 1, u64::from(max), " (seeds per case)")?;
+    let seeds = u32::try_from(seeds).unwrap_or(max);
     let rows = guard(py, move || {
         let s = ringsync::parse(&text, &origin)?.scenario;
         let opts = ringsync::ReproOptions {

@@ -11,9 +11,38 @@ use ringsync::sweep::{
     Case, CaseResult, Labels, Sweep, SweepAxis, cases, default_jobs, run_cases as run_all,
 };
 
-use crate::convert::{literal, to_toml};
+use crate::convert::{literal, to_toml, whole};
 use crate::guard;
 use crate::scenario::axis;
+
+/// The most seeds per combination of a sweep's values.
+pub(crate) const MAX_SEEDS: u64 = 1_000_000;
+
+/// The most threads a sweep runs on, as the CLI's `--jobs`.
+pub(crate) const MAX_JOBS: u64 = ringsync::sweep::MAX_JOBS as u64;
+
+/// The `seeds` argument checked: a whole number 1 ..= [`MAX_SEEDS`].
+fn seeds_arg(seeds: &Bound<'_, PyAny>) -> PyResult<u32> {
+    let n = whole(
+        "seeds",
+        seeds,
+        1,
+        MAX_SEEDS,
+        " (seeds per combination of the grid's values)",
+    )?;
+    Ok(u32::try_from(n).unwrap_or(u32::MAX))
+}
+
+/// The `jobs` argument checked: a whole number 1 ..= [`MAX_JOBS`], or None for the CPUs.
+fn jobs_arg(jobs: Option<&Bound<'_, PyAny>>) -> PyResult<usize> {
+    match jobs {
+        None => Ok(default_jobs()),
+        Some(j) => {
+            let n = whole("jobs", j, 1, MAX_JOBS, " (threads)")?;
+            Ok(usize::try_from(n).unwrap_or(1))
+        }
+    }
+}
 
 /// For each label of a case, the index of its value in its axis (the first equal one).
 fn indices(labels: &Labels, axes: &[SweepAxis]) -> Vec<usize> {
@@ -79,11 +108,12 @@ fn result_of(d: &Bound<'_, PyDict>) -> PyResult<CaseResult> {
 
 /// The finished sweep as the dict the Python side reads: `rows` (one per run, in the order
 /// of the product, seeds innermost) and `means` (one per combination), each naming its
-/// values by their index in the grid, and `jobs`.
+/// values by their index in the grid, `seeds` and `jobs`.
 fn sweep_dict<'py>(
     py: Python<'py>,
     sw: &Sweep,
     axes: &[SweepAxis],
+    seeds: u32,
     jobs: usize,
 ) -> PyResult<Bound<'py, PyDict>> {
     let rows = PyList::empty(py);
@@ -107,24 +137,27 @@ fn sweep_dict<'py>(
     let out = PyDict::new(py);
     out.set_item("rows", rows)?;
     out.set_item("means", means)?;
+    out.set_item("seeds", seeds)?;
     out.set_item("jobs", jobs)?;
     Ok(out)
 }
 
-/// Sweeps the scenario `text` over `grid` [(dotted key, values)], `seeds` seeds each, on
-/// `jobs` threads (default: the CPUs): see [`sweep_dict`].
+/// Sweeps the scenario `text` over `grid` [(dotted key, values)], `seeds` seeds each
+/// (1 ..= [`MAX_SEEDS`]), on `jobs` threads (1 ..= [`MAX_JOBS`]; default: the CPUs): see
+/// [`sweep_dict`].
 #[pyfunction]
-#[pyo3(signature = (text, origin, grid, seeds=1, jobs=None))]
+#[pyo3(signature = (text, origin, grid, seeds=None, jobs=None))]
 fn sweep<'py>(
     py: Python<'py>,
     text: String,
     origin: String,
     grid: Vec<(String, Vec<Bound<'py, PyAny>>)>,
-    seeds: u32,
-    jobs: Option<usize>,
+    seeds: Option<Bound<'py, PyAny>>,
+    jobs: Option<Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyDict>> {
+    let seeds = seeds.as_ref().map_or(Ok(1), seeds_arg)?;
+    let jobs = jobs_arg(jobs.as_ref())?.max(1);
     let axes = sweep_axes(&grid)?;
-    let jobs = jobs.unwrap_or_else(default_jobs).max(1);
     let axes_run = axes.clone();
     let sw: Sweep = guard(py, move || {
         let base = ringsync::parse(&text, &origin)?;
@@ -132,7 +165,7 @@ fn sweep<'py>(
         let results = run_all(&cs, jobs, &|_, _| {});
         Sweep::new(&base, &axes_run, seeds, cs, results)
     })?;
-    sweep_dict(py, &sw, &axes, jobs)
+    sweep_dict(py, &sw, &axes, seeds, jobs)
 }
 
 /// One case of a sweep as plain data: (the index of each swept value in the grid, the
@@ -143,14 +176,15 @@ type CaseData = (Vec<usize>, u64, String, f64);
 /// innermost): for each, (value indices in the grid, seed, the case as JSON text, its cost
 /// in axis-cycles: cycles × axes, what a run's time grows with).
 #[pyfunction]
-#[pyo3(signature = (text, origin, grid, seeds=1))]
+#[pyo3(signature = (text, origin, grid, seeds=None))]
 fn sweep_cases<'py>(
     py: Python<'py>,
     text: String,
     origin: String,
     grid: Vec<(String, Vec<Bound<'py, PyAny>>)>,
-    seeds: u32,
+    seeds: Option<Bound<'py, PyAny>>,
 ) -> PyResult<Vec<CaseData>> {
+    let seeds = seeds.as_ref().map_or(Ok(1), seeds_arg)?;
     let axes = sweep_axes(&grid)?;
     guard(py, move || {
         let base = ringsync::parse(&text, &origin)?;
@@ -176,12 +210,16 @@ fn sweep_cases<'py>(
 /// of the text (same cases, same results, in any process). One result dict per case, in
 /// order (see [`result_dict`]); the first failed case raises, named.
 #[pyfunction]
-#[pyo3(signature = (cases, jobs=1))]
+#[pyo3(signature = (cases, jobs=None))]
 fn run_cases<'py>(
     py: Python<'py>,
     cases: Vec<String>,
-    jobs: usize,
+    jobs: Option<Bound<'py, PyAny>>,
 ) -> PyResult<Vec<Bound<'py, PyDict>>> {
+    let jobs = match jobs {
+        Some(j) => jobs_arg(Some(&j))?,
+        None => 1,
+    };
     let results = guard(py, move || {
         let cs = cases
             .iter()
@@ -210,16 +248,21 @@ fn run_cases<'py>(
 /// [`sweep_cases`], as [`run_cases`] gives them) into the same dict as [`sweep`]: the rows
 /// and the means over the seeds, computed as the in-process sweep computes them.
 #[pyfunction]
-#[pyo3(signature = (text, origin, grid, seeds, results, jobs=1))]
+#[pyo3(signature = (text, origin, grid, seeds, results, jobs=None))]
 fn sweep_collect<'py>(
     py: Python<'py>,
     text: String,
     origin: String,
     grid: Vec<(String, Vec<Bound<'py, PyAny>>)>,
-    seeds: u32,
+    seeds: Bound<'py, PyAny>,
     results: Vec<Bound<'py, PyDict>>,
-    jobs: usize,
+    jobs: Option<Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyDict>> {
+    let seeds = seeds_arg(&seeds)?;
+    let jobs = match jobs {
+        Some(j) => jobs_arg(Some(&j))?,
+        None => 1,
+    };
     let axes = sweep_axes(&grid)?;
     let results = results
         .iter()
@@ -238,7 +281,7 @@ fn sweep_collect<'py>(
         }
         Sweep::new(&base, &axes_run, seeds, cs, results)
     })?;
-    sweep_dict(py, &sw, &axes, jobs)
+    sweep_dict(py, &sw, &axes, seeds, jobs)
 }
 
 /// Registers the sweep functions.

@@ -149,6 +149,9 @@ fn check_grid(axes: &[SweepAxis], seed_key: bool) -> Result<()> {
     Ok(())
 }
 
+/// The most threads a sweep runs on (one run is single-threaded: more would only wait).
+pub const MAX_JOBS: usize = 4096;
+
 /// The largest seed a scenario holds (TOML integers are signed 64-bit).
 pub const MAX_SEED: u64 = i64::MAX as u64;
 
