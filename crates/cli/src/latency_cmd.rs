@@ -37,7 +37,8 @@ pub(crate) fn latency(args: &LatencyArgs) -> Result<Outcome, CliError> {
         realtime: args.realtime.settings(),
         verbose: true,
     };
-    args.realtime.check(args.cycle)?;
+    // (The probe checks the cycle, --spin and --busy against each other itself.)
+    args.realtime.check_cpu()?;
     // A --json that cannot be written fails now, not after the probe.
     if let Some(path) = &args.json {
         ringsync::output::writable(path)?;

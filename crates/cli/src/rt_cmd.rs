@@ -164,6 +164,11 @@ impl RealtimeArgs {
                 self.spin
             )));
         }
+        self.check_cpu()
+    }
+
+    /// Refuses a `--cpu` this host does not have.
+    pub fn check_cpu(&self) -> Result<(), CliError> {
         if let Some(cpu) = self.cpu {
             let cpus = std::thread::available_parallelism().map_or(1, usize::from);
             if cpu >= cpus {

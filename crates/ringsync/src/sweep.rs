@@ -170,7 +170,7 @@ fn set_in(
 ) -> Result<(), ScenarioError> {
     let bad = |allowed: String| ScenarioError::OutOfRange {
         key: key.to_string(),
-        value: "?".into(),
+        value: clip(&value.to_string(), ECHO_CHARS).into_owned(),
         allowed,
     };
     let Some((p, rest)) = parts.split_first() else {
@@ -808,7 +808,12 @@ mod tests {
         let j: Vec<f64> = second.axis.iter().map(|a| a.j_over_ka).collect();
         assert_eq!(j, [0.0156, 0.02, 0.0158, 0.0164]);
         let e = one(&base().text, "axis[9].j_over_ka=0.02").expect_err("no axis 9");
-        assert!(e.to_string().contains("axis[0] to axis[3]"), "{e}");
+        assert!(
+            e.to_string().starts_with(
+                "axis[9].j_over_ka = 0.02 is out of range: allowed axis[0] to axis[3]"
+            ),
+            "{e}"
+        );
         let e = one(&base().text, "axis[x].j_over_ka=0.02").expect_err("not an index");
         assert!(e.to_string().contains("whole number"), "{e}");
         let e = one(&base().text, "axis.encoder_bits=1").expect_err("range");
