@@ -95,6 +95,12 @@ fn messages_name_the_written_key_in_short_numbers() {
     assert!(e.starts_with("axis[0].rated_torque = NaN "), "{e}");
     let e = err("[[axis]]\n[[axis]]\nj_over_ka = -1\n");
     assert!(e.starts_with("axis[1].j_over_ka = -1 "), "{e}");
+    let e = err("duration = \"0.5ms\"\n");
+    assert!(
+        e.starts_with("duration = ") && e.contains("at least one cycle"),
+        "{e}"
+    );
+    assert!(Scenario::from_toml("duration = \"1ms\"\n", "t").is_ok());
     let e = err("[faults]\nsilent_slave = 1\nsilent_from = \"-1s\"\n");
     assert!(e.starts_with("faults.silent_from = "), "{e}");
     let e = err("[ring]\nslaves = 65535\n");

@@ -144,6 +144,17 @@ impl Scenario {
             }
             other => out_of_range("ring", "?", other.to_string()),
         })?;
+        // A run shorter than a cycle has no cycle: its metrics would be zeros, not results.
+        if self.duration.0 < self.ring.cycle.0 {
+            return Err(out_of_range(
+                "duration",
+                self.duration,
+                format!(
+                    "at least one cycle (ring.cycle = {}) ..= 3600 s",
+                    self.ring.cycle
+                ),
+            ));
+        }
         plan.check_fits_for(self.ring.plan).map_err(|e| match e {
             ringsync_proto::PlanError::CycleTooShort {
                 slaves,
