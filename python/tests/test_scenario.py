@@ -268,3 +268,15 @@ def test_whole_number_arguments_are_checked_and_named() -> None:
                 call(bad)
     assert ringsync.sweep("paper-2015", {}, seeds=1, jobs=np.int8(2), duration="10ms").jobs == 2
     assert len(ringsync.reproduce(seeds=np.int64(1), duration="10ms").rows) == 6
+
+
+def test_a_bad_value_in_a_dict_is_named_by_its_dotted_key() -> None:
+    """The error of a dict's value names the key as the caller would set it."""
+    with pytest.raises(ringsync.ScenarioError, match=r"\(ring\.slaves = \"two\"\)"):
+        ringsync.load({"ring.slaves": "two"})
+    with pytest.raises(ringsync.ScenarioError, match=r"\(axis\[1\]\.u_max = \"x\"\)"):
+        ringsync.load({"axis": [{}, {"u_max": "x"}]})
+    # A partial [trajectory] is the reference cosine with what it gives.
+    s = ringsync.load({"trajectory.period": "3s"})
+    assert s["trajectory.period"] == "3s"
+    assert s["trajectory.peak_speed"] == ringsync.load("paper-2015")["trajectory.peak_speed"]

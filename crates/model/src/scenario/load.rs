@@ -38,6 +38,43 @@ fn line_col(text: &str, at: usize) -> (usize, usize) {
     (line, col)
 }
 
+/// Line `l` (1-based) of `text` as an error echoes it: a `key = value` line inside a table
+/// gets the table's path, so that it reads as the dotted key a user would `--set`
+/// (`ring.slaves = "two"`, `axis[1].u_max = "x"` for the second `[[axis]]` table); headers,
+/// top-level keys and the inner lines of a multi-line value are echoed as they are.
+fn echo_line(text: &str, l: usize) -> String {
+    let lines: Vec<&str> = text.lines().collect();
+    let src = lines.get(l.wrapping_sub(1)).copied().unwrap_or("").trim();
+    let is_key = src.split_once('=').is_some_and(|(k, _)| {
+        let k = k.trim();
+        !k.is_empty()
+            && k.chars()
+                .all(|c| c.is_ascii_alphanumeric() || "_-.\"".contains(c))
+    });
+    if !is_key {
+        return src.to_string();
+    }
+    // The last table header above the line, and for an array of tables its index.
+    let mut path = String::new();
+    let mut counts: std::collections::BTreeMap<String, usize> = Default::default();
+    for line in lines.iter().take(l.saturating_sub(1)) {
+        let t = line.trim();
+        if let Some(name) = t.strip_prefix("[[").and_then(|r| r.split_once("]]")) {
+            let name = name.0.trim().to_string();
+            let k = counts.entry(name.clone()).or_insert(0);
+            path = format!("{name}[{k}]");
+            *k += 1;
+        } else if let Some(name) = t.strip_prefix('[').and_then(|r| r.split_once(']')) {
+            path = name.0.trim().to_string();
+        }
+    }
+    if path.is_empty() {
+        src.to_string()
+    } else {
+        format!("{path}.{src}")
+    }
+}
+
 impl Scenario {
     /// Parses and validates a scenario from TOML text; `origin` names it in errors.
     pub fn from_toml(text: &str, origin: &str) -> Result<Self, ScenarioError> {
@@ -47,8 +84,8 @@ impl Scenario {
             let message = match e.span() {
                 Some(span) => {
                     let (l, c) = line_col(text, span.start);
-                    let src = text.lines().nth(l - 1).unwrap_or("").trim();
-                    format!("line {l}, column {c} ({}): {msg}", clip(src, ECHO_CHARS))
+                    let src = echo_line(text, l);
+                    format!("line {l}, column {c} ({}): {msg}", clip(&src, ECHO_CHARS))
                 }
                 None => msg.into_owned(),
             };

@@ -75,6 +75,24 @@ fn a_partial_trajectory_table_takes_the_reference_cosine() {
     assert!(e.contains("periodd"), "{e}");
 }
 
+/// A syntax or type error echoes its line as the dotted key (`axis[1].u_max = …`).
+#[test]
+fn errors_echo_the_dotted_key() {
+    let e = err("[[axis]]\nu_max = 5\n[[axis]]\nu_max = \"x\"\n");
+    assert!(
+        e.contains("line 4, column 9 (axis[1].u_max = \"x\")"),
+        "{e}"
+    );
+    let e = err("seed = \"x\"\n[ring]\nslaves = 2\n");
+    assert!(e.contains("(seed = \"x\")"), "{e}");
+    let e = err("[ring]\nslavez = 5\n");
+    assert!(e.contains("(ring.slavez = 5)"), "{e}");
+    let e = err(
+        "[trajectory]\nkind = \"sequence\"\ntargets = [\n  [1.0, \"x\"],\n]\nv_max = 1.0\na_max = 1.0\n",
+    );
+    assert!(!e.contains("trajectory.[1.0"), "{e}");
+}
+
 /// Messages name the key the user wrote and keep huge values short.
 #[test]
 fn messages_name_the_written_key_in_short_numbers() {
@@ -317,7 +335,7 @@ fn long_lines_and_values_are_cut_in_errors() {
     assert!(e.chars().count() < 500, "{} chars", e.chars().count());
     assert!(e.contains("…") && e.ends_with("expected u32"), "{e}");
     assert!(
-        e.starts_with("test.toml: line 2, column 10 (slaves = \"aaa"),
+        e.starts_with("test.toml: line 2, column 10 (ring.slaves = \"aaa"),
         "{e}"
     );
     assert_eq!(clip("abcdef", 3), "abc…");
