@@ -280,3 +280,11 @@ def test_a_bad_value_in_a_dict_is_named_by_its_dotted_key() -> None:
     s = ringsync.load({"trajectory.period": "3s"})
     assert s["trajectory.period"] == "3s"
     assert s["trajectory.peak_speed"] == ringsync.load("paper-2015")["trajectory.peak_speed"]
+
+
+def test_an_indexed_key_in_a_dict_says_how_to_set_it() -> None:
+    """``axis[1].u_max`` belongs to ``set`` on a loaded scenario; a dict gives lists whole."""
+    with pytest.raises(ringsync.ScenarioError, match=r"axis\[1\]\.u_max: an indexed key"):
+        ringsync.load({"axis[1].u_max": 5})
+    s = ringsync.load("paper-2015").set("axis[1].u_max", 5)
+    assert s["axis[1].u_max"] == 5

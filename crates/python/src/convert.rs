@@ -181,6 +181,13 @@ pub(crate) fn insert(
             "'{full}' is not a scenario key like ring.slaves"
         )));
     }
+    // `axis[1].u_max` changes one table of a scenario that has them; a dict is a whole
+    // scenario file, where the list is given whole.
+    if let Some((name, _)) = head.split_once('[') {
+        return Err(ScenarioError::new_err(format!(
+            "{full}: an indexed key changes one table of a loaded scenario (ringsync.load(\"paper-2015\").set(\"{full}\", value)); in a dict give the list whole: {{\"{name}\": [{{…}}, {{…}}]}}"
+        )));
+    }
     let not_a_table = || {
         ScenarioError::new_err(format!(
             "{full}: {head} is given both as a value and as a table"
