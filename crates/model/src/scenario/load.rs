@@ -75,10 +75,47 @@ fn echo_line(text: &str, l: usize) -> String {
     }
 }
 
+/// The scenario's tables, each `[name]` once, and its one array of tables, `[[axis]]`.
+const TABLES: &[&str] = &[
+    "ring",
+    "clock",
+    "faults",
+    "control",
+    "trajectory",
+    "plant",
+    "monitor",
+];
+
+/// When `text` is TOML whose sections have the wrong shape (`[[ring]]` for `[ring]`,
+/// `[axis]` for `[[axis]]`), what to write instead: serde's own word for it ("invalid type:
+/// map, expected u32") names neither.
+fn wrong_shape(text: &str) -> Option<String> {
+    let t: toml::Table = toml::from_str(text).ok()?;
+    for name in TABLES {
+        if let Some(toml::Value::Array(_)) = t.get(*name) {
+            return Some(format!(
+                "{name} is one table, written [{name}], not an array of tables [[{name}]]"
+            ));
+        }
+    }
+    match t.get("axis") {
+        Some(toml::Value::Table(_)) => {
+            Some("axis is an array of tables, one per axis, written [[axis]], not [axis]".into())
+        }
+        _ => None,
+    }
+}
+
 impl Scenario {
     /// Parses and validates a scenario from TOML text; `origin` names it in errors.
     pub fn from_toml(text: &str, origin: &str) -> Result<Self, ScenarioError> {
         let s: Scenario = toml::from_str(text).map_err(|e| {
+            if let Some(message) = wrong_shape(text) {
+                return ScenarioError::Syntax {
+                    origin: clip(origin, ECHO_CHARS).into_owned(),
+                    message,
+                };
+            }
             let msg = e.message().trim().replace('\n', " ");
             let msg = clip_middle(&msg, 2 * ECHO_CHARS);
             let message = match e.span() {

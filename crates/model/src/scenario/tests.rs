@@ -93,6 +93,18 @@ fn errors_echo_the_dotted_key() {
     assert!(!e.contains("trajectory.[1.0"), "{e}");
 }
 
+/// A section of the wrong shape says which shape it needs.
+#[test]
+fn sections_of_the_wrong_shape_say_which_they_need() {
+    let e = err("[[ring]]\nslaves = 2\n");
+    assert_eq!(
+        e,
+        "test.toml: ring is one table, written [ring], not an array of tables [[ring]]"
+    );
+    let e = err("[axis]\nu_max = 5\n");
+    assert!(e.contains("written [[axis]], not [axis]"), "{e}");
+}
+
 /// Messages name the key the user wrote and keep huge values short.
 #[test]
 fn messages_name_the_written_key_in_short_numbers() {
