@@ -115,7 +115,10 @@ impl Running {
     /// Waits up to `wait` for a first page (a replay starts when someone watches).
     pub fn wait_for_client(&self, wait: ringsync::Duration, what: &str) {
         if let Some(s) = &self.scope {
-            eprintln!("ringsync {what}: the replay starts when a page connects (up to {wait})");
+            eprintln!(
+                "ringsync {what}: the replay starts when a page connects (up to {} s)",
+                wait.as_ns() as f64 * 1e-9
+            );
             let w = std::time::Duration::from_nanos(u64::try_from(wait.as_ns()).unwrap_or(0));
             if !s.wait_for_client(w) {
                 eprintln!("ringsync {what}: no page connected; replaying anyway");

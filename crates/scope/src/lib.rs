@@ -42,6 +42,9 @@ pub use probe::ScopeObserver;
 pub const MAX_UPDATES_PER_S: u32 = 60;
 /// Most rows per update (a faster replay is thinned to every `stride`-th cycle).
 pub const MAX_ROWS: usize = 64;
+/// Most pages streamed at once; one more is answered 503 rather than each costing the
+/// server memory and a share of its one thread.
+pub const MAX_CLIENTS: usize = 64;
 /// Updates the broadcast channel holds for a slow client before it skips.
 pub const BACKLOG: usize = 16;
 /// Frames a page that connects late gets first: 10 s of updates.

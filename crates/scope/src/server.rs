@@ -17,11 +17,19 @@ use tokio::sync::{broadcast, oneshot};
 
 use crate::frame::{self, Header, NODE_FIELDS};
 use crate::probe::{Event, Feed, Row};
-use crate::{BACKLOG, MAX_ROWS, MAX_UPDATES_PER_S, Shared};
+use crate::{BACKLOG, MAX_CLIENTS, MAX_ROWS, MAX_UPDATES_PER_S, Shared};
 
 /// Send buffer of each client's socket [bytes] (the kernel doubles it): about 0.3 s of a
 /// 1 ms ring of 4 axes.
 const SEND_BUFFER: usize = 16 * 1024;
+
+/// Longest a page's message (or frame) may be [bytes]: the scope reads nothing from a page
+/// but `{"type":"hello"}`, so a client sending more holds no more of the server's memory.
+const MAX_CLIENT_MESSAGE: usize = 4096;
+
+/// How long the server waits, once stopped, for open connections to finish: a client that
+/// never completes its request must not hold the run's end (and its results) hostage.
+const SHUTDOWN_GRACE: Duration = Duration::from_secs(1);
 
 const INDEX: &str = include_str!("../assets/index.html");
 const SCRIPT: &str = include_str!("../assets/scope.js");
@@ -154,16 +162,36 @@ pub(crate) fn run(
                 let _ = tcp.set_nodelay(true);
                 let _ = socket2::SockRef::from(&*tcp).set_send_buffer_size(SEND_BUFFER);
             });
-        let _ = axum::serve(listener, router)
-            .with_graceful_shutdown(async {
-                let _ = stop.await;
-            })
-            .await;
+        let stopping = Arc::new(tokio::sync::Notify::new());
+        let stopped = stopping.clone();
+        let serve = axum::serve(listener, router).with_graceful_shutdown(async move {
+            let _ = stop.await;
+            stopped.notify_one();
+        });
+        // Once stopped, connections get SHUTDOWN_GRACE to finish; then the runtime, dropped,
+        // closes what is left.
+        tokio::select! {
+            _ = async { serve.await } => {}
+            _ = async {
+                stopping.notified().await;
+                tokio::time::sleep(SHUTDOWN_GRACE).await;
+            } => {}
+        }
     });
 }
 
 async fn ws(State(app): State<App>, upgrade: WebSocketUpgrade) -> Response {
-    upgrade.on_upgrade(move |socket| client(socket, app))
+    if app.shared.clients.load(Ordering::SeqCst) >= MAX_CLIENTS {
+        return (
+            axum::http::StatusCode::SERVICE_UNAVAILABLE,
+            format!("the scope streams to at most {MAX_CLIENTS} pages at once\n"),
+        )
+            .into_response();
+    }
+    upgrade
+        .max_message_size(MAX_CLIENT_MESSAGE)
+        .max_frame_size(MAX_CLIENT_MESSAGE)
+        .on_upgrade(move |socket| client(socket, app))
 }
 
 /// One client: the `hello`, then every update it keeps up with; updates it fell behind on

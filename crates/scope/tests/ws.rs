@@ -341,3 +341,81 @@ fn stalled_client_run() -> Option<String> {
     );
     None
 }
+
+/// Hostile clients (a scope audit's findings): a request that never completes does not
+/// hold the run's end (and with it the results) for ever; a page's oversized message is
+/// refused and its connection closed; beyond the pages the scope serves at once, a new one
+/// gets 503 while those connected are served.
+#[test]
+fn hostile_clients_cannot_hold_the_scope() {
+    use futures_util::SinkExt;
+    use std::io::{Read as _, Write as _};
+    let _one = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let mut s = Scenario::default();
+    s.duration.0 = Duration::from_ms(100);
+    let (scope, observer) = Scope::start(
+        "127.0.0.1:0".parse().expect("addr"),
+        &s,
+        Source::Replay { speed: 1.0 },
+    )
+    .expect("the scope starts");
+    let addr = scope.addr();
+    // A request that stops in its headers, left open.
+    let mut slow = std::net::TcpStream::connect(addr).expect("connect");
+    slow.write_all(b"GET / HTTP/1.1\r\nHost: x\r\nX-Slow: a")
+        .expect("write");
+    let rt = runtime();
+    // A page that sends 64 KiB where the scope reads a hello: closed.
+    let closed = rt.block_on(async {
+        let mut ws = connect(addr, None).await;
+        let _ = ws.send(Message::Text("x".repeat(65_536).into())).await;
+        let deadline = tokio::time::Instant::now() + Wall::from_secs(10);
+        loop {
+            match tokio::time::timeout_at(deadline, ws.next()).await {
+                Ok(None | Some(Err(_)) | Some(Ok(Message::Close(_)))) => break true,
+                Ok(Some(Ok(_))) => {}
+                Err(_) => break false,
+            }
+        }
+    });
+    assert!(closed, "an oversized message leaves the connection open");
+    // The pages the scope serves at once, then one more.
+    let pages = rt.block_on(async {
+        let mut v = Vec::new();
+        for _ in 0..ringsync_scope::MAX_CLIENTS {
+            v.push(connect(addr, None).await);
+        }
+        v
+    });
+    let deadline = std::time::Instant::now() + Wall::from_secs(10);
+    while scope.clients() < ringsync_scope::MAX_CLIENTS && std::time::Instant::now() < deadline {
+        std::thread::sleep(Wall::from_millis(10));
+    }
+    let mut extra = std::net::TcpStream::connect(addr).expect("connect");
+    extra
+        .write_all(
+            b"GET /ws HTTP/1.1\r\nHost: x\r\nUpgrade: websocket\r\nConnection: Upgrade\r\nSec-WebSocket-Version: 13\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n\r\n",
+        )
+        .expect("write");
+    let mut answer = [0u8; 12];
+    extra.read_exact(&mut answer).expect("an answer");
+    assert_eq!(
+        &answer,
+        b"HTTP/1.1 503",
+        "{}",
+        String::from_utf8_lossy(&answer)
+    );
+    drop(pages);
+    // The run ends; the stalled request still open, the scope stops within its grace.
+    drop(observer);
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        scope.finish(serde_json::json!({}), Wall::from_millis(200));
+        let _ = tx.send(());
+    });
+    assert!(
+        rx.recv_timeout(Wall::from_secs(60)).is_ok(),
+        "a stalled request held the scope's end"
+    );
+    drop(slow);
+}
