@@ -274,6 +274,10 @@ def laws() -> str:
 
 
 def _looks_like_toml(text: str) -> bool:
+    """Whether ``text`` (no built-in name, no existing file) is TOML rather than a path: a
+    single line ending in ``.toml`` is a path (``runs/alpha=0.5.toml``), even with an ``=``."""
+    if "\n" not in text and text.rstrip().lower().endswith(".toml"):
+        return False
     return "\n" in text or "=" in text or text.lstrip().startswith("[")
 
 
@@ -282,8 +286,9 @@ def load(source: ScenarioLike) -> Scenario:
 
     - a name from :func:`scenarios` (``"paper-2015"``), or a path (``str`` or
       ``pathlib.Path``) to a scenario file;
-    - TOML text (anything with ``=`` or a newline that is not an existing file): every key
-      is optional, the reference scenario fills in the rest;
+    - TOML text (anything with ``=`` or a newline that is not an existing file, except a
+      single line ending in ``.toml``, which is a path): every key is optional, the
+      reference scenario fills in the rest;
     - a dict of dotted keys (``{"control.alpha": 0.3}``) and/or nested tables
       (``{"ring": {"slaves": 2}}``);
     - a :class:`Scenario`, returned as it is.

@@ -266,7 +266,7 @@ def test_whole_number_arguments_are_checked_and_named() -> None:
         for bad in (-1, 2**64, True, 0.5):
             with pytest.raises(ringsync.ScenarioError, match=rf"^{name} = "):
                 call(bad)
-    assert ringsync.sweep("paper-2015", {}, seeds=1, jobs=np.int8(2), duration="10ms").jobs == 2
+    assert ringsync.sweep("paper-2015", {}, seeds=2, jobs=np.int8(2), duration="10ms").jobs == 2
     assert len(ringsync.reproduce(seeds=np.int64(1), duration="10ms").rows) == 6
 
 
@@ -288,3 +288,10 @@ def test_an_indexed_key_in_a_dict_says_how_to_set_it() -> None:
         ringsync.load({"axis[1].u_max": 5})
     s = ringsync.load("paper-2015").set("axis[1].u_max", 5)
     assert s["axis[1].u_max"] == 5
+
+
+def test_a_missing_file_whose_name_holds_an_equals_sign_is_named_as_a_file() -> None:
+    """``runs/alpha=0.5.toml`` is a path even with its ``=``: a missing one says so."""
+    with pytest.raises(ringsync.ScenarioError, match=r"runs/alpha=0\.5\.toml") as e:
+        ringsync.load("runs/alpha=0.5.toml")
+    assert "line 1" not in str(e.value), str(e.value)

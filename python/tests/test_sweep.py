@@ -36,6 +36,9 @@ def test_the_same_on_one_thread_or_many() -> None:
     a = ringsync.sweep("paper-2015", grid, seeds=2, jobs=1, duration="0.3s")
     b = ringsync.sweep("paper-2015", grid, seeds=2, jobs=3, duration="0.3s")
     assert a.rows == b.rows and a.jobs == 1 and b.jobs == 3
+    # The threads used, not those asked for: never more than the runs.
+    c = ringsync.sweep("paper-2015", {}, seeds=2, jobs=8, duration="0.1s")
+    assert c.jobs == 2
 
 
 def test_stops_are_named_and_to_pandas_has_one_row_per_run() -> None:

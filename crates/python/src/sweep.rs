@@ -159,13 +159,15 @@ fn sweep<'py>(
     let jobs = jobs_arg(jobs.as_ref())?.max(1);
     let axes = sweep_axes(&grid)?;
     let axes_run = axes.clone();
-    let sw: Sweep = guard(py, move || {
+    let (sw, runs): (Sweep, usize) = guard(py, move || {
         let base = ringsync::parse(&text, &origin)?;
         let cs: Vec<Case> = cases(&base, &axes_run, seeds, false)?;
+        let runs = cs.len();
         let results = run_all(&cs, jobs, &|_, _| {});
-        Sweep::new(&base, &axes_run, seeds, cs, results)
+        Ok((Sweep::new(&base, &axes_run, seeds, cs, results)?, runs))
     })?;
-    sweep_dict(py, &sw, &axes, seeds, jobs)
+    // The threads used: no more than there are runs.
+    sweep_dict(py, &sw, &axes, seeds, jobs.min(runs.max(1)))
 }
 
 /// One case of a sweep as plain data: (the index of each swept value in the grid, the
