@@ -152,6 +152,27 @@ class Run:
         the run only (the settled clocks), unlike the array :attr:`clock_error_ns`."""
         self._summary: dict[str, Any] | None = None
 
+    def __reduce__(self) -> tuple[Any, tuple[Any, ...]]:
+        """Pickling (and :func:`copy.deepcopy`) of a simulated run keeps its scenario and
+        seed, and unpickling simulates it again: the same numbers to the last bit with the
+        same ringsync version (a warning says when the versions differ). A real-time run
+        (:func:`rt`) cannot be run again: pickling it raises TypeError (save it with
+        :meth:`save`).
+
+        Example::
+
+            >>> import pickle
+            >>> r = ringsync.simulate("paper-2015", duration="0.1s")
+            >>> pickle.loads(pickle.dumps(r)).metrics == r.metrics
+            True
+        """
+        if self.realtime:
+            raise TypeError(
+                "a real-time run cannot be pickled: it cannot be run again to the same "
+                "numbers; keep its files with Run.save(dir)"
+            )
+        return (_simulated_again, (self.scenario, self.seed, _rs.__version__))
+
     @property
     def summary(self) -> dict[str, Any]:
         """The content of the CLI's ``summary.json`` for this run (``ringsync sim
@@ -320,6 +341,19 @@ class Run:
             f"<Run {self.scenario.name!r} seed {self.seed}: {len(self.time)} cycles × {self.axes} axes, "
             f"Track-RMSE {m['track_rmse']:.6f} rad, Sync-RMSE {m['sync_rmse']:.7f} rad{stop}>"
         )
+
+
+def _simulated_again(scenario: Scenario, seed: int, version: str) -> Run:
+    """A pickled :class:`Run`, simulated again from its scenario and seed."""
+    if version != _rs.__version__:
+        import warnings
+
+        warnings.warn(
+            f"this run was pickled by ringsync {version} and is simulated again by "
+            f"{_rs.__version__}: its numbers may differ",
+            stacklevel=2,
+        )
+    return Run(_rs.simulate(scenario.to_toml(), scenario.origin, seed), scenario)
 
 
 def simulate(scenario: ScenarioLike, *, seed: int | None = None, **overrides: Any) -> Run:

@@ -216,3 +216,15 @@ def test_plot_arguments_are_checked() -> None:
     assert sw.plot("seed", ax=ax) is fig and ringsync.plan().plot(ax=ax) is fig
     assert run.plot(fig=plt.figure()) is not None
     plt.close("all")
+
+
+def test_a_run_pickles_by_its_scenario_and_seed() -> None:
+    """A pickled run comes back simulated again: the same arrays and figures to the bit."""
+    import copy
+    import pickle
+
+    r = ringsync.simulate("paper-2015", seed=11, duration="0.2s", **{"control.alpha": 0.3})
+    for back in (pickle.loads(pickle.dumps(r)), copy.deepcopy(r)):
+        assert back.seed == 11 and back.metrics == r.metrics
+        assert back.scenario.to_toml() == r.scenario.to_toml()
+        assert np.array_equal(back.x, r.x) and np.array_equal(back.u, r.u)
