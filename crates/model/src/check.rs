@@ -368,6 +368,11 @@ pub fn robust_term(s: &Scenario, points: usize) -> Result<RobustTerm, CheckError
 mod tests {
     use super::*;
 
+    /// A scenario from TOML text the test knows to be valid.
+    fn valid(text: &str) -> Scenario {
+        Scenario::from_toml(text, "test").expect("valid")
+    }
+
     #[test]
     fn reference_scenario_passes_the_discrete_check() {
         let r = check(&Scenario::default(), 401).expect("check");
@@ -390,7 +395,7 @@ mod tests {
 
     #[test]
     fn an_unstable_scenario_is_flagged() {
-        let s = Scenario::from_toml("[control]\nkd = 159.1\n", "high-kd").expect("valid");
+        let s = valid("[control]\nkd = 159.1\n");
         let r = check(&s, 11).expect("check");
         assert!(!r.discrete.expect("p2p").is_stable());
     }
@@ -399,8 +404,7 @@ mod tests {
     fn a_thin_boundary_layer_with_a_large_robust_gain_is_unstable() {
         // K_N up to Δ_C·‖ẋ^d‖ = 1 × 2 × 15.12 V: inside φ = 0.01 rad/s its slope, 3024
         // V·s/rad on Ė, swamps K_D. Checked with K_N = 0 this was called stable (ρ 0.9986).
-        let s = Scenario::from_toml("[control]\ndelta_c = 1.0\nboundary_layer = 0.01\n", "thin")
-            .expect("valid");
+        let s = valid("[control]\ndelta_c = 1.0\nboundary_layer = 0.01\n");
         let r = check(&s, 4001).expect("check");
         match r.robust {
             RobustTerm::BoundaryLayer { kn_max, phi } => {
@@ -412,7 +416,7 @@ mod tests {
         assert!(r.discrete.expect("p2p").spectral_radius > 1.0);
         assert_eq!(r.verdict(), Verdict::Unstable);
         // A small robust gain in the same layer stays stable, and the reference has none.
-        let s = Scenario::from_toml("[control]\ndelta_c = 1e-4\n", "small").expect("valid");
+        let s = valid("[control]\ndelta_c = 1e-4\n");
         assert_eq!(check(&s, 401).expect("check").verdict(), Verdict::Stable);
         let r = check(&Scenario::default(), 401).expect("check");
         assert_eq!((r.robust, r.verdict()), (RobustTerm::Off, Verdict::Stable));
@@ -420,24 +424,19 @@ mod tests {
 
     #[test]
     fn the_exact_sign_with_a_robust_gain_is_not_vouched_for() {
-        let s = Scenario::from_toml("[control]\ndelta_h = 0.01\nboundary_layer = 0.0\n", "sgn")
-            .expect("valid");
+        let s = valid("[control]\ndelta_h = 0.01\nboundary_layer = 0.0\n");
         let r = check(&s, 401).expect("check");
         assert!(matches!(r.robust, RobustTerm::ExactSign { kn_max } if kn_max > 0.0));
         assert!(r.discrete.expect("p2p").is_stable());
         assert_eq!(r.verdict(), Verdict::NotShown);
         // The exact sign alone, with K_N = 0, is nothing to linearise.
-        let s = Scenario::from_toml("[control]\nboundary_layer = 0.0\n", "k0").expect("valid");
+        let s = valid("[control]\nboundary_layer = 0.0\n");
         assert_eq!(check(&s, 11).expect("check").verdict(), Verdict::Stable);
     }
 
     #[test]
     fn pd_has_no_paper_conditions_and_lumped_only_its_own_discrete_check() {
-        let s = Scenario::from_toml(
-            "[control]\nlaw = \"pd\"\n[ring]\nplan = \"lumped-only\"\n",
-            "x",
-        )
-        .expect("valid");
+        let s = valid("[control]\nlaw = \"pd\"\n[ring]\nplan = \"lumped-only\"\n");
         let r = check(&s, 11).expect("check");
         assert!(r.continuous.is_none() && r.not_modelled.is_none());
         let d = r.discrete.expect("lumped-only loop");
@@ -452,18 +451,10 @@ mod tests {
             assert!((d - w).abs() < 1e-12, "{d} vs {w}");
         }
         // Gains far too high are flagged on this plan too.
-        let hot = Scenario::from_toml(
-            "[control]\nlaw = \"pd\"\nkd = 159.1\n[ring]\nplan = \"lumped-only\"\n",
-            "hot",
-        )
-        .expect("valid");
+        let hot = valid("[control]\nlaw = \"pd\"\nkd = 159.1\n[ring]\nplan = \"lumped-only\"\n");
         assert_eq!(check(&hot, 11).expect("check").verdict(), Verdict::Unstable);
         // The slaves' own observers are not modelled: said, not guessed.
-        let obs = Scenario::from_toml(
-            "[control]\nvelocity = \"observer\"\n[ring]\nplan = \"lumped-only\"\n",
-            "obs",
-        )
-        .expect("valid");
+        let obs = valid("[control]\nvelocity = \"observer\"\n[ring]\nplan = \"lumped-only\"\n");
         let r = check(&obs, 11).expect("check");
         assert!(r.discrete.is_none() && r.state_names.is_empty());
         assert_eq!(r.not_modelled, Some(NotModelled::LumpedOnlyPlan));
@@ -475,7 +466,7 @@ mod tests {
     #[test]
     fn a_sampling_lead_lengthens_every_delay() {
         let base = check(&Scenario::default(), 11).expect("check");
-        let s = Scenario::from_toml("[clock]\nsample_lead = \"300us\"\n", "lead").expect("valid");
+        let s = valid("[clock]\nsample_lead = \"300us\"\n");
         let r = check(&s, 11).expect("check");
         for (a, b) in r.delays.iter().zip(&base.delays) {
             assert!((a - b - 300e-6).abs() < 1e-12, "{a} vs {b}");
@@ -483,11 +474,7 @@ mod tests {
         assert!(r.discrete.is_some());
         // Sixteen slaves: slave 11's command arrives 508.26 µs into the 1 ms cycle, 1.008 ms
         // after a sample taken 500 µs early.
-        let late = Scenario::from_toml(
-            "[ring]\nslaves = 16\n[clock]\nsample_lead = \"500us\"\n",
-            "late",
-        )
-        .expect("valid");
+        let late = valid("[ring]\nslaves = 16\n[clock]\nsample_lead = \"500us\"\n");
         let r = check(&late, 11).expect("check");
         assert!(
             (r.delays[10] - 1008.26e-6).abs() < 1e-12,
@@ -502,11 +489,11 @@ mod tests {
     /// 900 µs against the proposed plan's 877.66 µs from the last command to the next sample.
     #[test]
     fn a_window_spanning_two_commands_is_not_shown() {
-        let s = Scenario::from_toml("[[axis]]\nvelocity_window = \"900us\"\n", "w").expect("valid");
+        let s = valid("[[axis]]\nvelocity_window = \"900us\"\n");
         let r = check(&s, 11).expect("check");
         assert_eq!(r.not_modelled, Some(NotModelled::VelocityWindow));
         assert_eq!(r.verdict(), Verdict::NotShown);
-        let s = Scenario::from_toml("[[axis]]\nvelocity_window = \"800us\"\n", "w").expect("valid");
+        let s = valid("[[axis]]\nvelocity_window = \"800us\"\n");
         assert!(check(&s, 11).expect("check").discrete.is_some());
     }
 
@@ -516,8 +503,7 @@ mod tests {
     #[test]
     fn the_coupled_arm_is_not_shown() {
         let ring = "[ring]\nslaves = 2\n";
-        let arm = Scenario::from_toml(&format!("{ring}[plant]\nkind = \"two-link-arm\"\n"), "arm")
-            .expect("valid");
+        let arm = valid(&format!("{ring}[plant]\nkind = \"two-link-arm\"\n"));
         let r = check(&arm, 11).expect("check");
         assert_eq!(r.not_modelled, Some(NotModelled::CoupledPlant));
         assert!(r.discrete.is_none() && r.continuous.is_none());
@@ -529,7 +515,7 @@ mod tests {
                 .contains("coupled two-link arm")
         );
         assert_eq!(r.delays.len(), 2);
-        let axes = Scenario::from_toml(ring, "axes").expect("valid");
+        let axes = valid(ring);
         let r = check(&axes, 11).expect("check");
         assert!(r.not_modelled.is_none() && r.discrete.is_some() && r.continuous.is_some());
         assert_eq!(r.verdict(), Verdict::Stable);
