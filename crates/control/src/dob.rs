@@ -24,24 +24,24 @@ use crate::identify::weighted_input;
 /// The observer's parameters.
 #[derive(Debug, Clone, PartialEq)]
 pub struct DobParams {
-    /// Bandwidth f_Q of the filter [Hz], > 0.
+    /// Bandwidth f_Q of the filter \[Hz\], > 0.
     pub bandwidth_hz: f64,
     /// Nominal H_n = J/K_a per axis [V·s²/rad], > 0.
     pub h: Vec<f64>,
     /// Nominal C_n = b/K_a per axis [V·s/rad].
     pub c: Vec<f64>,
-    /// Drive range ±u_max per axis [V] (the command is clipped after d̂ is taken off).
+    /// Drive range ±u_max per axis \[V\] (the command is clipped after d̂ is taken off).
     pub u_max: Vec<f64>,
 }
 
 impl DobParams {
-    /// The filter's gain γ for cycle `t_cyc` [s].
+    /// The filter's gain γ for cycle `t_cyc` \[s\].
     pub fn gain(&self, t_cyc: f64) -> f64 {
         1.0 - (-std::f64::consts::TAU * self.bandwidth_hz * t_cyc).exp()
     }
 
     /// The weights of (u_{k−3}, u_{k−2}, u_{k−1}) in Y when every command takes effect
-    /// `delay` [s] after its cycle's sample, 0 ≤ delay ≤ T.
+    /// `delay` \[s\] after its cycle's sample, 0 ≤ delay ≤ T.
     pub fn input_weights(t_cyc: f64, delay: f64) -> [f64; 3] {
         let w = |s: f64| t_cyc * s - s * s.abs() / 2.0;
         [
@@ -118,12 +118,12 @@ impl DisturbanceObserver {
         &self.params
     }
 
-    /// The estimate d̂ of axis `i` [V].
+    /// The estimate d̂ of axis `i` \[V\].
     pub fn estimate(&self, i: usize) -> f64 {
         self.axes[i].d
     }
 
-    /// A sample of axis `i`: position `x` [rad] at `t` [s]. With three samples one cycle
+    /// A sample of axis `i`: position `x` \[rad\] at `t` \[s\]. With three samples one cycle
     /// apart, d̂ moves towards the new d_k; a gap starts the samples afresh.
     pub fn sample(&mut self, i: usize, x: f64, t: f64, t_cyc: f64) {
         let a = &mut self.axes[i];
@@ -145,7 +145,7 @@ impl DisturbanceObserver {
     }
 
     /// Takes d̂ off the law's commands in `out` (clipped again to the drive's range) and
-    /// records them as applied at `apply_time` [s].
+    /// records them as applied at `apply_time` \[s\].
     pub fn compensate(&mut self, out: &mut crate::law::ControlOutput, apply_time: &[f64]) {
         for (i, &at) in apply_time.iter().enumerate().take(self.axes.len()) {
             let raw = out.u_raw[i] - self.axes[i].d;
@@ -154,7 +154,7 @@ impl DisturbanceObserver {
         }
     }
 
-    /// The command `u` [V] axis `i` applies from `at` [s] on (after clipping).
+    /// The command `u` \[V\] axis `i` applies from `at` \[s\] on (after clipping).
     pub fn applied(&mut self, i: usize, at: f64, u: f64) {
         let s = &mut self.axes[i].steps;
         if at.is_finite() && at >= s[3].0 {

@@ -1,20 +1,20 @@
 //! Motion message estimators (eq. 11-13) and the per-axis history of error samples they
 //! read.
 //!
-//! An estimator extrapolates the latest sample e_j[m] of axis j forward by D cycles:
+//! An estimator extrapolates the latest sample e_j\[m\] of axis j forward by D cycles:
 //! `e' = e_j[m] + D·v̂_j`, with v̂_j the change per cycle estimated from the history:
 //!
 //! | kind | v̂ | exact for |
 //! |---|---|---|
 //! | [`Hold`] | 0 | constants |
-//! | [`Linear`] | e[m] − e[m−1] | straight lines |
-//! | [`Paper`] | 13/8·e[m] − 19/8·e[m−1] + 7/8·e[m−2] − 1/8·e[m−3] (eq. 12) | the slope of quadratics |
+//! | [`Linear`] | e\[m\] − e[m−1] | straight lines |
+//! | [`Paper`] | 13/8·e\[m\] − 19/8·e[m−1] + 7/8·e[m−2] − 1/8·e[m−3] (eq. 12) | the slope of quadratics |
 //!
 //! The paper's weights give the exact derivative at t_m of any quadratic in time; for a cubic
 //! c₃·t³ (t in cycles) they are off by −(5/4)·c₃ (tested). The
-//! extrapolation e[m] + D·v̂ is linear in D, so a quadratic's value D cycles ahead is missed
+//! extrapolation e\[m\] + D·v̂ is linear in D, so a quadratic's value D cycles ahead is missed
 //! by c₂·D². Until four samples exist, the paper's estimator uses the exact-for-quadratics
-//! three-point slope (3·e[m] − 4·e[m−1] + e[m−2])/2, then the linear one, then holds.
+//! three-point slope (3·e\[m\] − 4·e[m−1] + e[m−2])/2, then the linear one, then holds.
 //!
 //! **The estimator slot.** A law owns its estimator as a `Box<dyn` [`Estimator`]`>`, so an
 //! estimator may keep state of its own (a Kalman filter, a least-squares fit over a longer
@@ -35,7 +35,7 @@ pub const DEPTH: usize = 4;
 /// One of an axis's two error signals in the history.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Signal {
-    /// The position error e [rad].
+    /// The position error e \[rad\].
     Position,
     /// The velocity error ė [rad/s].
     Velocity,
@@ -69,7 +69,7 @@ pub trait Estimator: Send + std::fmt::Debug {
     /// rad/s per cycle].
     fn slope(&self, history: &ErrorHistory, axis: usize, signal: Signal) -> f64;
 
-    /// e' = e[m] + d·v̂: the newest sample of `signal` of `axis` extrapolated by `d` cycles
+    /// e' = e\[m\] + d·v̂: the newest sample of `signal` of `axis` extrapolated by `d` cycles
     /// (eq. 13).
     #[inline]
     fn estimate(&self, history: &ErrorHistory, axis: usize, signal: Signal, d: f64) -> f64 {
@@ -81,7 +81,7 @@ pub trait Estimator: Send + std::fmt::Debug {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct Hold;
 
-/// Linear extrapolation from the last two samples: v̂ = e[m] − e[m−1].
+/// Linear extrapolation from the last two samples: v̂ = e\[m\] − e[m−1].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct Linear;
 
@@ -99,7 +99,7 @@ impl Hold {
 }
 
 impl Linear {
-    /// v̂ from `h` (newest first) of which `count` are valid: e[m] − e[m−1], 0 with fewer
+    /// v̂ from `h` (newest first) of which `count` are valid: e\[m\] − e[m−1], 0 with fewer
     /// than two samples.
     #[inline]
     pub fn slope_of(h: &[f64; DEPTH], count: usize) -> f64 {
@@ -182,7 +182,7 @@ impl EstimatorKind {
         }
     }
 
-    /// e' = h[0] + d·v̂: the latest sample extrapolated by `d` cycles (eq. 13).
+    /// e' = h\[0\] + d·v̂: the latest sample extrapolated by `d` cycles (eq. 13).
     #[inline]
     pub fn estimate(self, h: &[f64; DEPTH], count: usize, d: f64) -> f64 {
         h[0] + d * self.slope(h, count)
@@ -207,11 +207,11 @@ impl core::str::FromStr for EstimatorKind {
 /// instant of the newest. One sample per cycle is assumed (spacing T_cyc).
 #[derive(Debug, Clone, PartialEq)]
 pub struct ErrorHistory {
-    /// Position errors e [rad], newest first.
+    /// Position errors e \[rad\], newest first.
     pub e: Vec<[f64; DEPTH]>,
     /// Velocity errors ė [rad/s], newest first.
     pub de: Vec<[f64; DEPTH]>,
-    /// Sampling instant of the newest sample [s].
+    /// Sampling instant of the newest sample \[s\].
     pub t: Vec<f64>,
     /// Valid samples per axis (≤ DEPTH).
     pub count: Vec<usize>,
@@ -242,7 +242,7 @@ impl ErrorHistory {
         }
     }
 
-    /// Adds a sample of axis `i` taken at `t` [s].
+    /// Adds a sample of axis `i` taken at `t` \[s\].
     #[inline]
     pub fn push(&mut self, i: usize, e: f64, de: f64, t: f64) -> Result<(), ControlError> {
         if i >= self.axes() {

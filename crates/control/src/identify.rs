@@ -35,18 +35,18 @@ use nalgebra::{Matrix3, Vector3};
 /// What one axis's run gives the identification: one sample per cycle.
 #[derive(Debug, Clone, Copy)]
 pub struct AxisRecord<'a> {
-    /// Cycle start times t_k [s], increasing, evenly spaced by the cycle.
+    /// Cycle start times t_k \[s\], increasing, evenly spaced by the cycle.
     pub t: &'a [f64],
-    /// Position at each cycle start [rad] (quantised here to `resolution`).
+    /// Position at each cycle start \[rad\] (quantised here to `resolution`).
     pub x: &'a [f64],
-    /// Command computed in cycle k [V] (clipped here to ±`u_max`).
+    /// Command computed in cycle k \[V\] (clipped here to ±`u_max`).
     pub u: &'a [f64],
-    /// When cycle k's command took effect [s]; NaN when it never arrived (the previous one
+    /// When cycle k's command took effect \[s\]; NaN when it never arrived (the previous one
     /// is then held).
     pub apply_time: &'a [f64],
     /// Encoder resolution [rad per count], > 0.
     pub resolution: f64,
-    /// Drive range ±u_max [V], > 0.
+    /// Drive range ±u_max \[V\], > 0.
     pub u_max: f64,
 }
 
@@ -66,15 +66,15 @@ pub struct AxisIdentification {
     pub h: Estimate,
     /// C = b/K_a [V·s/rad]: the velocity feed-forward K_C.
     pub c: Estimate,
-    /// F = T_c/K_a [V]: the Coulomb feed-forward K_F.
+    /// F = T_c/K_a \[V\]: the Coulomb feed-forward K_F.
     pub f: Estimate,
     /// Windows used.
     pub windows: usize,
-    /// Half-width of a window T_m [s].
+    /// Half-width of a window T_m \[s\].
     pub half_window: f64,
     /// Least speed a window needed [rad/s].
     pub v_min: f64,
-    /// RMS of the fit's residual, as an equivalent voltage [V] (residual / T_m²).
+    /// RMS of the fit's residual, as an equivalent voltage \[V\] (residual / T_m²).
     pub residual_v: f64,
 }
 
@@ -92,7 +92,7 @@ pub enum IdentifyError {
 /// Fewest windows an identification takes.
 pub const MIN_WINDOWS: usize = 30;
 
-/// The longest half-width of a window T_m tried [s]. The encoder's quantisation weighs on
+/// The longest half-width of a window T_m tried \[s\]. The encoder's quantisation weighs on
 /// the acceleration's integral as 1/T_m², so longer windows fit better as long as enough of
 /// them remain: T_m is halved from this until [`GOOD_WINDOWS`] windows count (down to two
 /// cycles, and then at least [`MIN_WINDOWS`]).

@@ -29,17 +29,17 @@ pub struct Metrics {
 /// Figures of one axis.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct AxisSummary {
-    /// RMS of e [rad].
+    /// RMS of e \[rad\].
     pub rms_e: f64,
-    /// Largest |e| [rad].
+    /// Largest |e| \[rad\].
     pub max_e: f64,
-    /// RMS of ε [rad].
+    /// RMS of ε \[rad\].
     pub rms_eps: f64,
-    /// Largest |ε| [rad].
+    /// Largest |ε| \[rad\].
     pub max_eps: f64,
-    /// RMS of the command [V].
+    /// RMS of the command \[V\].
     pub rms_u: f64,
-    /// Largest |command| [V].
+    /// Largest |command| \[V\].
     pub peak_u: f64,
     /// Cycles in which the command was clipped.
     pub saturations: u64,
@@ -50,9 +50,9 @@ pub struct AxisSummary {
 pub struct Summary {
     /// Samples N.
     pub samples: u64,
-    /// Track-RMSE (eq. 26) [rad].
+    /// Track-RMSE (eq. 26) \[rad\].
     pub track_rmse: f64,
-    /// Sync-RMSE (eq. 27) [rad]; 0 for a single axis.
+    /// Sync-RMSE (eq. 27) \[rad\]; 0 for a single axis.
     pub sync_rmse: f64,
     /// Per axis.
     pub axes: Vec<AxisSummary>,
@@ -75,7 +75,7 @@ impl Metrics {
         }
     }
 
-    /// Adds one cycle: errors e [rad], commands u [V] and their saturation flags.
+    /// Adds one cycle: errors e \[rad\], commands u \[V\] and their saturation flags.
     pub fn push(&mut self, e: &[f64], u: &[f64], saturated: &[bool]) -> Result<(), ControlError> {
         let n = self.sum_e2.len();
         check_len("errors", n, e.len())?;

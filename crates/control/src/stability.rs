@@ -19,7 +19,7 @@
 //! column by column by running the law's own `compute` on unit states, so what is checked is
 //! exactly the code that runs. Velocity feedback is the reported (exact) velocity.
 //!
-//! The lumped-only plan of ref. [3], where each slave runs the law itself on samples of
+//! The lumped-only plan of ref. \[3\], where each slave runs the law itself on samples of
 //! mixed age, has a loop of its own: [`lumped_only_loop`].
 //!
 //! What the discrete-time check assumes of the law: its command is a function of the
@@ -48,7 +48,7 @@ pub struct ContinuousReport {
     pub lambda_min_ke: f64,
     /// Largest ‖α·T·(½Ḣ − C)‖ along the trajectory [V·s/rad].
     pub cond1_bound: f64,
-    /// Time of that largest value [s].
+    /// Time of that largest value \[s\].
     pub cond1_worst_time: f64,
     /// λ_min(K_E) − the largest bound; ≥ 0 when condition 1 holds.
     pub cond1_margin: f64,
@@ -180,8 +180,8 @@ impl DiscreteReport {
 pub const PER_AXIS: usize = 9;
 
 /// The spectral radius of the sampled closed loop of `law` on linear axes `(a, g)`
-/// (ẍ = g·u − a·ẋ, see [`ringsync_plant::AxisModel::linear_part`]), period `t_cyc` [s], and
-/// per-axis sample-to-actuation delays `delays` [s] (0 ≤ delay ≤ T_cyc). All axes sample at
+/// (ẍ = g·u − a·ẋ, see [`ringsync_plant::AxisModel::linear_part`]), period `t_cyc` \[s\], and
+/// per-axis sample-to-actuation delays `delays` \[s\] (0 ≤ delay ≤ T_cyc). All axes sample at
 /// the same instant. Refused ([`ControlError::NotApplicable`]) when the law's estimator is
 /// not linear in the history (see the module's docs). [`discrete_loop`] gives the loop
 /// matrix too.
@@ -198,7 +198,7 @@ pub fn discrete_check(
 /// [`discrete_check`] reports of it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct DiscreteLoop {
-    /// The closed-loop matrix M, z[k+1] = M·z[k] over one cycle T_cyc, `states` × `states`
+    /// The closed-loop matrix M, z[k+1] = M·z\[k\] over one cycle T_cyc, `states` × `states`
     /// ([`PER_AXIS`] states per axis, axis-major; see [`discrete_loop`] for their order).
     pub matrix: DMatrix<f64>,
     /// The spectral radius of [`DiscreteLoop::matrix`] (its Schur eigenvalues) and the
@@ -214,9 +214,9 @@ pub struct DiscreteLoop {
 }
 
 /// The sampled closed loop of [`discrete_check`] (same arguments) with its matrix M:
-/// z[k+1] = M·z[k] over one cycle, 9 states per axis i at `9·i ..`, in this order: x [rad],
-/// ẋ [rad/s], the command still held from the last cycle u[k−1] [V], the three previous
-/// samples of the error e[k−1], e[k−2], e[k−3] [rad], and of its rate ė[k−1], ė[k−2],
+/// z[k+1] = M·z\[k\] over one cycle, 9 states per axis i at `9·i ..`, in this order: x \[rad\],
+/// ẋ [rad/s], the command still held from the last cycle u[k−1] \[V\], the three previous
+/// samples of the error e[k−1], e[k−2], e[k−3] \[rad\], and of its rate ė[k−1], ė[k−2],
 /// ė[k−3] [rad/s] (regulation to x^d = 0: e = −x, ė = −ẋ). The report's spectral radius is
 /// that of this matrix.
 pub fn discrete_loop(
@@ -237,7 +237,7 @@ pub struct Measurement {
     /// The disturbance observer's parameters, if one runs ([`crate::dob`]).
     pub dob: Option<crate::dob::DobParams>,
     /// With [`VelocitySource::Reported`]: over how long before the sample each axis's
-    /// drive measures the velocity it reports [s], the mean (x(t) − x(t − w))/w with the
+    /// drive measures the velocity it reports \[s\], the mean (x(t) − x(t − w))/w with the
     /// command held ([`Discretised::window_velocity`]); empty: the exact velocity at the
     /// sample. A window must end after the command's effect (w ≤ T_cyc − delay).
     pub velocity_window: Vec<f64>,
@@ -281,12 +281,12 @@ fn reported_velocity(
 }
 
 /// [`discrete_loop`] with the controller's measurement `m`. ė as the controller takes it
-/// at each sample: `Reported`, the axis's velocity (−ẋ); `Differenced`, (e[k] − e[k−1])/
-/// T_cyc; `Observer`, the error observer's ė̂ ([`ErrorObserver`](crate::law::ErrorObserver)),
+/// at each sample: `Reported`, the axis's velocity (−ẋ); `Differenced`, (e\[k\] − e[k−1])/
+/// T_cyc; `Observer`, the error observer's ė̂ ([`ErrorObserver`]),
 /// whose estimate (ê, ė̂) of the last sample adds two states per axis after the nine. The ė
 /// history holds the ė the law was given. A disturbance observer ([`crate::dob`]) adds three
-/// more: the commands of two and three cycles back u[k−2], u[k−3] [V] and its estimate
-/// d̂[k−1] [V]; the command is then the law's minus d̂[k].
+/// more: the commands of two and three cycles back u[k−2], u[k−3] \[V\] and its estimate
+/// d̂[k−1] \[V\]; the command is then the law's minus d̂\[k\].
 pub fn discrete_loop_with(
     law: &dyn ControlLaw,
     axes: &[(f64, f64)],

@@ -9,7 +9,7 @@ use crate::error::{ControlError, check};
 /// Desired position, velocity and acceleration at one instant.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct State {
-    /// Position x^d [rad].
+    /// Position x^d \[rad\].
     pub x: f64,
     /// Velocity ẋ^d [rad/s].
     pub v: f64,
@@ -19,20 +19,20 @@ pub struct State {
 
 /// A desired motion of one axis.
 pub trait Trajectory {
-    /// The desired state at time `t` [s]; before the start the initial position at rest.
+    /// The desired state at time `t` \[s\]; before the start the initial position at rest.
     fn at(&self, t: f64) -> State;
-    /// When the motion ends [s] (∞ for a periodic command).
+    /// When the motion ends \[s\] (∞ for a periodic command).
     fn end_time(&self) -> f64;
 }
 
 /// x^d(t) = x0 + A·(1 − cos(2πt/P)): the reference scenario's command.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Cosine {
-    /// Amplitude A [rad].
+    /// Amplitude A \[rad\].
     pub amplitude: f64,
-    /// Period P [s].
+    /// Period P \[s\].
     pub period: f64,
-    /// Initial position x0 [rad].
+    /// Initial position x0 \[rad\].
     pub start: f64,
 }
 
@@ -91,19 +91,19 @@ impl Trajectory for Cosine {
 /// (|distance| < v_max²/a_max) the profile is triangular with peak √(|distance|·a_max).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Trapezoid {
-    /// Start position [rad].
+    /// Start position \[rad\].
     pub start: f64,
-    /// Signed distance [rad].
+    /// Signed distance \[rad\].
     pub distance: f64,
-    /// Start time [s].
+    /// Start time \[s\].
     pub t0: f64,
     /// Acceleration limit a_max [rad/s²].
     pub a_max: f64,
     /// Peak speed reached, ≤ v_max [rad/s].
     pub v_peak: f64,
-    /// Duration of the acceleration (and of the deceleration) phase [s].
+    /// Duration of the acceleration (and of the deceleration) phase \[s\].
     pub t_acc: f64,
-    /// Duration of the cruise phase [s] (0 when triangular).
+    /// Duration of the cruise phase \[s\] (0 when triangular).
     pub t_cruise: f64,
 }
 
@@ -150,7 +150,7 @@ impl Trapezoid {
         self.t_cruise == 0.0
     }
 
-    /// Duration of the whole move [s].
+    /// Duration of the whole move \[s\].
     pub fn duration(&self) -> f64 {
         2.0 * self.t_acc + self.t_cruise
     }
@@ -201,8 +201,8 @@ pub struct Sequence {
 }
 
 impl Sequence {
-    /// Moves from `start` through `targets` (position [rad], dwell after arriving [s]) with
-    /// the same limits, beginning at `t0` [s].
+    /// Moves from `start` through `targets` (position \[rad\], dwell after arriving \[s\]) with
+    /// the same limits, beginning at `t0` \[s\].
     pub fn new(
         start: f64,
         targets: &[(f64, f64)],
@@ -318,7 +318,7 @@ impl GroupTrajectories {
         self.each.is_empty()
     }
 
-    /// Axis `axis`'s desired state at `t` [s].
+    /// Axis `axis`'s desired state at `t` \[s\].
     pub fn at(&self, axis: usize, t: f64) -> State {
         let j = self.first[axis];
         let key = t.to_bits();

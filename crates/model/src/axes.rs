@@ -18,13 +18,13 @@ pub struct ServoAxis {
     pub model: AxisModel,
     /// The encoder.
     pub encoder: Encoder,
-    /// Position [rad].
+    /// Position \[rad\].
     pub x: f64,
     /// Velocity [rad/s].
     pub v: f64,
-    /// True time of the state [ns].
+    /// True time of the state \[ns\].
     pub t: i64,
-    /// Command held [V].
+    /// Command held \[V\].
     pub u: f64,
 }
 
@@ -48,7 +48,7 @@ impl ServoAxis {
             .collect())
     }
 
-    /// Advances the state to true time `t` [ns] with the command held (no-op if `t` is not
+    /// Advances the state to true time `t` \[ns\] with the command held (no-op if `t` is not
     /// later than the state).
     pub fn advance(&mut self, t: i64) {
         if t > self.t {
@@ -75,20 +75,20 @@ pub trait Axes: Send {
     fn is_empty(&self) -> bool {
         self.len() == 0
     }
-    /// Advances axis `i` (and whatever is coupled to it) to true time `t` [ns] with the
+    /// Advances axis `i` (and whatever is coupled to it) to true time `t` \[ns\] with the
     /// commands held (no-op if `t` is not later).
     fn advance(&mut self, i: usize, t: i64);
-    /// Position of axis `i` [rad] at [`Axes::time`].
+    /// Position of axis `i` \[rad\] at [`Axes::time`].
     fn position(&self, i: usize) -> f64;
     /// Velocity of axis `i` [rad/s] at [`Axes::time`].
     fn velocity(&self, i: usize) -> f64;
-    /// The true time axis `i`'s state is at [ns].
+    /// The true time axis `i`'s state is at \[ns\].
     fn time(&self, i: usize) -> i64;
     /// The encoder count of axis `i` now.
     fn counts(&self, i: usize) -> i64;
-    /// The command axis `i`'s drive holds [V].
+    /// The command axis `i`'s drive holds \[V\].
     fn command(&self, i: usize) -> f64;
-    /// Sets the command axis `i`'s drive holds from now on [V].
+    /// Sets the command axis `i`'s drive holds from now on \[V\].
     fn set_command(&mut self, i: usize, u: f64);
 }
 

@@ -36,14 +36,14 @@ pub enum RobustTerm {
     /// Boundary layer φ > 0: inside it the term is K_N/φ·Ė, modelled as an extra derivative
     /// gain K_N,max/φ on Ė.
     BoundaryLayer {
-        /// The largest K_N along the trajectory [V].
+        /// The largest K_N along the trajectory \[V\].
         kn_max: f64,
         /// φ [rad/s].
         phi: f64,
     },
     /// The exact sign with K_N ≠ 0: not linearisable; the loop was checked without it.
     ExactSign {
-        /// The largest K_N along the trajectory [V].
+        /// The largest K_N along the trajectory \[V\].
         kn_max: f64,
     },
 }
@@ -122,19 +122,19 @@ pub struct CheckReport {
     pub estimator: &'static str,
     /// The cycle plan checked.
     pub plan: PlanKind,
-    /// Sample-to-actuation delay of each axis [s]: from the sample (`clock.sample_lead`
+    /// Sample-to-actuation delay of each axis \[s\]: from the sample (`clock.sample_lead`
     /// before the cycle start) to its command's arrival on the proposed plan, to the lumped
     /// frame's pass at its slave on the lumped-only plan.
     pub delays: Vec<f64>,
     /// The discrete-time check; `None` when it does not model the scenario.
     pub discrete: Option<DiscreteReport>,
-    /// The closed-loop matrix M of the discrete-time check (z[k+1] = M·z[k] over one
+    /// The closed-loop matrix M of the discrete-time check (z[k+1] = M·z\[k\] over one
     /// cycle), row-major, `discrete.states` × `discrete.states`: the states of
     /// [`CheckReport::state_names`] per axis, axis-major; `None` with `discrete`.
     pub discrete_matrix: Option<Vec<f64>>,
     /// The names of an axis's states in the matrix, in their order: on the proposed plan
-    /// [`ringsync_control::stability::discrete_loop_with`]'s (x [rad], ẋ [rad/s], u[k−1]
-    /// [V], e[k−1..k−3] [rad], ė[k−1..k−3] [rad/s], then the error observer's ê, ė̂ and the
+    /// [`ringsync_control::stability::discrete_loop_with`]'s (x \[rad\], ẋ [rad/s], u[k−1]
+    /// \[V\], e[k−1..k−3] \[rad\], ė[k−1..k−3] [rad/s], then the error observer's ê, ė̂ and the
     /// disturbance observer's u[k−2], u[k−3], d̂ when they run), on the lumped-only plan
     /// [`ringsync_control::stability::LUMPED_ONLY_STATE_NAMES`]; empty without the matrix.
     pub state_names: Vec<&'static str>,
@@ -173,7 +173,7 @@ pub enum CheckError {
     Control(#[from] ControlError),
 }
 
-/// Delay of each axis's command [s] on the lumped-only plan: from the cycle start (when the
+/// Delay of each axis's command \[s\] on the lumped-only plan: from the cycle start (when the
 /// master sends the frame) to the lumped frame's last bit at the axis's slave, D_ci + the
 /// frame's wire time. The check adds `clock.sample_lead`: the sample comes that much earlier.
 pub fn lumped_only_passes(plan: &CyclePlan) -> Vec<f64> {
@@ -184,7 +184,7 @@ pub fn lumped_only_passes(plan: &CyclePlan) -> Vec<f64> {
         .collect()
 }
 
-/// Delay of each axis's command [s] in the proposed plan: from the cycle start to the last
+/// Delay of each axis's command \[s\] in the proposed plan: from the cycle start to the last
 /// bit of the axis's command at its slave. The check adds `clock.sample_lead`: the sample
 /// comes that much earlier.
 pub fn command_delays(plan: &CyclePlan) -> Vec<f64> {

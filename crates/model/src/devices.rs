@@ -286,7 +286,7 @@ impl Devices {
         news
     }
 
-    /// The true time of slave `i`'s (0-based) next encoder latch [ns].
+    /// The true time of slave `i`'s (0-based) next encoder latch \[ns\].
     pub fn latch_at(&self, i: usize) -> i64 {
         self.osc[i].true_at(self.slaves[i].poll_timeout())
     }
@@ -395,7 +395,7 @@ impl Devices {
         }
     }
 
-    /// Cycle `k` starts at true time `t` [ns]: every axis's true state then, to the recorder
+    /// Cycle `k` starts at true time `t` \[ns\]: every axis's true state then, to the recorder
     /// and the observers. Returns how many axes had already moved past `t` (a driver that
     /// gets to a cycle start late).
     pub fn probe(&mut self, k: i64, t: i64) -> usize {
@@ -431,7 +431,7 @@ impl Devices {
         late
     }
 
-    /// A real-time driver's account of cycle `k`'s start (lateness [ns], whether the host
+    /// A real-time driver's account of cycle `k`'s start (lateness \[ns\], whether the host
     /// stalled), to the observers (not the recorder: the driver keeps its own timing).
     pub fn timing(&mut self, k: i64, lateness_ns: i64, stalled: bool) {
         for o in &mut self.observers {

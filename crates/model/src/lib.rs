@@ -1,11 +1,11 @@
 //! What both drivers of a ring share, the simulator (`ringsync-sim`) and the real-time
 //! runtime (`ringsync-rt`):
 //!
-//! - the [scenario](scenario) (schema, validation) and the ring it builds, a [`Spec`](spec::Spec);
-//! - the one driver kit, [`Devices`](devices::Devices): master, slaves, their oscillators,
-//!   the [axes](axes) and the [recorder](record), with [observers](observer) that watch the
+//! - the [scenario] (schema, validation) and the ring it builds, a [`Spec`];
+//! - the one driver kit, [`Devices`]: master, slaves, their oscillators,
+//!   the [axes] and the [recorder](record), with [observers](observer) that watch the
 //!   run as it goes;
-//! - the master's [motion](motion) application (the control law, supervision, the group
+//! - the master's [motion] application (the control law, supervision, the group
 //!   stop) behind `ringsync-proto`'s `Motion` trait;
 //! - the [results](result) (the trace in columns) and the [sinks](stream) a real-time run
 //!   streams them to, where a ring [broke](locate), the seeded

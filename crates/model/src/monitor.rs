@@ -28,7 +28,7 @@ pub struct MonitorEvent {
     pub kind: MonitorKind,
     /// Raised (true) or cleared (false; only a warning clears, a trip latches).
     pub raised: bool,
-    /// The monitored value then (ε or the following error) [rad].
+    /// The monitored value then (ε or the following error) \[rad\].
     pub value: f64,
 }
 
@@ -68,9 +68,9 @@ impl std::str::FromStr for Reaction {
 /// One monitor's settings (sync error or following error).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Limits {
-    /// Warning limit per axis [rad] (0: no warning).
+    /// Warning limit per axis \[rad\] (0: no warning).
     pub warn: Vec<f64>,
-    /// Trip limit per axis [rad] (0: no trip).
+    /// Trip limit per axis \[rad\] (0: no trip).
     pub trip: Vec<f64>,
     /// How long a limit must be exceeded without a break before it counts.
     pub filter: Duration,
@@ -180,7 +180,7 @@ impl Monitor {
             .is_none_or(|l| !l[0].raised && !l[1].raised)
     }
 
-    /// One law run at `now` [ns] on the following errors `e` [rad] of every axis (all
+    /// One law run at `now` \[ns\] on the following errors `e` \[rad\] of every axis (all
     /// measured): news into `out`, and the first trip whose reaction is the group stop.
     pub fn check(&mut self, now: i64, e: &[f64], out: &mut Vec<MonitorNews>) -> Option<StopReason> {
         let n = e.len().min(self.levels.len());

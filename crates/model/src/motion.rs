@@ -19,7 +19,7 @@ use crate::monitor::{Monitor, MonitorSettings};
 /// The group stop's settings.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StopSettings {
-    /// Following-error limit [rad]: beyond it the group stops, and during the stop an axis
+    /// Following-error limit \[rad\]: beyond it the group stops, and during the stop an axis
     /// this far off its ramp gets torque off.
     pub following_error_limit: f64,
     /// Deceleration of the stop ramp [rad/s²].
@@ -359,7 +359,7 @@ impl Motion for ControlMotion {
 }
 
 /// The law a slave of the lumped-only plan runs (the [`SlaveLaw`] of `ringsync-proto`, ref.
-/// [3]): the control law on what its lumped frame carries, this cycle's samples of the
+/// \[3\]): the control law on what its lumped frame carries, this cycle's samples of the
 /// slaves before it and last cycle's of those after it, each slave evaluating the shared
 /// trajectory itself.
 pub struct SlaveControl {

@@ -14,7 +14,7 @@ use crate::result::RingChange;
 /// you need. Times are true (master) time; axes are 0-based in the calls (1-based in
 /// [`FaultEvent`], as in summary.json).
 pub trait Observer: Send {
-    /// Cycle `k` begins at true time `t` [s]; `axes[i]` is axis i's true state then.
+    /// Cycle `k` begins at true time `t` \[s\]; `axes[i]` is axis i's true state then.
     fn cycle(&mut self, k: i64, t: f64, axes: &[AxisProbe]) {
         let _ = (k, t, axes);
     }
@@ -23,7 +23,7 @@ pub trait Observer: Send {
     fn computed(&mut self, k: i64, record: &CycleRecord) {
         let _ = (k, record);
     }
-    /// Axis `axis`'s drive took the command `u` [V] at true time `t` [s].
+    /// Axis `axis`'s drive took the command `u` \[V\] at true time `t` \[s\].
     fn applied(&mut self, axis: usize, t: f64, u: f64) {
         let _ = (axis, t, u);
     }
@@ -60,7 +60,7 @@ pub trait Observer: Send {
         let _ = (k, views);
     }
     /// A real-time driver's account of cycle `k`'s start: how late the loop started it
-    /// [ns] and whether the host stalled then. The simulator never calls it.
+    /// \[ns\] and whether the host stalled then. The simulator never calls it.
     fn timing(&mut self, k: i64, lateness_ns: i64, stalled: bool) {
         let _ = (k, lateness_ns, stalled);
     }

@@ -10,11 +10,11 @@ use crate::scenario::Scenario;
 /// resolution, where t is true (master) time.
 #[derive(Debug, Clone, Copy)]
 pub struct Oscillator {
-    /// Local reading at true time 0 [ns].
+    /// Local reading at true time 0 \[ns\].
     pub offset: f64,
     /// Local nanoseconds per true nanosecond (1 + drift).
     pub rate: f64,
-    /// Timestamp resolution [ns], at least 1.
+    /// Timestamp resolution \[ns\], at least 1.
     pub res: i64,
 }
 
@@ -34,7 +34,7 @@ impl Oscillator {
             .collect()
     }
 
-    /// The local clock's reading at true time `t` [ns].
+    /// The local clock's reading at true time `t` \[ns\].
     pub fn local(&self, t: i64) -> Instant {
         let l = floor_i64(self.offset + t as f64 * self.rate);
         if self.res == 1 {
@@ -48,7 +48,7 @@ impl Oscillator {
         Instant::from_ns(l - l.rem_euclid(self.res))
     }
 
-    /// The first true time [ns] at which the local clock reads at least `l`, searching up
+    /// The first true time \[ns\] at which the local clock reads at least `l`, searching up
     /// from the estimate ⌈(l − offset)/rate⌉.
     pub fn true_at(&self, l: Instant) -> i64 {
         let t0 = self.estimate(l.as_ns());

@@ -18,13 +18,13 @@ use crate::stream::TraceSink;
 /// One axis at a cycle start, as the driver observes it.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct AxisProbe {
-    /// True position [rad].
+    /// True position \[rad\].
     pub x: f64,
-    /// Desired position [rad].
+    /// Desired position \[rad\].
     pub x_d: f64,
-    /// Slave's synchronised clock minus true time [ns].
+    /// Slave's synchronised clock minus true time \[ns\].
     pub clock_error_ns: f64,
-    /// Command held by the drive [V].
+    /// Command held by the drive \[V\].
     pub u: f64,
     /// Whether the slave reports its command saturated.
     pub saturated: bool,
@@ -162,7 +162,7 @@ pub struct Recorder {
 }
 
 impl Recorder {
-    /// A recorder for `n` axes over `cycles` cycles of `t_cyc` [s]; `trace` keeps the
+    /// A recorder for `n` axes over `cycles` cycles of `t_cyc` \[s\]; `trace` keeps the
     /// trace (reserved for the whole run).
     pub fn new(n: usize, cycles: i64, t_cyc: f64, trace: bool) -> Self {
         let zero = AxisProbe::AT_REST;

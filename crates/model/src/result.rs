@@ -74,9 +74,9 @@ pub struct PassageLog {
     pub frame: FrameRef,
     /// Where.
     pub node: Node,
-    /// First bit in [ns].
+    /// First bit in \[ns\].
     pub rx_start: Instant,
-    /// Last bit in [ns].
+    /// Last bit in \[ns\].
     pub rx_end: Instant,
 }
 
@@ -94,25 +94,25 @@ pub struct Captured {
 /// One row of the trace: one cycle, one axis.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TraceRow {
-    /// Cycle start [s].
+    /// Cycle start \[s\].
     pub t: f64,
     /// Axis, 1-based.
     pub axis: usize,
-    /// Desired position at the cycle start [rad].
+    /// Desired position at the cycle start \[rad\].
     pub x_d: f64,
-    /// True position at the cycle start [rad].
+    /// True position at the cycle start \[rad\].
     pub x: f64,
-    /// e = x_d − x [rad].
+    /// e = x_d − x \[rad\].
     pub e: f64,
-    /// ε [rad].
+    /// ε \[rad\].
     pub eps: f64,
-    /// Command computed in this cycle [V].
+    /// Command computed in this cycle \[V\].
     pub u: f64,
-    /// Sampling instant of the sample the command used [s].
+    /// Sampling instant of the sample the command used \[s\].
     pub sample_time: f64,
-    /// When this cycle's command took effect at the slave [s] (NaN if it never arrived).
+    /// When this cycle's command took effect at the slave \[s\] (NaN if it never arrived).
     pub apply_time: f64,
-    /// Slave clock minus true time at the cycle start [ns].
+    /// Slave clock minus true time at the cycle start \[ns\].
     pub clock_error_ns: f64,
 }
 
@@ -123,21 +123,21 @@ pub struct TraceRow {
 pub struct Trace {
     /// Number of axes n (rows per group).
     pub axes: usize,
-    /// Cycle start of each group [s].
+    /// Cycle start of each group \[s\].
     pub t: Vec<f64>,
-    /// Desired position at the cycle start [rad], group-major (n per group).
+    /// Desired position at the cycle start \[rad\], group-major (n per group).
     pub x_d: Vec<f64>,
-    /// True position at the cycle start [rad].
+    /// True position at the cycle start \[rad\].
     pub x: Vec<f64>,
-    /// ε [rad].
+    /// ε \[rad\].
     pub eps: Vec<f64>,
-    /// Command computed in the cycle [V].
+    /// Command computed in the cycle \[V\].
     pub u: Vec<f64>,
-    /// Sampling instant of the sample the command used [s].
+    /// Sampling instant of the sample the command used \[s\].
     pub sample_time: Vec<f64>,
-    /// When the cycle's command took effect at the slave [s] (NaN if it never arrived).
+    /// When the cycle's command took effect at the slave \[s\] (NaN if it never arrived).
     pub apply_time: Vec<f64>,
-    /// Slave clock minus true time at the cycle start [ns].
+    /// Slave clock minus true time at the cycle start \[ns\].
     pub clock_error_ns: Vec<f64>,
 }
 
@@ -160,13 +160,13 @@ impl Trace {
         }
     }
 
-    /// e = x_d − x of row `r` [rad], computed from the two columns (the same double the
+    /// e = x_d − x of row `r` \[rad\], computed from the two columns (the same double the
     /// recorder computed; not stored: a 600 s run of 4 axes keeps 19 MB less).
     pub fn e(&self, r: usize) -> f64 {
         self.x_d[r] - self.x[r]
     }
 
-    /// The e column [rad] of rows `rows`, into `out` (cleared first).
+    /// The e column \[rad\] of rows `rows`, into `out` (cleared first).
     pub fn e_into(&self, rows: std::ops::Range<usize>, out: &mut Vec<f64>) {
         out.clear();
         out.extend(
@@ -241,7 +241,7 @@ pub struct LinkCounters {
 /// link").
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct RingChange {
-    /// When the master found it (its P2P start) [s].
+    /// When the master found it (its P2P start) \[s\].
     pub t: f64,
     /// The master's cycle then.
     pub k: i64,
@@ -269,16 +269,16 @@ pub struct RunResult {
     pub slaves: Vec<SlaveCounters>,
     /// Link counters.
     pub links: LinkCounters,
-    /// Largest |clock error| over the second half of the run, per slave [ns].
+    /// Largest |clock error| over the second half of the run, per slave \[ns\].
     pub clock_error_max_ns: Vec<f64>,
-    /// RMS clock error over the second half of the run, per slave [ns].
+    /// RMS clock error over the second half of the run, per slave \[ns\].
     pub clock_error_rms_ns: Vec<f64>,
     /// Mean clock error (synchronised minus true time) over the second half of the run,
-    /// per slave [ns]: a clock's bias.
+    /// per slave \[ns\]: a clock's bias.
     pub clock_error_mean_ns: Vec<f64>,
-    /// Watchdog expiries: (slave, true time [s]).
+    /// Watchdog expiries: (slave, true time \[s\]).
     pub watchdog: Vec<(usize, f64)>,
-    /// The group stop, if any: (time [s], reason).
+    /// The group stop, if any: (time \[s\], reason).
     pub group_stop: Option<(f64, StopReason)>,
     /// Every step of the fault reactions, in time order per source.
     pub faults: Vec<FaultEvent>,
@@ -291,7 +291,7 @@ pub struct RunResult {
     /// cleared, in time order.
     pub monitor: Vec<crate::monitor::MonitorEvent>,
     /// The largest |command| the master sent to each axis, and the largest each drive
-    /// applied [V]: a drive applies only what the master sent.
+    /// applied \[V\]: a drive applies only what the master sent.
     pub command_max: (Vec<f64>, Vec<f64>),
     /// The trace (when the driver was asked to keep it).
     pub trace: Trace,

@@ -23,9 +23,9 @@ pub struct ArmParams {
     pub f2: f64,
     /// Torque per volt of each joint's drive, K_a,1 and K_a,2 [N·m/V]: τ_i = K_a,i·sat(u_i).
     pub torque_constant: [f64; 2],
-    /// Command range of each joint's drive, ±u_max,i [V].
+    /// Command range of each joint's drive, ±u_max,i \[V\].
     pub u_max: [f64; 2],
-    /// Largest RK4 step [s].
+    /// Largest RK4 step \[s\].
     pub max_step: f64,
 }
 
@@ -47,7 +47,7 @@ impl Default for ArmParams {
 }
 
 impl ArmParams {
-    /// M(q) [kg·m²], row-major, at joint-2 angle `q2` [rad] (the arm's inertia depends on
+    /// M(q) [kg·m²], row-major, at joint-2 angle `q2` \[rad\] (the arm's inertia depends on
     /// q2 only).
     pub fn mass_matrix(&self, q2: f64) -> [f64; 4] {
         let c = q2.cos();
@@ -174,7 +174,7 @@ impl TwoLinkArm {
     }
 
     /// Joint torques τ = M(q)q̈ + C(q, q̇)q̇ + F·q̇ [N·m] that give the accelerations `qdd`
-    /// [rad/s²] in state (q [rad], q̇ [rad/s]): the inverse of [`TwoLinkArm::acceleration`].
+    /// [rad/s²] in state (q \[rad\], q̇ [rad/s]): the inverse of [`TwoLinkArm::acceleration`].
     pub fn inverse_dynamics(&self, q: [f64; 2], qd: [f64; 2], qdd: [f64; 2]) -> [f64; 2] {
         let m = self.mass_matrix(q[1]);
         let c = self.coriolis_matrix(q[1], qd);
@@ -185,7 +185,7 @@ impl TwoLinkArm {
         ]
     }
 
-    /// Advances both joints together by `dt` [s] with the commands `u` [V] held: each
+    /// Advances both joints together by `dt` \[s\] with the commands `u` \[V\] held: each
     /// clipped to its drive's ±u_max,i and turned into τ_i = K_a,i·sat(u_i), then RK4 in
     /// steps of at most `max_step`.
     pub fn advance_held(&mut self, u: [f64; 2], dt: f64) {
@@ -215,7 +215,7 @@ impl TwoLinkArm {
         }
     }
 
-    /// Kinetic energy ½·q̇ᵀM q̇ [J].
+    /// Kinetic energy ½·q̇ᵀM q̇ \[J\].
     pub fn kinetic_energy(&self) -> f64 {
         let m = self.mass_matrix(self.q[1]);
         let qd = self.qd;

@@ -49,9 +49,9 @@ pub struct TorqueAxis {
     pub torque_constant: f64,
     /// Friction.
     pub friction: Friction,
-    /// Command range ±u_max [V], > 0.
+    /// Command range ±u_max \[V\], > 0.
     pub u_max: f64,
-    /// Largest RK4 step [s] (smooth Coulomb friction only).
+    /// Largest RK4 step \[s\] (smooth Coulomb friction only).
     pub max_step: f64,
 }
 
@@ -224,9 +224,9 @@ fn coulomb_exact_step(x: &mut f64, v: &mut f64, j: f64, b: f64, tc: f64, drive: 
 pub struct VelocityAxis {
     /// Velocity per volt of command k_v [rad/(s·V)], > 0.
     pub gain: f64,
-    /// Time constant of the velocity loop τ_v [s], > 0.
+    /// Time constant of the velocity loop τ_v \[s\], > 0.
     pub time_constant: f64,
-    /// Command range ±u_max [V], > 0.
+    /// Command range ±u_max \[V\], > 0.
     pub u_max: f64,
 }
 
@@ -269,8 +269,8 @@ pub struct Discretised {
 }
 
 impl Discretised {
-    /// Discretises ẍ = g·u − a·ẋ with period `t` [s] and sample-to-actuation delay `delay`
-    /// [s]; `None` unless 0 ≤ delay ≤ t.
+    /// Discretises ẍ = g·u − a·ẋ with period `t` \[s\] and sample-to-actuation delay `delay`
+    /// \[s\]; `None` unless 0 ≤ delay ≤ t.
     pub fn new(a: f64, g: f64, t: f64, delay: f64) -> Option<Self> {
         if !(0.0..=t).contains(&delay) || t.is_nan() || t <= 0.0 {
             return None;
@@ -295,9 +295,9 @@ impl Discretised {
         })
     }
 
-    /// The mean velocity over the window of `w` [s] that ends at a sample, (x(t) −
+    /// The mean velocity over the window of `w` \[s\] that ends at a sample, (x(t) −
     /// x(t − w))/w, of ẍ = g·u − a·ẋ with the command u held over the window: the
-    /// coefficients [c_v, c_u] of v(t) [rad/s] and u [V], so that the mean is c_v·v(t) +
+    /// coefficients [c_v, c_u] of v(t) [rad/s] and u \[V\], so that the mean is c_v·v(t) +
     /// c_u·u (what a drive reports as its velocity from two encoder readings; for a small
     /// window about the velocity w/2 earlier). `None` unless w > 0.
     pub fn window_velocity(a: f64, g: f64, w: f64) -> Option<[f64; 2]> {
@@ -327,7 +327,7 @@ impl AxisModel {
             AxisModel::Velocity(a) => a.step(x, v, u, dt),
         }
     }
-    /// Command range ±u_max [V].
+    /// Command range ±u_max \[V\].
     pub fn u_max(&self) -> f64 {
         match self {
             AxisModel::Torque(a) => a.u_max,

@@ -24,22 +24,22 @@ impl Encoder {
         Ok(Encoder { counts_per_rev })
     }
 
-    /// Angle of one count [rad].
+    /// Angle of one count \[rad\].
     pub fn resolution(&self) -> f64 {
         TAU / f64::from(self.counts_per_rev)
     }
 
-    /// The count for position `x` [rad]: the edges passed, floor(x / resolution).
+    /// The count for position `x` \[rad\]: the edges passed, floor(x / resolution).
     pub fn counts(&self, x: f64) -> i64 {
         (x / self.resolution()).floor() as i64
     }
 
-    /// The position a count stands for [rad].
+    /// The position a count stands for \[rad\].
     pub fn position(&self, counts: i64) -> f64 {
         counts as f64 * self.resolution()
     }
 
-    /// Velocity by encoder difference [rad/s]: counts moved over `dt` [s].
+    /// Velocity by encoder difference [rad/s]: counts moved over `dt` \[s\].
     pub fn velocity(&self, counts_now: i64, counts_before: i64, dt: f64) -> f64 {
         (counts_now - counts_before) as f64 * self.resolution() / dt
     }

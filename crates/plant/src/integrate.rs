@@ -3,7 +3,7 @@
 //!
 //! RK4's global error is O(h⁴): halving the step cuts it by about 16 (tested).
 
-/// Advances `y` (length N) over `dt` [s] by RK4 with steps of at most `max_step` [s], for
+/// Advances `y` (length N) over `dt` \[s\] by RK4 with steps of at most `max_step` \[s\], for
 /// the autonomous system ẏ = f(y) (inputs held). `scratch` holds 5·N values.
 pub fn rk4<F: FnMut(&[f64], &mut [f64])>(
     y: &mut [f64],

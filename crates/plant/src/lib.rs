@@ -27,11 +27,11 @@ pub use error::PlantError;
 pub trait Plant {
     /// Number of axes.
     fn axes(&self) -> usize;
-    /// Position of axis `i` [rad].
+    /// Position of axis `i` \[rad\].
     fn position(&self, i: usize) -> f64;
     /// Velocity of axis `i` [rad/s].
     fn velocity(&self, i: usize) -> f64;
-    /// Advances the state by `dt` [s] with the commands `u` [V] held; `u.len()` must equal
+    /// Advances the state by `dt` \[s\] with the commands `u` \[V\] held; `u.len()` must equal
     /// [`Plant::axes`].
     fn advance(&mut self, u: &[f64], dt: f64) -> Result<(), PlantError>;
 }

@@ -14,7 +14,7 @@ pub const J_OVER_KA: [f64; 4] = [0.0156, 0.0161, 0.0158, 0.0164];
 pub const VISCOUS: [f64; 4] = [1e-5, 2e-5, 4e-5, 8e-5];
 /// Coulomb friction as a fraction of rated torque.
 pub const COULOMB_FRACTION: f64 = 0.02;
-/// Drive range ±u_max [V].
+/// Drive range ±u_max \[V\].
 pub const U_MAX: f64 = 10.0;
 
 /// The four reference axes. With `coulomb` = `None` they have viscous friction only (the

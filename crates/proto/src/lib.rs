@@ -1,4 +1,4 @@
-//! The sans-IO ringsync protocol layer: integer-nanosecond [time](time) and the
+//! The sans-IO ringsync protocol layer: integer-nanosecond [time] and the
 //! [cycle plan](plan) of eq. 1-2, and the sans-IO ring [nodes](node).
 
 pub mod node;

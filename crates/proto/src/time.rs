@@ -6,7 +6,7 @@ use core::ops::{Add, AddAssign, Mul, Neg, Sub, SubAssign};
 
 use serde::Serialize;
 
-/// A signed span of time [ns]. Signed so that a shortfall (negative idle time) or a clock
+/// A signed span of time \[ns\]. Signed so that a shortfall (negative idle time) or a clock
 /// offset is representable.
 #[derive(
     Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Default, Serialize, serde::Deserialize,
@@ -30,11 +30,11 @@ impl Duration {
     pub const fn from_ms(ms: i64) -> Self {
         Duration(ms * 1_000_000)
     }
-    /// Length [ns].
+    /// Length \[ns\].
     pub const fn as_ns(self) -> i64 {
         self.0
     }
-    /// Length [µs], for display.
+    /// Length \[µs\], for display.
     pub fn as_us_f64(self) -> f64 {
         self.0 as f64 / 1_000.0
     }

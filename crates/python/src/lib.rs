@@ -9,11 +9,11 @@
 //!
 //! The functions here take and return plain data (a scenario travels as its TOML text and
 //! origin), so that the Python side can pickle, cache and later hand work to other processes
-//! (Dask) without reaching into Rust objects. The one Rust object is [`SimRun`], a finished
+//! (Dask) without reaching into Rust objects. The one Rust object is `SimRun`, a finished
 //! simulation, which keeps the run for its arrays and for writing the CLI's files.
 //!
 //! Every call that does work releases the GIL (`Python::detach`) and catches a Rust panic,
-//! which becomes `ringsync.RunError` instead of ending the interpreter ([`guard`]).
+//! which becomes `ringsync.RunError` instead of ending the interpreter (`guard`).
 
 use std::panic::{AssertUnwindSafe, catch_unwind};
 

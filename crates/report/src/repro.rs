@@ -12,7 +12,7 @@ use serde_json::{Value, json};
 
 use crate::sim::{esc, per_axis};
 
-/// The paper's Table 1 (rad): (Track-RMSE this paper, ref. [3]; Sync-RMSE this paper, ref. [3]).
+/// The paper's Table 1 (rad): (Track-RMSE this paper, ref. \[3\]; Sync-RMSE this paper, ref. \[3\]).
 pub const PAPER_TABLE_1: [(&str, [f64; 4]); 2] = [
     ("standard PD", [0.23267, 0.25715, 0.0039154, 0.0059015]),
     ("sync controller", [0.18341, 0.20427, 0.0019863, 0.0032035]),
@@ -98,19 +98,19 @@ pub struct ReproRow {
     pub controller: &'static str,
     /// The seeds, in run order (the scenario's seed, +1, …).
     pub seeds: Vec<u64>,
-    /// Track-RMSE of each seed's run [rad] (eq. 26).
+    /// Track-RMSE of each seed's run \[rad\] (eq. 26).
     pub track_rmse: Vec<f64>,
-    /// Sync-RMSE of each seed's run [rad] (eq. 27).
+    /// Sync-RMSE of each seed's run \[rad\] (eq. 27).
     pub sync_rmse: Vec<f64>,
 }
 
 impl ReproRow {
-    /// Track-RMSE over the seeds [rad].
+    /// Track-RMSE over the seeds \[rad\].
     pub fn track(&self) -> Spread {
         Spread::of(&self.track_rmse)
     }
 
-    /// Sync-RMSE over the seeds [rad].
+    /// Sync-RMSE over the seeds \[rad\].
     pub fn sync(&self) -> Spread {
         Spread::of(&self.sync_rmse)
     }
@@ -124,7 +124,7 @@ pub struct Reduction {
     pub plan: &'static str,
     /// `Track-RMSE` or `Sync-RMSE`.
     pub metric: &'static str,
-    /// The paper's reduction [%] (for `lumped-only`, ref. [3]'s, measured on another bench).
+    /// The paper's reduction [%] (for `lumped-only`, ref. \[3\]'s, measured on another bench).
     pub paper: f64,
     /// Ours over the seeds [%].
     pub ours: Spread,
@@ -336,7 +336,7 @@ fn above_below(ours: f64, paper: f64) -> String {
 
 /// `summary.json` of `reproduce`: one object per (plan, controller) with the means
 /// (`track_rmse`, `sync_rmse`), standard deviations, ranges, the seeds and each seed's
-/// values [rad].
+/// values \[rad\].
 pub fn repro_json(rows: &[ReproRow]) -> Value {
     Value::Array(
         rows.iter()

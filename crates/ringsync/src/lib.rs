@@ -15,7 +15,7 @@
 //! | simulate (deterministic) | [`simulate`], [`simulate_with`] (observers, progress) | [`RunResult`] |
 //! | sweep keys over seeds | [`sweep::cases`], [`run_case`], [`sweep::run_cases`], [`sweep::aggregate`] | [`sweep::Case`], [`sweep::CaseResult`], [`sweep::Mean`] |
 //! | identify the axes of a run (H, C, F) | [`identify::identify_run`], [`identify::identified_toml`] | [`identify::Identification`] |
-//! | reproduce the paper's Table 1 over seeds | [`reproduce`], [`reproduce_with`] | [`Reproduction`] |
+//! | reproduce the paper's Table 1 over seeds | [`reproduce()`], [`reproduce_with`] | [`Reproduction`] |
 //! | run in real time | [`run_rt`] (stop flag, observers), [`predict`], [`predict_rt`] | [`RtResult`], [`SimPrediction`], [`RtPrediction`] |
 //! | write results atomically | [`OutDir`], [`write_sim`], [`sweep::write_sweep`], [`write_reproduction`], [`rt::write_rt`] | files |
 //!

@@ -1,5 +1,5 @@
 //! Reproducing the paper's Table 1: standard PD, the sync controller and the ring-coupled
-//! baseline on the proposed plan (P2P + lumped) and on the lumped-only plan of ref. [3],
+//! baseline on the proposed plan (P2P + lumped) and on the lumped-only plan of ref. \[3\],
 //! each over several seeds (means, spreads and ranges beside the paper's single
 //! measurement, and a verdict), the runs in parallel.
 

@@ -202,9 +202,9 @@ pub struct RtPrediction {
     /// run and `measured` the clocks' biases account for. `None` when the simulator could
     /// not run it, or no clock was off by a nanosecond.
     pub clock_biased: Option<SimPrediction>,
-    /// The link L the measured ring's hops took [ns].
+    /// The link L the measured ring's hops took \[ns\].
     pub link_ns: i64,
-    /// The residence its slaves took [ns].
+    /// The residence its slaves took \[ns\].
     pub residence_ns: i64,
 }
 
@@ -240,7 +240,7 @@ pub fn predict_rt(r: &RtResult, seeds: u64) -> Result<RtPrediction> {
 /// ring as measured.
 pub const CLOCK_BIAS_ASSUMPTION: &str = "the ring as measured, each slave's clock off by the mean error the run's clock had over its second half (its path delay taken that much too long); the clocks' wander about that mean is not modelled";
 
-/// `spec` with slave i's clock off by `bias_ns[i]` [ns] (synchronised minus true time, as
+/// `spec` with slave i's clock off by `bias_ns[i]` \[ns\] (synchronised minus true time, as
 /// [`RunResult::clock_error_mean_ns`](ringsync_model::result::RunResult) has it): its path
 /// delay taken that much too long, so that every sync sets its clock that far ahead.
 pub fn with_clock_bias(spec: &ringsync_model::Spec, bias_ns: &[f64]) -> ringsync_model::Spec {

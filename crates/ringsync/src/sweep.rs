@@ -261,9 +261,9 @@ impl Case {
 /// What a case gives: the metrics (eq. 26-27) and the counters a sweep compares.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct CaseResult {
-    /// Track-RMSE [rad].
+    /// Track-RMSE \[rad\].
     pub track_rmse: f64,
-    /// Sync-RMSE [rad].
+    /// Sync-RMSE \[rad\].
     pub sync_rmse: f64,
     /// Lumped frames the master lost.
     pub lumped_lost: u64,
@@ -271,16 +271,16 @@ pub struct CaseResult {
     pub retries: u64,
     /// Commands never acknowledged in their cycle.
     pub commands_lost: u64,
-    /// Largest slave clock error over the second half of the run [ns].
+    /// Largest slave clock error over the second half of the run \[ns\].
     pub clock_error_max_ns: f64,
-    /// When the group stopped [s], if it did.
+    /// When the group stopped \[s\], if it did.
     pub group_stop_s: Option<f64>,
     /// Why the group stopped, if it did: the name `summary.json` gives it
     /// (`faults.group_stop.reason`: `following-error`, `axis-fault`, `no-response`,
     /// `no-feedback`, `command-mismatch`); see [`stop_reason`].
     #[serde(default)]
     pub group_stop_reason: Option<String>,
-    /// Largest |command| over the run and the axes [V] (the effort a law spends).
+    /// Largest |command| over the run and the axes \[V\] (the effort a law spends).
     #[serde(default)]
     pub peak_u: f64,
 }
@@ -488,13 +488,13 @@ pub struct Mean {
     pub labels: Labels,
     /// Cases (seeds) in the mean.
     pub runs: usize,
-    /// Mean Track-RMSE [rad].
+    /// Mean Track-RMSE \[rad\].
     pub track_rmse: f64,
-    /// Mean Sync-RMSE [rad].
+    /// Mean Sync-RMSE \[rad\].
     pub sync_rmse: f64,
-    /// Standard deviation of Sync-RMSE over the seeds (population) [rad].
+    /// Standard deviation of Sync-RMSE over the seeds (population) \[rad\].
     pub sync_rmse_std: f64,
-    /// Mean over the seeds of the peak |command| [V].
+    /// Mean over the seeds of the peak |command| \[V\].
     pub peak_u: f64,
 }
 

@@ -25,7 +25,7 @@ use crate::sys::now_ns;
 use crate::timing::STALL;
 use crate::transport::{MAX_PDU, Port};
 
-/// What the start-up phase measured [ns].
+/// What the start-up phase measured \[ns\].
 #[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct Calibration {
     /// Probes sent.

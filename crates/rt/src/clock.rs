@@ -44,7 +44,7 @@ impl Clock {
         }
     }
 
-    /// A clock whose time 0 is the monotonic clock's reading `t0` [ns] (an epoch shared by
+    /// A clock whose time 0 is the monotonic clock's reading `t0` \[ns\] (an epoch shared by
     /// the processes of a ring on one host).
     pub fn starting_at(t0: i64) -> Clock {
         Clock {
@@ -55,7 +55,7 @@ impl Clock {
         }
     }
 
-    /// `CLOCK_MONOTONIC` at time 0 [ns].
+    /// `CLOCK_MONOTONIC` at time 0 \[ns\].
     pub fn t0(&self) -> i64 {
         self.t0
     }
@@ -68,7 +68,7 @@ impl Clock {
         t
     }
 
-    /// A kernel receive stamp (`CLOCK_REALTIME` [ns], read with `SO_TIMESTAMPNS`) as a time of
+    /// A kernel receive stamp (`CLOCK_REALTIME` \[ns\], read with `SO_TIMESTAMPNS`) as a time of
     /// this clock [ns from time 0].
     pub fn from_realtime(&self, stamp: i64) -> i64 {
         stamp.saturating_sub(self.realtime).saturating_sub(self.t0)
@@ -94,14 +94,14 @@ impl Clock {
         t
     }
 
-    /// Sleeps until time `t` [ns] (an absolute deadline: no drift accumulates); returns the
+    /// Sleeps until time `t` \[ns\] (an absolute deadline: no drift accumulates); returns the
     /// time it woke.
     pub fn sleep_until(&mut self, t: i64) -> i64 {
         sys::sleep_until(self.t0 + t);
         self.woke(t)
     }
 
-    /// Waits until one of `fds` is readable or time `t` [ns] comes; returns the time it
+    /// Waits until one of `fds` is readable or time `t` \[ns\] comes; returns the time it
     /// returned. A wait that a frame ended early is no stall; one that returned after `t`
     /// is late by the overrun.
     pub fn wait_readable_until(&mut self, fds: &mut [libc::pollfd], t: i64) -> io::Result<i64> {
@@ -110,7 +110,7 @@ impl Clock {
         Ok(self.woke(t))
     }
 
-    /// Busy-waits until time `t` [ns], reading the clock; returns the first reading at or
+    /// Busy-waits until time `t` \[ns\], reading the clock; returns the first reading at or
     /// after `t`.
     pub fn spin_until(&mut self, t: i64) -> i64 {
         loop {
@@ -126,7 +126,7 @@ impl Clock {
         self.stall = self.stall.max(ns);
     }
 
-    /// The longest stall since the last call [ns]; starts a new measure.
+    /// The longest stall since the last call \[ns\]; starts a new measure.
     pub fn take_stall(&mut self) -> i64 {
         std::mem::take(&mut self.stall)
     }

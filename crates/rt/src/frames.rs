@@ -4,7 +4,7 @@
 //!
 //! **In the node.** [`CapturingPort`] wraps the node's port: every frame sent at the run's
 //! time 0 or later goes, with its send instant on the run's clock, to a bounded queue into
-//! a writer thread at the normal priority ([`FrameFile`]). The loop never waits on the
+//! a writer thread at the normal priority ([`FrameWriter`]). The loop never waits on the
 //! queue: a frame that does not fit (a disk that stalls for seconds) is dropped and counted,
 //! as the in-process runtime's capture does.
 //!

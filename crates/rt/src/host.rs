@@ -50,7 +50,7 @@ impl Default for HostOptions {
     }
 }
 
-/// Stall thresholds counted in [`HostLatency::over`] [ns].
+/// Stall thresholds counted in [`HostLatency::over`] \[ns\].
 pub const THRESHOLDS: [i64; 6] = [50_000, 100_000, 200_000, 500_000, 1_000_000, 5_000_000];
 
 /// What the host gave.
@@ -58,13 +58,13 @@ pub const THRESHOLDS: [i64; 6] = [50_000, 100_000, 200_000, 500_000, 1_000_000, 
 pub struct HostLatency {
     /// Cycles probed.
     pub cycles: u64,
-    /// Lateness of each cycle's start [ns].
+    /// Lateness of each cycle's start \[ns\].
     pub lateness: Percentiles,
-    /// The longest stall of each cycle [ns].
+    /// The longest stall of each cycle \[ns\].
     pub stalls: Percentiles,
     /// Cycles with a stall of [`STALL`] or more.
     pub cycles_stalled: u64,
-    /// Cycles whose stall reached each of [`THRESHOLDS`]: (threshold [ns], cycles).
+    /// Cycles whose stall reached each of [`THRESHOLDS`]: (threshold \[ns\], cycles).
     pub over: Vec<(i64, u64)>,
     /// The longest run of consecutive cycles with a stall of [`STALL`] or more.
     pub longest_stalled_run: u64,

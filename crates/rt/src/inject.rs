@@ -170,11 +170,11 @@ pub struct InjectorPlan {
     pub forgeries: Vec<Forgery>,
     /// Slaves n.
     pub slaves: usize,
-    /// Cycle time [ns].
+    /// Cycle time \[ns\].
     pub t_cyc: i64,
     /// Seed of the injector's draws.
     pub seed: u64,
-    /// CLOCK_MONOTONIC at the run's true time 0 [ns] (0 until the run starts).
+    /// CLOCK_MONOTONIC at the run's true time 0 \[ns\] (0 until the run starts).
     pub t0: Arc<AtomicI64>,
     /// Inject only while the run goes, from time 0 for this long, then stop (a ring of node
     /// processes: its start-up phase and its tail are not the run's); `None`: from now
@@ -360,7 +360,7 @@ fn forged(f: Forgery, rng: &mut Rng, cycle: i64, t_cyc: i64, n: usize) -> Vec<(u
 /// Takes the link out of node `flap.from` down at `flap.at` from the run's start and up
 /// again `flap.down_for` later (veth: the receiving end, switched in process with two
 /// system calls each way, so the flap lasts what it was asked to within microseconds);
-/// returns how long it was down [ns], from before the call that took it down to after the
+/// returns how long it was down \[ns\], from before the call that took it down to after the
 /// call that brought it up (`None` when the run ended first), or why it could not switch
 /// the link. The thread enters the link's namespace and stays there.
 pub fn spawn_flap(
@@ -374,7 +374,7 @@ pub fn spawn_flap(
 
 /// A broken link (`faults.break_link`, `--break-link`) on a veth ring: link `b.link` (from
 /// node `b.link` − 1) goes down at `b.at` and, if it heals, up again at `b.heal`; returns
-/// How long a flap's link was down [ns], once its thread (`flapper`, [`spawn_flap`]) has
+/// How long a flap's link was down \[ns\], once its thread (`flapper`, [`spawn_flap`]) has
 /// ended; a flap that could not happen is said as a warning (whether or not the run is
 /// verbose: the run lacks the fault it was asked for).
 pub fn flap_down_ns(flapper: Option<JoinHandle<Result<Option<i64>, String>>>) -> Option<i64> {

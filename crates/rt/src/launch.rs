@@ -442,14 +442,14 @@ fn udp_links(n: usize) -> Result<Vec<NodeLink>, RtError> {
         .collect())
 }
 
-/// The host's `CLOCK_MONOTONIC` now [ns]: the clock a plan's epoch is on.
+/// The host's `CLOCK_MONOTONIC` now \[ns\]: the clock a plan's epoch is on.
 pub fn monotonic_now_ns() -> i64 {
     sys::now_ns()
 }
 
-/// How long the master's start-up phase takes on a cycle of `t_cyc` [ns] with `opts`'
+/// How long the master's start-up phase takes on a cycle of `t_cyc` \[ns\] with `opts`'
 /// probes (each [`crate::node::PROBE_INTERVAL`] apart, or a cycle when shorter, and a
-/// margin) [ns].
+/// margin) \[ns\].
 pub fn start_up_ns(opts: &RtOptions, t_cyc: i64) -> i64 {
     let probes = opts.calibration_rounds.max(2) as i64;
     probes * t_cyc.min(crate::node::PROBE_INTERVAL.as_ns()) + START_UP_MARGIN
@@ -705,7 +705,7 @@ impl LiveCycle {
 /// `t_cyc` ns) once every node has told its start and its view (the master's desired
 /// positions, each slave's own axis) and the master its lateness, then that timing and the
 /// nodes' views; the other events as they come.
-/// A cycle some node has not told is handed over once another node is [`LIVE_LAG`] cycles
+/// A cycle some node has not told is handed over once another node is `LIVE_LAG` cycles
 /// on, with that node's last axis state and view. Returns the observers when the lines end.
 pub fn live_merge(
     lines: &std::sync::mpsc::Receiver<(usize, String)>,

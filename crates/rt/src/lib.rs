@@ -3,7 +3,7 @@
 //! UDP on loopback, and raw Ethernet (EtherType 0x88B5) on a ring of veth pairs between
 //! network namespaces. The slaves' axes are simulated in real time. See `docs/runtime.md`.
 //!
-//! The rooms: [`run`] (options, results, the steps of a run), [`transport`] (ports and
+//! The rooms: [`run`](mod@run) (options, results, the steps of a run), [`transport`] (ports and
 //! [`TransportKind::open`]), [`calibrate`], [`schedule`], [`ring`] (the loop), [`timing`],
 //! [`clock`] (the clock and wait discipline the loop shares with [`host`], the probe behind
 //! `ringsync latency`), [`inject`] (faults), [`realtime`] (CPU, priority, memory), [`netns`];

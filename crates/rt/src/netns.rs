@@ -106,7 +106,7 @@ impl VethRing {
     /// is pulled and plugged in again: the receiving end, (namespace, interface). Its node's
     /// socket sees the link go, as a NIC reports a lost carrier, and a veth pair whose one
     /// end is down carries nothing either way; one end, where two would double the time
-    /// the switch takes. Switch it with [`crate::sys::set_interface_up`] from a thread in
+    /// the switch takes. Switch it with `sys::set_interface_up` from a thread in
     /// that namespace.
     pub fn link_end(&self, from: usize) -> (String, String) {
         let to = (from + 1) % self.nodes;

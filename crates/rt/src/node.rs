@@ -88,21 +88,21 @@ pub struct NodePlan {
     pub scenario: String,
     /// Where it came from (for messages).
     pub origin: String,
-    /// The runtime's overrides of the scenario [ns]: duration, cycle, sampling lead.
+    /// The runtime's overrides of the scenario \[ns\]: duration, cycle, sampling lead.
     pub duration_ns: Option<i64>,
-    /// Cycle time override [ns].
+    /// Cycle time override \[ns\].
     pub cycle_ns: Option<i64>,
     /// W override.
     pub watchdog_cycles: Option<u32>,
-    /// Sampling lead override [ns].
+    /// Sampling lead override \[ns\].
     pub sample_lead_ns: Option<i64>,
-    /// How long the master waits for a response beyond its slice [ns].
+    /// How long the master waits for a response beyond its slice \[ns\].
     pub response_timeout_ns: i64,
     /// Delay probes of the start-up phase.
     pub probes: usize,
-    /// `CLOCK_MONOTONIC` at the run's time 0 [ns] (one host's clock).
+    /// `CLOCK_MONOTONIC` at the run's time 0 \[ns\] (one host's clock).
     pub epoch_ns: i64,
-    /// The master starts its probes this long before time 0 [ns].
+    /// The master starts its probes this long before time 0 \[ns\].
     pub start_up_ns: i64,
     /// SCHED_FIFO priority of every node's loop (0: the normal scheduler). Equal: on one
     /// shared CPU the master's busy-wait before its cycle start then holds the CPU, and the
@@ -110,7 +110,7 @@ pub struct NodePlan {
     /// its own instant however late it runs); slaves one above the master made it send
     /// 40 µs late in the median (docs/runtime.md).
     pub priority: i32,
-    /// The master's busy-wait before its deadlines [ns] (the slaves sleep).
+    /// The master's busy-wait before its deadlines \[ns\] (the slaves sleep).
     pub spin_ns: i64,
     /// Lock memory.
     pub lock_memory: bool,
@@ -161,12 +161,12 @@ pub enum Live {
         /// The node's view.
         view: NodeView,
     },
-    /// (The master) how late its loop started cycle `k` [ns], and whether the host
+    /// (The master) how late its loop started cycle `k` \[ns\], and whether the host
     /// stalled it then.
     Timing {
         /// Cycle index.
         k: i64,
-        /// Lateness [ns].
+        /// Lateness \[ns\].
         lateness_ns: i64,
         /// A host stall.
         stalled: bool,
@@ -290,10 +290,10 @@ impl NodePlan {
     }
 }
 
-/// What a node saw, with the true time it happened [ns].
+/// What a node saw, with the true time it happened \[ns\].
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Tapped {
-    /// True time [ns].
+    /// True time \[ns\].
     pub t: i64,
     /// What.
     pub ev: Tap,
@@ -322,9 +322,9 @@ pub enum Tap {
     Applied {
         /// Axis (0-based).
         axis: usize,
-        /// When [s].
+        /// When \[s\].
         t: f64,
-        /// The command [V].
+        /// The command \[V\].
         u: f64,
     },
     /// A step of a fault reaction.
@@ -350,14 +350,14 @@ pub struct NodeRecord {
     pub calibration: Option<Calibration>,
     /// The master's schedule on the measured ring.
     pub schedule: Option<Schedule>,
-    /// The path delay the slave took [ns].
+    /// The path delay the slave took \[ns\].
     pub path_delay_ns: Option<i64>,
-    /// Behind transparent relays: the slave's path delay when the run ended [ns] (it
+    /// Behind transparent relays: the slave's path delay when the run ended \[ns\] (it
     /// follows the master's estimate of the links).
     #[serde(default)]
     pub path_delay_end_ns: Option<i64>,
     /// Behind transparent relays: the master's last estimate of one link from its frames'
-    /// round trips [ns], and how many estimates it made.
+    /// round trips \[ns\], and how many estimates it made.
     #[serde(default)]
     pub link_in_run: Option<(i64, u64)>,
     /// Frames the slave refused in its start-up phase.
@@ -366,7 +366,7 @@ pub struct NodeRecord {
     pub timing: Option<Timing>,
     /// Real-time settings applied (or not).
     pub realtime: Vec<String>,
-    /// Frames the node read, and when it last read one [s].
+    /// Frames the node read, and when it last read one \[s\].
     pub frames_read: u64,
     /// When it last read one [s, true time].
     pub last_read_s: Option<f64>,
@@ -380,7 +380,7 @@ pub struct NodeRecord {
     /// Receive errors (a link gone down: its direction is read again [`RX_RETRY`] later).
     #[serde(default)]
     pub receive_errors: u64,
-    /// The clock window a slave ran with [ns].
+    /// The clock window a slave ran with \[ns\].
     #[serde(default)]
     pub clock_window_ns: Option<i64>,
     /// Frames it kept for the capture.
@@ -404,7 +404,7 @@ pub struct NodeRecord {
     #[serde(default)]
     pub live_dropped: u64,
     /// Sync lumped frames whose stamp this node moved on by the time it held them
-    /// (transparent relays, kernel stamps: [`Relay`]).
+    /// (transparent relays, kernel stamps: `Relay`).
     #[serde(default)]
     pub relay_corrected: u64,
     /// Frames it relayed without looking into them (backward on a broken ring) that failed

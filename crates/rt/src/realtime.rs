@@ -119,7 +119,7 @@ impl Realtime {
 // ---------------------------------------------------------------------------------------
 // Memory.
 
-/// How much a run's memory may grow after its settings are applied [bytes]: a finite
+/// How much a run's memory may grow after its settings are applied \[bytes\]: a finite
 /// `RLIMIT_MEMLOCK` must leave this much beyond what is mapped then, or memory is not
 /// locked. With `MCL_FUTURE`, an allocation past the limit fails and aborts the process;
 /// a run that keeps its trace in memory grows about 0.23 MB per second of run at 1 ms with
@@ -128,8 +128,8 @@ impl Realtime {
 pub const MEMORY_HEADROOM: u64 = 1 << 30;
 
 /// Whether memory may be locked: `Ok` when the process is privileged (`CAP_IPC_LOCK`), the
-/// limit is unlimited (`None`), or the limit [bytes] leaves [`MEMORY_HEADROOM`] beyond
-/// `mapped` [bytes]; otherwise the warning line, naming the limit found.
+/// limit is unlimited (`None`), or the limit \[bytes\] leaves [`MEMORY_HEADROOM`] beyond
+/// `mapped` \[bytes\]; otherwise the warning line, naming the limit found.
 pub fn memory_lock_allowed(
     limit: Option<u64>,
     privileged: bool,

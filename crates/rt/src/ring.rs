@@ -39,7 +39,7 @@ use crate::transport::{MAX_PDU, Port};
 /// (measured: docs/runtime.md).
 const SPIN_OTHER: i64 = 20_000;
 
-/// After a receive error (a link went down) a port is read again this much later [ns]: a
+/// After a receive error (a link went down) a port is read again this much later \[ns\]: a
 /// link flap costs the cycles it lasts, not the run.
 pub const RX_RETRY: i64 = 1_000_000;
 

@@ -3,9 +3,9 @@
 //!
 //! A run has four steps, each in its own module: open the transport
 //! ([`TransportKind::open`]); measure the ring ([`calibrate`](crate::calibrate)); set the
-//! master's schedule from the measurements ([`schedule`](crate::schedule)); run the nodes on
+//! master's schedule from the measurements ([`schedule`]); run the nodes on
 //! the real-time loop ([`ring`](crate::ring)), a warm-up first, with faults injected from
-//! threads of their own ([`inject`](crate::inject)). The timing is accounted by
+//! threads of their own ([`inject`]). The timing is accounted by
 //! [`timing`](crate::timing) on the [`clock`](crate::clock) that `ringsync latency` uses.
 
 use std::io;
@@ -217,11 +217,11 @@ pub struct RtResult {
     /// Frames injected onto the ring, per kind.
     pub injected: Injection,
     /// Per node (index 0 the master, i slave i): frames read from its port, and when it
-    /// last read one [s]: the nodes' "last seen" counters.
+    /// last read one \[s\]: the nodes' "last seen" counters.
     pub nodes_rx: Vec<(u64, Option<f64>)>,
     /// The run was interrupted (Ctrl-C) before its end.
     pub interrupted: bool,
-    /// The slave taken out, and when [s].
+    /// The slave taken out, and when \[s\].
     pub killed: Option<(usize, f64)>,
     /// Cycles the master started from the slave's removal to the group stop.
     pub detection_cycles: Option<i64>,
@@ -237,11 +237,11 @@ pub struct RtResult {
 /// commands, and what the slaves made of it (`ringsync_proto::node::link`).
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct LinksInRun {
-    /// The master's last estimate of one link [ns]; `None` if it made none.
+    /// The master's last estimate of one link \[ns\]; `None` if it made none.
     pub link_ns: Option<i64>,
     /// Estimates the master made.
     pub estimates: u64,
-    /// Each slave's path delay when the run ended [ns] (`None`: no record).
+    /// Each slave's path delay when the run ended \[ns\] (`None`: no record).
     pub path_delay_end_ns: Vec<Option<i64>>,
     /// Links in commands the slaves refused, all slaves together.
     pub refused: u64,
@@ -371,7 +371,7 @@ pub fn run_observed(
 }
 
 /// [`run_observed`], streaming the trace and the capture to `sinks` (the result's trace
-/// and captured frames are then empty; [`RtResult::dropped`] counts what the sinks could
+/// and captured frames are then empty; [`Streamed::trace_rows_dropped`] and [`Streamed::frames_dropped`] count what the sinks could
 /// not take).
 pub fn run_streamed(
     scenario: &Scenario,

@@ -21,7 +21,7 @@ pub const RT_TIMESTAMP_TOLERANCE: Duration = Duration::from_us(200);
 /// measures again when its master says so).
 pub const DOES_NOT_FIT: &str = "the measured ring needs";
 
-/// The master's P2P schedule on the measured ring [ns].
+/// The master's P2P schedule on the measured ring \[ns\].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct Schedule {
     /// P2P start: after the lumped frame's measured round trip (twice its p99, + 20 µs),
@@ -228,8 +228,8 @@ pub fn measured_ring(ran: &Spec, cal: &Calibration) -> Spec {
     spec
 }
 
-/// The first-bit path of the whole ring of `n` slaves, `link` [ns] a hop and `residence`
-/// a slave: (n + 1)·L + n·r [ns].
+/// The first-bit path of the whole ring of `n` slaves, `link` \[ns\] a hop and `residence`
+/// a slave: (n + 1)·L + n·r \[ns\].
 pub fn ring_path_ns(link: i64, residence: Option<Duration>, n: usize) -> i64 {
     let n = n as i64;
     (n + 1) * link + n * residence.map_or(0, |r| r.as_ns())

@@ -4,18 +4,18 @@
 
 use hdrhistogram::Histogram;
 
-/// Percentiles of a sample of durations [ns] (nearest rank).
+/// Percentiles of a sample of durations \[ns\] (nearest rank).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 pub struct Percentiles {
     /// Number of values.
     pub count: usize,
-    /// Median [ns].
+    /// Median \[ns\].
     pub p50: i64,
-    /// 99th percentile [ns].
+    /// 99th percentile \[ns\].
     pub p99: i64,
-    /// 99.9th percentile [ns].
+    /// 99.9th percentile \[ns\].
     pub p999: i64,
-    /// Largest [ns].
+    /// Largest \[ns\].
     pub max: i64,
 }
 
@@ -45,7 +45,7 @@ impl Percentiles {
 /// as this (their exact maximum is kept).
 const DELAYS_MAX_NS: u64 = 60_000_000_000;
 
-/// A run's delays [ns] as a histogram (HdrHistogram, 3 significant digits: exact below
+/// A run's delays \[ns\] as a histogram (HdrHistogram, 3 significant digits: exact below
 /// 2.048 µs, within 0.1 % above), allocated once: recording never allocates, so a run of
 /// any length takes the same memory. The count and the maximum are exact.
 #[derive(Debug, Clone)]
@@ -66,7 +66,7 @@ impl Default for Delays {
 }
 
 impl Delays {
-    /// Records one delay [ns] (a negative one as 0).
+    /// Records one delay \[ns\] (a negative one as 0).
     pub fn record(&mut self, ns: i64) {
         let v = ns.max(0);
         self.max = if self.hist.is_empty() {

@@ -7,7 +7,7 @@ use ringsync_proto::node::MasterCounters;
 use crate::stats::{Delays, Percentiles};
 
 /// A stall this long or longer is the host holding the loop off its CPU (a pass of the
-/// loop takes a few µs; measured in docs/runtime.md) [ns].
+/// loop takes a few µs; measured in docs/runtime.md) \[ns\].
 pub const STALL: i64 = 50_000;
 
 /// The ring's timing over the run.
@@ -46,7 +46,7 @@ pub struct Timing {
     /// Frames a transparent relay passed on untouched: relayed unread and failing their
     /// checks, or lumped frames whose stamp would have overflowed.
     pub relay_uncorrected: u64,
-    /// How long the flapped link was down [ns] (veth): from before the call that took it
+    /// How long the flapped link was down \[ns\] (veth): from before the call that took it
     /// down to after the call that brought it up (microseconds more than asked).
     pub flap_down_ns: Option<i64>,
     /// Cycle starts whose true axis states were read after the axis had moved on.
@@ -54,7 +54,7 @@ pub struct Timing {
     /// Encoder latches taken after their axis had moved past their instant (0 by design:
     /// latches are taken before any frame moves the axis on).
     pub latches_late: u64,
-    /// The longest stall of each cycle [ns]: the longest gap between two of the loop's
+    /// The longest stall of each cycle \[ns\]: the longest gap between two of the loop's
     /// clock readings beyond what it asked of a sleep, or the cycle's late start. The loop
     /// reads the clock at every frame and timer, so a gap of [`STALL`] or more is the host
     /// holding it off its CPU.
@@ -63,7 +63,7 @@ pub struct Timing {
     pub cycles_stalled: u64,
     /// Overruns in cycles with a stall of [`STALL`] or more.
     pub overruns_stalled: u64,
-    /// The longest run of consecutive overruns [cycles]: the longest the axes went without
+    /// The longest run of consecutive overruns \[cycles\]: the longest the axes went without
     /// fresh feedback or a command (the master stops the group at W).
     pub longest_outage: u64,
 }

@@ -14,7 +14,7 @@ use crate::netns::VethRing;
 use crate::run::RtError;
 use crate::sys;
 
-/// Largest PDU the runtime handles [bytes] (an Ethernet payload).
+/// Largest PDU the runtime handles \[bytes\] (an Ethernet payload).
 pub const MAX_PDU: usize = 1500;
 
 /// One node's attachment to the ring: it sends to the next node and receives from the

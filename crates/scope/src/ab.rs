@@ -33,7 +33,7 @@ impl Default for Lateness {
 }
 
 impl Lateness {
-    /// Adds one lateness [ns] (negative: early, counted as 0).
+    /// Adds one lateness \[ns\] (negative: early, counted as 0).
     pub fn add(&mut self, ns: i64) {
         let ns = ns.max(0);
         let fine_end = FINE_NS * FINE_BINS as i64;
@@ -51,7 +51,7 @@ impl Lateness {
         self.total
     }
 
-    /// The q-quantile (0 ≤ q ≤ 1) [µs]: the middle of the bin it falls in (within 25 ns up
+    /// The q-quantile (0 ≤ q ≤ 1) \[µs\]: the middle of the bin it falls in (within 25 ns up
     /// to 50 µs, 0.5 µs up to 10 ms; 10 ms for anything later). `None` when empty.
     pub fn quantile(&self, q: f64) -> Option<f64> {
         if self.total == 0 {

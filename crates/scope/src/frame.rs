@@ -19,7 +19,7 @@
 
 /// The frame's magic number.
 pub const MAGIC: u32 = 0x5043_5352;
-/// Header length [bytes].
+/// Header length \[bytes\].
 pub const HEADER_LEN: usize = 32;
 /// Counters per node in the node block: frames, rejected, retries, outages, state.
 pub const NODE_FIELDS: usize = 5;

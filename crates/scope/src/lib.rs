@@ -6,7 +6,7 @@
 //!
 //! Three parts, so that nothing the scope does can hold up the ring:
 //!
-//! 1. the [`ScopeObserver`](probe::ScopeObserver) runs in the ring's driver (the real-time
+//! 1. the [`ScopeObserver`] runs in the ring's driver (the real-time
 //!    loop) and hands one fixed-size row per cycle to a bounded channel with `try_send`:
 //!    a full channel drops the row and counts it, the loop never waits;
 //! 2. a pump task drains the channel at most 60 times a second, keeps at most

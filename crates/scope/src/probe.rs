@@ -21,9 +21,9 @@ use crate::frame::NODE_FIELDS;
 
 /// Most axes the scope shows (the first ones of a larger ring).
 pub const MAX_AXES: usize = 16;
-/// Columns per axis: e [rad], ε [rad], x^d [rad], u [V], clock error [ns], status bits.
+/// Columns per axis: e \[rad\], ε \[rad\], x^d \[rad\], u \[V\], clock error \[ns\], status bits.
 pub const PER_AXIS: usize = 6;
-/// Columns before the axes: t [s], cycle-start lateness [µs] (NaN when unknown: sim).
+/// Columns before the axes: t \[s\], cycle-start lateness \[µs\] (NaN when unknown: sim).
 pub const LEAD: usize = 2;
 /// Most columns of a row.
 pub const MAX_COLUMNS: usize = LEAD + PER_AXIS * MAX_AXES;
@@ -128,7 +128,7 @@ pub struct ScopeObserver {
 impl ScopeObserver {
     /// An observer of a ring of `n` axes (the first [`MAX_AXES`] shown) holding `capacity`
     /// rows, and the feed that drains it. With `pace`, cycle k is handed over no earlier
-    /// than t_k / `pace` [s] after the first (a replay of the simulator at `pace`× real
+    /// than t_k / `pace` \[s\] after the first (a replay of the simulator at `pace`× real
     /// speed); without, never waits.
     pub fn new(n: usize, capacity: usize, pace: Option<f64>) -> (Self, Feed) {
         let (rows, rrx) = sync_channel(capacity.max(1));

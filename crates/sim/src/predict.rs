@@ -13,11 +13,11 @@ use crate::run::{RunError, RunOptions, simulate};
 pub struct SimPrediction {
     /// Seeds run: the scenario's seed and the next ones.
     pub seeds: u64,
-    /// Mean Track-RMSE [rad].
+    /// Mean Track-RMSE \[rad\].
     pub track_rmse: f64,
-    /// Mean Sync-RMSE [rad].
+    /// Mean Sync-RMSE \[rad\].
     pub sync_rmse: f64,
-    /// Smallest and largest Sync-RMSE over the seeds [rad].
+    /// Smallest and largest Sync-RMSE over the seeds \[rad\].
     pub sync_rmse_range: (f64, f64),
 }
 

@@ -21,17 +21,17 @@ pub mod field {
     /// Target slave address, u16 (1..=65535; 0 is the master and is rejected).
     pub const TARGET: Field = 0..2;
     /// The master's running estimate of one link's delay behind transparent relays, u16
-    /// [ns]; 0: none (docs/wire.md).
+    /// \[ns\]; 0: none (docs/wire.md).
     pub const LINK: Field = 2..4;
-    /// Command, f32 [V], finite.
+    /// Command, f32 \[V\], finite.
     pub const COMMAND: Field = 4..8;
     /// Sampling instant of the feedback the command was computed from, u64 [ns, master clock].
     pub const SAMPLE_TIME: Field = 8..16;
 }
 
-/// Payload length of a command frame [B].
+/// Payload length of a command frame \[B\].
 pub const COMMAND_PAYLOAD_LEN: usize = field::SAMPLE_TIME.end;
-/// Length of a command PDU, header to CRC [B].
+/// Length of a command PDU, header to CRC \[B\].
 pub const COMMAND_PDU_LEN: usize = HEADER_LEN + COMMAND_PAYLOAD_LEN + CRC_LEN;
 
 /// Owned representation of a command frame.
@@ -41,11 +41,11 @@ pub struct CommandRepr {
     pub common: Common,
     /// Target slave address (1-based).
     pub target: u16,
-    /// Command for the drive [V]; finite.
+    /// Command for the drive \[V\]; finite.
     pub command_v: f32,
     /// Sampling instant of the feedback the command was computed from [ns, master clock].
     pub sample_time_ns: u64,
-    /// The master's running estimate of one link's delay [ns] when the relays are
+    /// The master's running estimate of one link's delay \[ns\] when the relays are
     /// transparent (a slave behind them takes its address times this as its path delay);
     /// 0: none.
     pub link_ns: u16,
@@ -76,7 +76,7 @@ impl CommandRepr {
         })
     }
 
-    /// Length of the emitted PDU [B].
+    /// Length of the emitted PDU \[B\].
     pub const fn buffer_len(&self) -> usize {
         COMMAND_PDU_LEN
     }
@@ -124,8 +124,8 @@ view! {
 
 fields!(CommandPayload {
     target, set_target: u16 = field::TARGET, "Target slave address (1..=65535 when valid; 0 is the master's).";
-    link_ns, set_link_ns: u16 = field::LINK, "The master's estimate of one link's delay behind transparent relays [ns]; 0: none.";
-    command_v, set_command_v: f32 = field::COMMAND, "Command for the drive [V] (raw: may be non-finite before `check`).";
+    link_ns, set_link_ns: u16 = field::LINK, "The master's estimate of one link's delay behind transparent relays \\[ns\\]; 0: none.";
+    command_v, set_command_v: f32 = field::COMMAND, "Command for the drive \\[V\\] (raw: may be non-finite before `check`).";
     sample_time_ns, set_sample_time_ns: u64 = field::SAMPLE_TIME, "Sampling instant of the feedback the command was computed from [ns, master clock].";
 });
 

@@ -12,9 +12,9 @@ pub enum Error {
     Truncated {
         /// What was being read.
         what: &'static str,
-        /// Bytes needed [B].
+        /// Bytes needed \[B\].
         needed: usize,
-        /// Bytes available [B].
+        /// Bytes available \[B\].
         got: usize,
     },
     /// The protocol version byte is not [`crate::VERSION`].
@@ -36,9 +36,9 @@ pub enum Error {
     PayloadLength {
         /// Kind of the frame.
         kind: FrameKind,
-        /// Payload length the kind requires [B].
+        /// Payload length the kind requires \[B\].
         expected: usize,
-        /// Payload length in the header [B].
+        /// Payload length in the header \[B\].
         got: usize,
     },
     /// The CRC-32 at the end of the PDU does not match its contents.
@@ -77,11 +77,11 @@ pub enum Error {
     BadMarker(u8),
     /// A delay slot's marker other than 0, 1 or 2.
     BadDelayMarker(u8),
-    /// The output buffer is shorter than [`buffer_len`](crate::Pdu::buffer_len) [B].
+    /// The output buffer is shorter than [`buffer_len`](crate::Pdu::buffer_len) \[B\].
     BufferTooSmall {
-        /// Bytes needed [B].
+        /// Bytes needed \[B\].
         needed: usize,
-        /// Bytes available [B].
+        /// Bytes available \[B\].
         got: usize,
     },
     /// The EtherType of an Ethernet II frame is not [`crate::ETHERTYPE`].

@@ -26,21 +26,21 @@ pub mod field {
 
 /// EtherType of ringsync frames (IEEE 802 local experimental EtherType 1).
 pub const ETHERTYPE: u16 = 0x88B5;
-/// Preamble plus start-of-frame delimiter [B].
+/// Preamble plus start-of-frame delimiter \[B\].
 pub const PREAMBLE_SFD_LEN: usize = 8;
-/// MAC header: destination, source, EtherType [B].
+/// MAC header: destination, source, EtherType \[B\].
 pub const ETH_HEADER_LEN: usize = field::PAYLOAD.start;
-/// Frame check sequence [B].
+/// Frame check sequence \[B\].
 pub const FCS_LEN: usize = 4;
-/// Minimum frame length, MAC header to FCS [B].
+/// Minimum frame length, MAC header to FCS \[B\].
 pub const MIN_FRAME_LEN: usize = 64;
-/// Inter-frame gap [B] (96 bit times).
+/// Inter-frame gap \[B\] (96 bit times).
 pub const IFG_LEN: usize = 12;
-/// Largest payload of a standard Ethernet II frame (MTU) [B].
+/// Largest payload of a standard Ethernet II frame (MTU) \[B\].
 pub const MTU: usize = 1500;
 
 /// Frame length, MAC header to FCS, of a frame whose payload is `payload_len` bytes
-/// (padding to the 64-byte minimum included) [B].
+/// (padding to the 64-byte minimum included) \[B\].
 pub const fn frame_len(payload_len: usize) -> usize {
     let raw = ETH_HEADER_LEN + payload_len + FCS_LEN;
     if raw < MIN_FRAME_LEN {
@@ -50,7 +50,7 @@ pub const fn frame_len(payload_len: usize) -> usize {
     }
 }
 
-/// Bytes on the wire for one frame: preamble + SFD + frame, excluding the gap [B].
+/// Bytes on the wire for one frame: preamble + SFD + frame, excluding the gap \[B\].
 pub const fn wire_len(payload_len: usize) -> usize {
     PREAMBLE_SFD_LEN + frame_len(payload_len)
 }

@@ -38,7 +38,7 @@ pub mod field {
     pub const CYCLE: Field = 4..8;
     /// Sequence number of the sender, u16 (wraps).
     pub const SEQ: Field = 8..10;
-    /// Payload length L, u16 [B].
+    /// Payload length L, u16 \[B\].
     pub const LENGTH: Field = 10..12;
     /// The payload starts here; its length is the header's L.
     pub const PAYLOAD: Rest = 12..;
@@ -57,9 +57,9 @@ pub mod field {
 
 /// Protocol version this crate reads and writes.
 pub const VERSION: u8 = 1;
-/// Length of the common header [B].
+/// Length of the common header \[B\].
 pub const HEADER_LEN: usize = field::PAYLOAD.start;
-/// Length of the CRC-32 trailer [B].
+/// Length of the CRC-32 trailer \[B\].
 pub const CRC_LEN: usize = 4;
 
 /// The kind of a PDU (header byte 1).
@@ -71,7 +71,7 @@ pub enum FrameKind {
     Command = 2,
     /// Response frame, one slave → master.
     Response = 3,
-    /// Lumped frame of the lumped-only plan of ref. [3]: feedback plus desired states and
+    /// Lumped frame of the lumped-only plan of ref. \[3\]: feedback plus desired states and
     /// commands (docs/system.md, "The lumped-only plan").
     LumpedOnly = 4,
     /// Delay frame of the start-up phase: a probe round the ring in which every slave
@@ -295,7 +295,7 @@ fields!(Frame {
     kind_byte: u8 = field::KIND, "Raw kind byte (1 lumped, 2 command, 3 response, 4 lumped-only, 5 delay); [`Frame::kind`] decodes it.";
     flags_byte: u8 = field::FLAGS, "Raw flags byte, reserved bits included; [`Frame::flags`] decodes it.";
     retry, set_retry: u8 = field::RETRY, "Retry count: 0 for the first attempt, k for the k-th retry.";
-    cycle, set_cycle: u32 = field::CYCLE, "Cycle counter of the sender (wraps) [cycles].";
+    cycle, set_cycle: u32 = field::CYCLE, "Cycle counter of the sender (wraps) \\[cycles\\].";
     seq, set_seq: u16 = field::SEQ, "Sequence number of the sender (wraps), one per PDU sent.";
 });
 
@@ -423,11 +423,11 @@ impl<T: AsRef<[u8]>> Frame<T> {
         }
     }
 
-    /// Payload length L the header declares [B].
+    /// Payload length L the header declares \[B\].
     pub fn payload_len(&self) -> usize {
         usize::from(get::<u16>(self.buffer.as_ref(), field::LENGTH))
     }
-    /// Length of the PDU, header to CRC [B].
+    /// Length of the PDU, header to CRC \[B\].
     pub fn pdu_len(&self) -> usize {
         HEADER_LEN + self.payload_len() + CRC_LEN
     }
@@ -493,7 +493,7 @@ pub struct Common {
     pub flags: Flags,
     /// Retry count (0 = first attempt).
     pub retry: u8,
-    /// Cycle counter [cycles].
+    /// Cycle counter \[cycles\].
     pub cycle: u32,
     /// Sequence number of the sender.
     pub seq: u16,

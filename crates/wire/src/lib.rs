@@ -2,10 +2,10 @@
 //!
 //! Three frames make one cycle of the proposed plan (docs/system.md, "The cycle plan"): the sync
 //! [lumped frame](lumped) (kind 1), a [command frame](command) per slave (kind 2) and its
-//! [response frame](response) (kind 3). The lumped-only plan of ref. [3] uses its own lumped
+//! [response frame](response) (kind 3). The lumped-only plan of ref. \[3\] uses its own lumped
 //! kind (4) with larger slots. Before the cycles start, both plans measure the ring's delays
 //! with [delay frames](lumped::delay) (kind 5), which have the lumped layout too. Every PDU
-//! is a 12-byte [header](header), a payload and a CRC-32; the same bytes travel as the
+//! is a 12-byte [header], a payload and a CRC-32; the same bytes travel as the
 //! payload of an Ethernet II frame with EtherType 0x88B5 or as a UDP datagram.
 //!
 //! In the style of smoltcp's `wire` module each layout has
@@ -131,7 +131,7 @@ impl Pdu {
         }
     }
 
-    /// Length of the emitted PDU, header to CRC [B].
+    /// Length of the emitted PDU, header to CRC \[B\].
     pub fn buffer_len(&self) -> usize {
         match self {
             Pdu::Lumped(r) => r.buffer_len(),

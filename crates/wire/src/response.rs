@@ -34,13 +34,13 @@ pub mod field {
     pub const VELOCITY: Field = 12..16;
     /// Measuring instant, u64 [ns, slave's synchronised clock].
     pub const SAMPLE_TIME: Field = 16..24;
-    /// Command applied after clipping, f32 [V], finite.
+    /// Command applied after clipping, f32 \[V\], finite.
     pub const APPLIED: Field = 24..28;
 }
 
-/// Payload length of a response frame [B].
+/// Payload length of a response frame \[B\].
 pub const RESPONSE_PAYLOAD_LEN: usize = field::APPLIED.end;
-/// Length of a response PDU, header to CRC [B].
+/// Length of a response PDU, header to CRC \[B\].
 pub const RESPONSE_PDU_LEN: usize = HEADER_LEN + RESPONSE_PAYLOAD_LEN + CRC_LEN;
 
 /// Owned representation of a response frame.
@@ -60,7 +60,7 @@ pub struct ResponseRepr {
     pub velocity: i32,
     /// Measuring instant [ns, slave's synchronised clock].
     pub sample_time_ns: u64,
-    /// Command the slave applied [V]; finite.
+    /// Command the slave applied \[V\]; finite.
     pub applied_v: f32,
 }
 
@@ -92,7 +92,7 @@ impl ResponseRepr {
         })
     }
 
-    /// Length of the emitted PDU [B].
+    /// Length of the emitted PDU \[B\].
     pub const fn buffer_len(&self) -> usize {
         RESPONSE_PDU_LEN
     }
@@ -145,11 +145,11 @@ view! {
 fields!(ResponsePayload {
     source, set_source: u16 = field::SOURCE, "Source slave address (1..=65535 when valid).";
     status_bits: u16 = field::STATUS, "Raw status bits, reserved bits included (see [`ResponsePayload::status`]).";
-    echo_cycle, set_echo_cycle: u32 = field::ECHO_CYCLE, "Cycle counter of the command this answers [cycles].";
+    echo_cycle, set_echo_cycle: u32 = field::ECHO_CYCLE, "Cycle counter of the command this answers \\[cycles\\].";
     position, set_position: i32 = field::POSITION, "Measured position [encoder counts].";
     velocity, set_velocity: i32 = field::VELOCITY, "Measured velocity [counts/s].";
     sample_time_ns, set_sample_time_ns: u64 = field::SAMPLE_TIME, "Measuring instant [ns, slave's synchronised clock].";
-    applied_v, set_applied_v: f32 = field::APPLIED, "Command the slave applied, after clipping [V] (raw: may be non-finite before `check`).";
+    applied_v, set_applied_v: f32 = field::APPLIED, "Command the slave applied, after clipping \\[V\\] (raw: may be non-finite before `check`).";
 });
 
 impl<T: AsRef<[u8]>> ResponsePayload<T> {

@@ -47,12 +47,12 @@ pub struct Gains {
     pub kh: Vec<f64>,
     /// Velocity feed-forward K_C [V·s/rad].
     pub kc: Vec<f64>,
-    /// Coulomb friction feed-forward K_F [V], ≥ 0: K_F·sat(ẋ^d / v_F) is added, so the
+    /// Coulomb friction feed-forward K_F \[V\], ≥ 0: K_F·sat(ẋ^d / v_F) is added, so the
     /// term follows the desired velocity's sign without chattering at standstill.
     pub kf: Vec<f64>,
     /// v_F of the Coulomb feed-forward's sat(ẋ^d / v_F) [rad/s], > 0.
     pub kf_velocity: f64,
-    /// Drive range ±u_max [V], > 0.
+    /// Drive range ±u_max \[V\], > 0.
     pub u_max: Vec<f64>,
 }
 
@@ -143,14 +143,14 @@ impl Gains {
 pub struct ControlInput {
     /// Desired state of each axis at its command's application time (for feed-forward).
     pub desired: Vec<State>,
-    /// When each axis's command takes effect [s], on the clock of the sample times.
+    /// When each axis's command takes effect \[s\], on the clock of the sample times.
     pub apply_time: Vec<f64>,
-    /// Cycle time T_cyc [s]: the spacing of the samples in the history.
+    /// Cycle time T_cyc \[s\]: the spacing of the samples in the history.
     pub t_cyc: f64,
 }
 
 impl ControlInput {
-    /// Inputs for `n` axes: at rest, applied at t = 0, cycle `t_cyc` [s].
+    /// Inputs for `n` axes: at rest, applied at t = 0, cycle `t_cyc` \[s\].
     pub fn new(n: usize, t_cyc: f64) -> Self {
         ControlInput {
             desired: vec![State::default(); n],
@@ -170,9 +170,9 @@ impl ControlInput {
 /// The commands of one cycle.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ControlOutput {
-    /// Command per axis after clipping to ±u_max [V].
+    /// Command per axis after clipping to ±u_max \[V\].
     pub u: Vec<f64>,
-    /// The command before clipping [V].
+    /// The command before clipping \[V\].
     pub u_raw: Vec<f64>,
     /// Whether the command was clipped.
     pub saturated: Vec<bool>,
@@ -271,7 +271,7 @@ pub enum VelocitySource {
     /// ė = ẋ^d − v with the velocity the slave reports.
     #[default]
     Reported,
-    /// ė = (e[m] − e[m−1]) / (t_m − t_{m−1}) from successive position samples (0 for the
+    /// ė = (e\[m\] − e[m−1]) / (t_m − t_{m−1}) from successive position samples (0 for the
     /// first sample).
     Differenced,
     /// ė from a tracking observer on the error samples ([`ErrorObserver`]): smooths the
@@ -287,18 +287,18 @@ pub enum VelocitySource {
 /// (about (α − β/2)/β cycles times ë) stays small. Not in the paper.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ErrorObserver {
-    /// Bandwidth f_b [Hz], > 0.
+    /// Bandwidth f_b \[Hz\], > 0.
     pub bandwidth_hz: f64,
 }
 
 impl ErrorObserver {
-    /// The gains (α, β) for cycle `t_cyc` [s].
+    /// The gains (α, β) for cycle `t_cyc` \[s\].
     pub fn gains(&self, t_cyc: f64) -> (f64, f64) {
         let lambda = (-std::f64::consts::TAU * self.bandwidth_hz * t_cyc).exp();
         (1.0 - lambda * lambda, (1.0 - lambda) * (1.0 - lambda))
     }
 
-    /// One step over `h` [s] from the estimate `(e, ė)` with the new sample `e_new` [rad]:
+    /// One step over `h` \[s\] from the estimate `(e, ė)` with the new sample `e_new` \[rad\]:
     /// the corrected `(ê, ė̂)`. `alpha_beta` from [`ErrorObserver::gains`].
     #[inline]
     pub fn step(state: (f64, f64), e_new: f64, h: f64, alpha_beta: (f64, f64)) -> (f64, f64) {
@@ -312,11 +312,11 @@ impl ErrorObserver {
 /// Feedback of one cycle: the latest sample of every axis.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Feedback {
-    /// Measured position [rad].
+    /// Measured position \[rad\].
     pub position: Vec<f64>,
     /// Measured velocity [rad/s] (used with [`VelocitySource::Reported`]).
     pub velocity: Vec<f64>,
-    /// Sampling instant [s].
+    /// Sampling instant \[s\].
     pub sample_time: Vec<f64>,
     /// Desired state at the sampling instant.
     pub desired: Vec<State>,
@@ -399,7 +399,7 @@ impl<L: ControlLaw> Controller<L> {
     /// apart in the history that are really zero apart, and the estimators' slopes with it.
     ///
     /// With [`VelocitySource::Differenced`], the ė a law ran on keeps adding up to the
-    /// change of e across a short gap, as it does from cycle to cycle (Σ ė·T = e[m] − e[0],
+    /// change of e across a short gap, as it does from cycle to cycle (Σ ė·T = e\[m\] − e\[0\],
     /// T the cycle): a law that ran k more times on its newest sample (no new one came, or
     /// the same one again), 0 < k < [`DEPTH`](crate::estimator::DEPTH), ran on that sample's
     /// ė k more times, so the interpolated samples carry that ė and the next sample's ė is

@@ -6,7 +6,7 @@
 //! holds the law (a type implementing [`ControlLaw`]) and one `pub const ENTRY:` [`LawEntry`]
 //! that names it, declares its own parameters ([`ParamSpec`]: key, unit, default, allowed
 //! range) and builds it from a [`LawParams`]. The line is the module's name in the
-//! `laws!` list in `law/mod.rs`, which declares the module and puts its entry in [`LAWS`].
+//! `laws!` list in `law/mod.rs`, which declares the module and puts its entry in `LAWS`.
 //! Nothing else changes: scenarios find the law by its name (`control.law`), its parameters
 //! are checked generically (`[control.params]`, one value for every axis or a list of n), and
 //! `ringsync check` runs the discrete-time stability check on its own `compute`.

@@ -18,15 +18,15 @@ use crate::error::ControlError;
 use crate::estimator::{DEPTH, ErrorHistory};
 use crate::law::{ControlInput, ControlLaw, ControlOutput, VelocitySource};
 
-/// The names of an axis's states in [`lumped_only_loop`], in their order: x [rad], ẋ
-/// [rad/s], the command still held u[k−1] [V], e[k−1..k−4] [rad], ė[k−1..k−4] [rad/s].
+/// The names of an axis's states in [`lumped_only_loop`], in their order: x \[rad\], ẋ
+/// [rad/s], the command still held u[k−1] \[V\], e[k−1..k−4] \[rad\], ė[k−1..k−4] [rad/s].
 pub const LUMPED_ONLY_STATE_NAMES: [&str; 11] = [
     "x", "v", "u_prev", "e1", "e2", "e3", "e4", "de1", "de2", "de3", "de4",
 ];
 
 /// The sampled closed loop of the lumped-only plan: `law` run by every slave on its view
-/// of the ring (see the module's docs), on linear axes `(a, g)`, period `t_cyc` [s], slave
-/// i's frame pass (its command's effect) `passes[i]` [s] after the sampling instant
+/// of the ring (see the module's docs), on linear axes `(a, g)`, period `t_cyc` \[s\], slave
+/// i's frame pass (its command's effect) `passes[i]` \[s\] after the sampling instant
 /// (0 ≤ pass ≤ T_cyc), ė as `m` says (the reported velocity, exact or over its window, or
 /// differenced samples). The matrix's states are [`LUMPED_ONLY_STATE_NAMES`] per axis,
 /// axis-major; regulation to x^d = 0 as in [`super::discrete_loop`]. Refused

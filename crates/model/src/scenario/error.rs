@@ -110,7 +110,7 @@ pub(crate) fn fixed(x: f64, d: usize) -> String {
     }
 }
 
-/// Longest echo of a source line or value in a [`ScenarioError`] [characters].
+/// Longest echo of a source line or value in a [`ScenarioError`] \[characters\].
 pub const ECHO_CHARS: usize = 120;
 
 /// Maps a control-layer error to the scenario key it came from.

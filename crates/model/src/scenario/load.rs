@@ -5,7 +5,7 @@
 use super::error::{ECHO_CHARS, ScenarioError, clip, clip_middle};
 use super::schema::Scenario;
 
-/// Largest scenario file read [bytes]: 1 MiB.
+/// Largest scenario file read \[bytes\]: 1 MiB.
 pub const MAX_SCENARIO_BYTES: u64 = 1 << 20;
 
 /// The built-in scenarios: (name, TOML text).

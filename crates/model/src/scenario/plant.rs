@@ -14,7 +14,7 @@ use serde::Deserialize;
 use super::error::{ScenarioError, out_of_range};
 use super::schema::{PerAxis, Scenario};
 
-/// Largest RK4 step of the arm [s] (`ringsync_plant::ArmParams`'s default); smaller when the
+/// Largest RK4 step of the arm \[s\] (`ringsync_plant::ArmParams`'s default); smaller when the
 /// friction is stiff against the inertia (see [`ArmSpec::params`]).
 pub const ARM_MAX_STEP: f64 = 1e-4;
 
@@ -84,7 +84,7 @@ impl Default for ArmSpec {
     }
 }
 
-/// Shortest RK4 step of the arm's integration [s]: 1 µs (1000 steps per 1 ms cycle).
+/// Shortest RK4 step of the arm's integration \[s\]: 1 µs (1000 steps per 1 ms cycle).
 pub const MIN_ARM_STEP: f64 = 1e-6;
 
 /// A computed figure for an error message: rounded to 6 decimals, in exponent form (6
@@ -177,7 +177,7 @@ impl ArmSpec {
         Ok(())
     }
 
-    /// The plant's parameters with the joints' drive ranges `u_max` [V] (from their
+    /// The plant's parameters with the joints' drive ranges `u_max` \[V\] (from their
     /// `[[axis]]` tables). The RK4 step is [`ARM_MAX_STEP`], or a tenth of the fastest
     /// friction time constant λ_min(M)/max(f1, f2) when that is shorter. Call on a validated
     /// spec.

@@ -54,14 +54,14 @@ pub struct LinkBreak {
 }
 
 impl LinkBreak {
-    /// Whether the link is broken at true time `t` [ns].
+    /// Whether the link is broken at true time `t` \[ns\].
     pub fn broken_at(&self, t: i64) -> bool {
         t >= self.at.as_ns() && self.heal.is_none_or(|h| t < h.as_ns())
     }
 
     /// When the master's own links go down and come up on a ring of `n` slaves with
     /// `breaks` (link 1 at port A, link n + 1 at port B), as its PHYs would tell it:
-    /// (true time [ns], port, up), in time order.
+    /// (true time \[ns\], port, up), in time order.
     pub fn port_changes(breaks: &[LinkBreak], n: usize) -> Vec<(i64, Port, bool)> {
         let mut v = Vec::new();
         for b in breaks {
@@ -252,7 +252,7 @@ pub struct Ring {
     pub phy_rx: Dur,
     /// PHY transmit latency.
     pub phy_tx: Dur,
-    /// Cable per hop [m].
+    /// Cable per hop \[m\].
     pub cable_m: f64,
     /// Propagation [ns/m].
     pub propagation_ns_per_m: f64,
@@ -297,7 +297,7 @@ impl Default for Ring {
 pub struct ClockSpec {
     /// Whether slaves synchronise to the master.
     pub sync: bool,
-    /// Largest oscillator error [ppm]; each slave draws uniformly in ±drift_ppm.
+    /// Largest oscillator error \[ppm\]; each slave draws uniformly in ±drift_ppm.
     pub drift_ppm: f64,
     /// Largest initial clock offset; each slave draws uniformly in ±initial_offset.
     pub initial_offset: Dur,
@@ -375,7 +375,7 @@ pub struct Faults {
     pub corruption: f64,
     /// W: cycles without a valid command before a slave goes to its safe state.
     pub watchdog_cycles: u32,
-    /// Following-error limit [rad].
+    /// Following-error limit \[rad\].
     pub following_error_limit: f64,
     /// A slave (1-based) that stops answering at `silent_from`; 0 for none.
     pub silent_slave: u32,
@@ -424,17 +424,17 @@ impl Default for Faults {
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct MonitorSpec {
-    /// |ε| warning limit per axis [rad] (0: off).
+    /// |ε| warning limit per axis \[rad\] (0: off).
     pub sync_warn: PerAxis,
-    /// |ε| trip limit per axis [rad] (0: off).
+    /// |ε| trip limit per axis \[rad\] (0: off).
     pub sync_trip: PerAxis,
     /// How long |ε| must stay beyond a limit before it counts.
     pub sync_filter: Dur,
     /// What a sync trip does: "warn" or "group-stop".
     pub sync_reaction: String,
-    /// |e| warning limit per axis [rad] (0: off).
+    /// |e| warning limit per axis \[rad\] (0: off).
     pub following_warn: PerAxis,
-    /// |e| trip limit per axis [rad] (0: off; `faults.following_error_limit` stays the
+    /// |e| trip limit per axis \[rad\] (0: off; `faults.following_error_limit` stays the
     /// instantaneous hard limit).
     pub following_trip: PerAxis,
     /// How long |e| must stay beyond a limit before it counts.
@@ -492,13 +492,13 @@ pub struct ControlSpec {
     pub kh: PerAxis,
     /// K_C [V·s/rad].
     pub kc: PerAxis,
-    /// K_F, Coulomb friction feed-forward [V] (not in the paper).
+    /// K_F, Coulomb friction feed-forward \[V\] (not in the paper).
     pub kf: PerAxis,
     /// v_F of the Coulomb feed-forward's sat(ẋ^d/v_F) [rad/s].
     pub kf_velocity: f64,
-    /// Bandwidth f_b of the error observer (`velocity = "observer"`) [Hz].
+    /// Bandwidth f_b of the error observer (`velocity = "observer"`) \[Hz\].
     pub observer_bandwidth: f64,
-    /// Bandwidth f_Q of the disturbance observer [Hz]; 0: none (not in the paper).
+    /// Bandwidth f_Q of the disturbance observer \[Hz\]; 0: none (not in the paper).
     pub dob_bandwidth: f64,
     /// α.
     pub alpha: f64,
@@ -571,7 +571,7 @@ pub enum TrajectorySpec {
     },
     /// One trapezoidal move from 0.
     Trapezoid {
-        /// Signed distance [rad].
+        /// Signed distance \[rad\].
         distance: f64,
         /// v_max [rad/s].
         v_max: f64,
@@ -716,7 +716,7 @@ pub struct AxisSpec {
     pub velocity_gain: f64,
     /// τ_v (velocity mode).
     pub time_constant: Dur,
-    /// Drive range [V].
+    /// Drive range \[V\].
     pub u_max: f64,
     /// Encoder resolution, 2^bits counts per revolution.
     pub encoder_bits: u32,

@@ -489,7 +489,7 @@ impl Scenario {
         }
     }
 
-    /// The largest |x^d| the trajectory reaches [rad].
+    /// The largest |x^d| the trajectory reaches \[rad\].
     pub fn trajectory_reach(&self) -> f64 {
         match &self.trajectory {
             TrajectorySpec::Cosine { peak_speed, period } => {

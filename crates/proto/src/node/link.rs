@@ -47,7 +47,7 @@ impl LinkEstimate {
     }
 
     /// A sync lumped frame that went round the whole ring came back at `now` [ns, master
-    /// clock] stamped `stamp` [ns]. A round trip below zero or beyond a cycle is not taken
+    /// clock] stamped `stamp` \[ns\]. A round trip below zero or beyond a cycle is not taken
     /// (returns false).
     pub fn note(&mut self, now: i64, stamp: u64) -> bool {
         let Some(rt) = i64::try_from(stamp).ok().and_then(|s| now.checked_sub(s)) else {

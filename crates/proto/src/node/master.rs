@@ -231,11 +231,11 @@ impl MasterConfig {
 /// Why the group stopped.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub enum StopReason {
-    /// Axis `axis` (0-based) exceeded the following-error limit with error `error` [rad].
+    /// Axis `axis` (0-based) exceeded the following-error limit with error `error` \[rad\].
     FollowingError {
         /// Axis index.
         axis: usize,
-        /// The error [rad].
+        /// The error \[rad\].
         error: f64,
     },
     /// Axis `axis` reported a fault (e.g. its watchdog expired).
@@ -259,9 +259,9 @@ pub enum StopReason {
     CommandMismatch {
         /// Axis index.
         axis: usize,
-        /// What the master sent [V].
+        /// What the master sent \[V\].
         sent: f32,
-        /// What the slave says it applied [V].
+        /// What the slave says it applied \[V\].
         applied: f32,
     },
     /// Axis `axis`'s sync error ε stayed beyond the sync monitor's trip limit for its
@@ -269,7 +269,7 @@ pub enum StopReason {
     SyncTrip {
         /// Axis index.
         axis: usize,
-        /// ε when it tripped [rad].
+        /// ε when it tripped \[rad\].
         error: f64,
     },
     /// Axis `axis`'s following error stayed beyond the following-error monitor's trip
@@ -278,7 +278,7 @@ pub enum StopReason {
     FollowingTrip {
         /// Axis index.
         axis: usize,
-        /// The error when it tripped [rad].
+        /// The error when it tripped \[rad\].
         error: f64,
     },
     /// A second break cut axes `axis..=last` (0-based) off both of the master's ports.
@@ -342,10 +342,10 @@ impl StopOrder {
 /// Why the master gave an axis a [`StopOrder`] during a group stop.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub enum OffReason {
-    /// The axis could not follow its stop ramp: its error against the ramp [rad] exceeded
+    /// The axis could not follow its stop ramp: its error against the ramp \[rad\] exceeded
     /// the following-error limit.
     FollowingError {
-        /// The error against the ramp [rad].
+        /// The error against the ramp \[rad\].
         error: f64,
     },
     /// The axis has no feedback (none fresh for W cycles): the master cannot control it,
@@ -744,7 +744,7 @@ impl Master {
         self.lumped_back < self.next_lumped || self.deadline.is_some()
     }
 
-    /// The desired state of axis `i` at `t` [s] (the stop ramp once stopping).
+    /// The desired state of axis `i` at `t` \[s\] (the stop ramp once stopping).
     pub fn desired(&self, i: usize, t: f64) -> Setpoint {
         self.motion.desired(i, t)
     }

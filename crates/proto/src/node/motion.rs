@@ -15,10 +15,10 @@ use ringsync_wire::FeedbackSlot;
 use super::master::{OffReason, StopOrder, StopReason};
 use crate::time::{Duration, Instant};
 
-/// A desired state: position [rad] and velocity [rad/s].
+/// A desired state: position \[rad\] and velocity [rad/s].
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Setpoint {
-    /// Position [rad].
+    /// Position \[rad\].
     pub x: f64,
     /// Velocity [rad/s].
     pub v: f64,
@@ -31,15 +31,15 @@ pub struct CycleRecord {
     pub k: i64,
     /// Sampling instant of each axis's latest sample [s, synchronised clock].
     pub sample_time: Vec<f64>,
-    /// Measured position of each axis [rad].
+    /// Measured position of each axis \[rad\].
     pub position: Vec<f64>,
     /// Whether the sample is from this cycle.
     pub fresh: Vec<bool>,
-    /// Command sent to each axis [V].
+    /// Command sent to each axis \[V\].
     pub u: Vec<f64>,
     /// Whether it was clipped.
     pub saturated: Vec<bool>,
-    /// Planned arrival of each command [s].
+    /// Planned arrival of each command \[s\].
     pub apply_time: Vec<f64>,
 }
 
@@ -123,14 +123,14 @@ pub struct MonitorNews {
     pub kind: MonitorKind,
     /// Raised (true) or cleared (false).
     pub raised: bool,
-    /// The monitored value then (ε or the following error) [rad].
+    /// The monitored value then (ε or the following error) \[rad\].
     pub value: f64,
 }
 
 /// What the motion returns for one cycle.
 #[derive(Debug, Clone, PartialEq)]
 pub struct MotionOutput {
-    /// Command per axis [V] (0 for an axis the motion cannot control).
+    /// Command per axis \[V\] (0 for an axis the motion cannot control).
     pub u: Vec<f64>,
     /// Whether the command was clipped to the drive's range.
     pub saturated: Vec<bool>,
@@ -168,7 +168,7 @@ pub trait Motion: Send {
     fn compute(&mut self, input: &MotionInput<'_>, out: &mut MotionOutput);
     /// Whether the group is stopping.
     fn is_stopping(&self) -> bool;
-    /// The desired state of axis `axis` at `t` [s] (the stop ramp once stopping).
+    /// The desired state of axis `axis` at `t` \[s\] (the stop ramp once stopping).
     fn desired(&self, axis: usize, t: f64) -> Setpoint;
 }
 

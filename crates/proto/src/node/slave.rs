@@ -120,13 +120,13 @@ impl TorqueOffCause {
     }
 }
 
-/// What a slave of the lumped-only plan (ref. [3]) runs on the data its lumped frame
+/// What a slave of the lumped-only plan (ref. \[3\]) runs on the data its lumped frame
 /// carries: its own axis's command from the feedback of every axis the frame holds.
 /// `ringsync-model` implements it with the control library's laws.
 pub trait SlaveLaw: Send {
     /// Number of axes of the ring.
     fn axes(&self) -> usize;
-    /// The command [V] for this slave's own axis `me` (0-based) at `now` [s, synchronised
+    /// The command \[V\] for this slave's own axis `me` (0-based) at `now` [s, synchronised
     /// clock], from `slots` (length [`SlaveLaw::axes`]): axis a's feedback as the frame
     /// carries it (this slave's own fresh sample at `me`), or `None` where the frame holds
     /// none for it (or the slave refused it).
@@ -153,7 +153,7 @@ pub struct SlaveConfig {
     pub watchdog_cycles: u32,
     /// Whether to synchronise the clock to the master.
     pub clock_sync: bool,
-    /// Drive range ±u_max [V].
+    /// Drive range ±u_max \[V\].
     pub u_max: f64,
     /// Encoder resolution [rad per count] (the brake reaction's velocity).
     pub resolution: f64,
@@ -213,9 +213,9 @@ impl SlaveConfig {
 /// Something the driver must act on.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum SlaveEvent {
-    /// Apply this command from the master to the drive [V] from now on.
+    /// Apply this command from the master to the drive \[V\] from now on.
     Apply {
-        /// The command after clipping [V].
+        /// The command after clipping \[V\].
         u: f64,
     },
     /// The watchdog expired: the master is lost; the safe state's reaction follows.
@@ -226,9 +226,9 @@ pub enum SlaveEvent {
         /// Whether the master ordered it.
         ordered: bool,
     },
-    /// The drive's own brake command (the `Brake` safe state) [V] from now on.
+    /// The drive's own brake command (the `Brake` safe state) \[V\] from now on.
     Brake {
-        /// The command after clipping [V].
+        /// The command after clipping \[V\].
         u: f64,
     },
     /// The drive's torque is off from now on (latched; the drive holds 0 V).
@@ -244,7 +244,7 @@ pub enum SlaveEvent {
     },
     /// The clock re-locked to a new master time line.
     Relocked {
-        /// The step taken [ns]: new time line minus the slave's clock.
+        /// The step taken \[ns\]: new time line minus the slave's clock.
         step: Duration,
     },
 }
@@ -520,7 +520,7 @@ impl Slave {
     pub fn status(&self) -> Status {
         self.status
     }
-    /// The command applied now [V].
+    /// The command applied now \[V\].
     pub fn command(&self) -> f64 {
         self.u
     }

@@ -35,9 +35,9 @@ use crate::time::{Duration, Instant};
 pub struct TestbedConfig {
     /// Number of slaves n.
     pub slaves: u32,
-    /// Delay of every hop, first bit out to the whole frame in [ns].
+    /// Delay of every hop, first bit out to the whole frame in \[ns\].
     pub hop_ns: i64,
-    /// Slave i's clock reads true time plus `clock_offsets_ns[i - 1]` [ns] (0 if missing).
+    /// Slave i's clock reads true time plus `clock_offsets_ns[i - 1]` \[ns\] (0 if missing).
     pub clock_offsets_ns: Vec<i64>,
     /// Each axis: ẍ = gain·u [rad/s² per V] (the reference axes' K_a/J ≈ 64).
     pub axis_gain: f64,
@@ -45,7 +45,7 @@ pub struct TestbedConfig {
     pub watchdog_cycles: u32,
     /// The slaves' reaction to losing the master.
     pub safe_state: SafeState,
-    /// Following-error limit [rad].
+    /// Following-error limit \[rad\].
     pub following_error_limit: f64,
     /// Peak speed of the cosine every axis follows [rad/s] (period 2 s).
     pub peak_speed: f64,
@@ -71,15 +71,15 @@ impl Default for TestbedConfig {
 /// One axis of the testbed.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Axis {
-    /// Position [rad].
+    /// Position \[rad\].
     pub x: f64,
     /// Velocity [rad/s].
     pub v: f64,
-    /// Command held [V].
+    /// Command held \[V\].
     pub u: f64,
     /// Torque off (the command no longer acts).
     pub off: bool,
-    /// True time of the state [ns].
+    /// True time of the state \[ns\].
     pub t: i64,
 }
 
@@ -193,7 +193,7 @@ impl Motion for PdMotion {
     }
 }
 
-/// A frame about to reach node `to` (0 = the master, i = slave i) at true time `at` [ns].
+/// A frame about to reach node `to` (0 = the master, i = slave i) at true time `at` \[ns\].
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Hop {
     /// Sender (0 = master).
@@ -213,12 +213,12 @@ pub enum Fate {
     Drop,
     /// It arrives twice, the copy `after` ns later.
     Duplicate {
-        /// Delay of the copy [ns].
+        /// Delay of the copy \[ns\].
         after: i64,
     },
     /// It arrives `by` ns late.
     Delay {
-        /// The extra delay [ns].
+        /// The extra delay \[ns\].
         by: i64,
     },
 }
@@ -251,11 +251,11 @@ pub struct Testbed {
     pub slaves: Vec<Slave>,
     /// Axis i at index i − 1.
     pub axes: Vec<Axis>,
-    /// What the master reported, with the true time [ns].
+    /// What the master reported, with the true time \[ns\].
     pub master_events: Vec<(i64, MasterEvent)>,
-    /// What each slave reported, with the true time [ns] and the slave (1-based).
+    /// What each slave reported, with the true time \[ns\] and the slave (1-based).
     pub slave_events: Vec<(i64, usize, SlaveEvent)>,
-    /// Every command a slave applied: (true time [ns], slave 1-based, command [V]).
+    /// Every command a slave applied: (true time \[ns\], slave 1-based, command \[V\]).
     pub applied: Vec<(i64, usize, f64)>,
     /// Sees every frame (None: all delivered).
     pub tap: Option<Tap>,
@@ -345,17 +345,17 @@ impl Testbed {
         }
     }
 
-    /// True time now [ns].
+    /// True time now \[ns\].
     pub fn now(&self) -> i64 {
         self.now
     }
 
-    /// Slave i's (1-based) local clock at true time `t` [ns].
+    /// Slave i's (1-based) local clock at true time `t` \[ns\].
     pub fn local(&self, i: usize, t: i64) -> Instant {
         Instant::from_ns(t + self.offsets[i - 1])
     }
 
-    /// The desired position of axis i (1-based) at true time `t` [ns], as the master has it.
+    /// The desired position of axis i (1-based) at true time `t` \[ns\], as the master has it.
     pub fn desired(&self, i: usize, t: i64) -> f64 {
         self.master.desired(i - 1, t as f64 * 1e-9).x
     }
@@ -429,7 +429,7 @@ impl Testbed {
         best
     }
 
-    /// Runs every event due up to true time `t` [ns].
+    /// Runs every event due up to true time `t` \[ns\].
     pub fn run_until(&mut self, t: i64) {
         while let Some((at, kind, i)) = self.next() {
             if at > t {
@@ -543,7 +543,7 @@ impl Testbed {
         }
     }
 
-    /// The largest |x^d − x| over the axes now [rad].
+    /// The largest |x^d − x| over the axes now \[rad\].
     pub fn worst_error(&self) -> f64 {
         let t = self.now as f64 * 1e-9;
         (0..self.axes.len())

@@ -44,25 +44,25 @@ use crate::time::Duration;
 pub struct RingModel {
     /// Number of slaves n.
     pub slaves: u32,
-    /// First-bit latency L of one hop [ns].
+    /// First-bit latency L of one hop \[ns\].
     pub hop: Duration,
-    /// Residence T_t of a slave between receiving and relaying [ns].
+    /// Residence T_t of a slave between receiving and relaying \[ns\].
     pub residence: Duration,
-    /// Time to send the lumped frame(s) [ns].
+    /// Time to send the lumped frame(s) \[ns\].
     pub t_lmf: Duration,
-    /// Wire time of a command frame [ns].
+    /// Wire time of a command frame \[ns\].
     pub t_cmf: Duration,
-    /// Wire time of a response frame [ns].
+    /// Wire time of a response frame \[ns\].
     pub t_rmf: Duration,
-    /// T_ti: last bit of a command in to first bit of its response out [ns].
+    /// T_ti: last bit of a command in to first bit of its response out \[ns\].
     pub response_delay: Duration,
-    /// T_rest between the sync phase and the P2P phase [ns].
+    /// T_rest between the sync phase and the P2P phase \[ns\].
     pub t_rest: Duration,
-    /// The master's wait after a response [ns].
+    /// The master's wait after a response \[ns\].
     pub turnaround: Duration,
     /// Number of reserve slices.
     pub reserve_slices: u32,
-    /// Cycle time T_cyc [ns].
+    /// Cycle time T_cyc \[ns\].
     pub t_cyc: Duration,
 }
 
@@ -78,29 +78,29 @@ pub struct BrokenRing {
     /// Slaves n − side_b + 1..=n are reached from port B.
     pub side_b: u32,
     /// Δ: how much later a lumped frame reaches a slave of side B than it would reach it on
-    /// the whole ring; the copy on port B is stamped its send time + Δ [ns].
+    /// the whole ring; the copy on port B is stamped its send time + Δ \[ns\].
     pub stamp_shift: Duration,
-    /// When the copy on port B leaves, after the copy on port A: max(0, −Δ) [ns].
+    /// When the copy on port B leaves, after the copy on port A: max(0, −Δ) \[ns\].
     pub b_delay: Duration,
-    /// First bit of the lumped frame at each slave 1..n [ns].
+    /// First bit of the lumped frame at each slave 1..n \[ns\].
     pub lumped_at: Vec<Duration>,
-    /// Last bit of the lumped frame(s) back at port A (None: side A is empty) [ns].
+    /// Last bit of the lumped frame(s) back at port A (None: side A is empty) \[ns\].
     pub lumped_back_a: Option<Duration>,
-    /// Last bit of the lumped frame(s) back at port B (None: side B is empty) [ns].
+    /// Last bit of the lumped frame(s) back at port B (None: side B is empty) \[ns\].
     pub lumped_back_b: Option<Duration>,
-    /// Start of the P2P phase: both copies back, then T_rest [ns].
+    /// Start of the P2P phase: both copies back, then T_rest \[ns\].
     pub p2p_start: Duration,
-    /// Slice of a slave of side A (None: side A is empty) [ns].
+    /// Slice of a slave of side A (None: side A is empty) \[ns\].
     pub slice_a: Option<Duration>,
-    /// Slice of a slave of side B (None: side B is empty) [ns].
+    /// Slice of a slave of side B (None: side B is empty) \[ns\].
     pub slice_b: Option<Duration>,
-    /// The master's slice: the longer of the two [ns].
+    /// The master's slice: the longer of the two \[ns\].
     pub slice: Duration,
-    /// Last bit of each slave's command at the slave, first try [ns].
+    /// Last bit of each slave's command at the slave, first try \[ns\].
     pub command_arrival: Vec<Duration>,
-    /// Shortest cycle that holds the broken ring's plan [ns].
+    /// Shortest cycle that holds the broken ring's plan \[ns\].
     pub min_t_cyc: Duration,
-    /// Idle time left in T_cyc; negative when the broken ring's plan does not fit [ns].
+    /// Idle time left in T_cyc; negative when the broken ring's plan does not fit \[ns\].
     pub t_idle: Duration,
 }
 

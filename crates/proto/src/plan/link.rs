@@ -11,16 +11,16 @@ use crate::time::Duration;
 pub struct Link {
     /// Bit rate [bit/s].
     pub bit_rate_bps: u64,
-    /// PHY transmit latency, MAC to medium [ns].
+    /// PHY transmit latency, MAC to medium \[ns\].
     pub phy_tx: Duration,
-    /// PHY receive latency, medium to MAC [ns].
+    /// PHY receive latency, medium to MAC \[ns\].
     pub phy_rx: Duration,
-    /// Cable propagation delay of one hop [ns].
+    /// Cable propagation delay of one hop \[ns\].
     pub cable: Duration,
 }
 
 impl Link {
-    /// Time to put `bytes` on the wire, rounded up to a whole nanosecond [ns].
+    /// Time to put `bytes` on the wire, rounded up to a whole nanosecond \[ns\].
     pub fn bytes_time(&self, bytes: usize) -> Duration {
         let bits = bytes as u128 * 8 * 1_000_000_000;
         let bps = u128::from(self.bit_rate_bps.max(1));
@@ -29,17 +29,17 @@ impl Link {
     }
 
     /// Wire time of one Ethernet frame whose payload (the ringsync PDU) is `pdu_len` bytes:
-    /// preamble + SFD + max(64, 18 + payload) bytes, without the inter-frame gap [ns].
+    /// preamble + SFD + max(64, 18 + payload) bytes, without the inter-frame gap \[ns\].
     pub fn frame_time(&self, pdu_len: usize) -> Duration {
         self.bytes_time(wire_len(pdu_len))
     }
 
-    /// The inter-frame gap, 12 byte times [ns] (0.96 µs at 100 Mbit/s).
+    /// The inter-frame gap, 12 byte times \[ns\] (0.96 µs at 100 Mbit/s).
     pub fn gap(&self) -> Duration {
         self.bytes_time(IFG_LEN)
     }
 
-    /// First-bit latency of one hop: PHY transmit + cable + PHY receive [ns].
+    /// First-bit latency of one hop: PHY transmit + cable + PHY receive \[ns\].
     pub fn hop(&self) -> Duration {
         self.phy_tx + self.cable + self.phy_rx
     }

@@ -51,17 +51,17 @@ pub const ASSUMPTIONS: &[&str] = &[
 /// not fit one MTU.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct LumpedTrain {
-    /// Bytes per slot [B].
+    /// Bytes per slot \[B\].
     pub slot_bytes: usize,
     /// Most slots per frame.
     pub slots_per_frame: usize,
     /// Slots in each frame.
     pub frame_slots: Vec<usize>,
-    /// Length of each frame, MAC header to FCS [B].
+    /// Length of each frame, MAC header to FCS \[B\].
     pub frame_bytes: Vec<usize>,
-    /// Wire time of each frame, preamble to FCS [ns].
+    /// Wire time of each frame, preamble to FCS \[ns\].
     pub frame_time: Vec<Duration>,
-    /// Time for the master to finish sending all of them, gaps between them included [ns].
+    /// Time for the master to finish sending all of them, gaps between them included \[ns\].
     pub t_lmf: Duration,
 }
 
@@ -92,7 +92,7 @@ impl LumpedTrain {
         }
     }
 
-    /// Start of frame `j` relative to the start of the first [ns].
+    /// Start of frame `j` relative to the start of the first \[ns\].
     pub fn frame_offset(&self, j: usize, gap: Duration) -> Duration {
         self.frame_time[..j].iter().map(|&t| t + gap).sum()
     }
@@ -101,18 +101,18 @@ impl LumpedTrain {
 /// The figures of the physical ring path, frame by frame (the simulator reproduces them).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct EventLevel {
-    /// Start of the P2P phase: T_syn, or later if the master's link needs its gap [ns].
+    /// Start of the P2P phase: T_syn, or later if the master's link needs its gap \[ns\].
     pub p2p_start: Duration,
     /// Wait of the master after each response so that every link keeps the inter-frame
-    /// gap: max(0, gap − ((n+1)·L + n·T_t)) [ns]; zero on any realistic 100 Mbit/s ring.
+    /// gap: max(0, gap − ((n+1)·L + n·T_t)) \[ns\]; zero on any realistic 100 Mbit/s ring.
     pub turnaround: Duration,
-    /// Length of each slice: command sent → whole response back at the master [ns].
+    /// Length of each slice: command sent → whole response back at the master \[ns\].
     pub slot: Vec<Duration>,
-    /// Length of one reserve slice: the longest slice [ns].
+    /// Length of one reserve slice: the longest slice \[ns\].
     pub reserve_slice: Duration,
-    /// Idle time left in the cycle [ns]; negative when the cycle is too short.
+    /// Idle time left in the cycle \[ns\]; negative when the cycle is too short.
     pub t_idle: Duration,
-    /// Shortest cycle that fits [ns].
+    /// Shortest cycle that fits \[ns\].
     pub min_t_cyc: Duration,
 }
 
@@ -122,7 +122,7 @@ pub enum PlanKind {
     /// The paper's proposed plan: sync lumped frame, then point-to-point slices.
     #[serde(rename = "p2p-lumped")]
     P2pLumped,
-    /// The lumped-only plan of ref. [3]: one lumped frame, controllers in the slaves.
+    /// The lumped-only plan of ref. \[3\]: one lumped frame, controllers in the slaves.
     #[serde(rename = "lumped-only")]
     LumpedOnly,
 }
@@ -150,16 +150,16 @@ impl core::str::FromStr for PlanKind {
     }
 }
 
-/// The cycle of the lumped-only plan of ref. [3] on the same ring (docs/system.md, "The lumped-only plan"):
+/// The cycle of the lumped-only plan of ref. \[3\] on the same ring (docs/system.md, "The lumped-only plan"):
 /// `T_cyc = T_lmf + D_ms(n) + D_snm + T_rest + T_idle`, the sync phase of eq. 2 with this
 /// plan's larger slots and no P2P phase.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct LumpedOnlyPlan {
     /// Its lumped frames.
     pub lumped: LumpedTrain,
-    /// Shortest cycle: T_lmf + D_ms(n) + D_snm + T_rest [ns].
+    /// Shortest cycle: T_lmf + D_ms(n) + D_snm + T_rest \[ns\].
     pub min_t_cyc: Duration,
-    /// Idle time left in T_cyc [ns]; negative when the cycle is too short.
+    /// Idle time left in T_cyc \[ns\]; negative when the cycle is too short.
     pub t_idle: Duration,
 }
 
@@ -170,41 +170,41 @@ pub struct CyclePlan {
     pub params: RingParams,
     /// The link of every hop.
     pub link: Link,
-    /// First-bit latency L of one hop [ns].
+    /// First-bit latency L of one hop \[ns\].
     pub hop: Duration,
     /// The sync lumped frame(s).
     pub lumped: LumpedTrain,
-    /// Length of a command frame, MAC header to FCS [B].
+    /// Length of a command frame, MAC header to FCS \[B\].
     pub command_frame_bytes: usize,
-    /// Length of a response frame, MAC header to FCS [B].
+    /// Length of a response frame, MAC header to FCS \[B\].
     pub response_frame_bytes: usize,
-    /// T_lmf: time for the master to finish sending the lumped frame(s) [ns].
+    /// T_lmf: time for the master to finish sending the lumped frame(s) \[ns\].
     pub t_lmf: Duration,
-    /// D_ms(n): first-bit delay from the master to slave n [ns].
+    /// D_ms(n): first-bit delay from the master to slave n \[ns\].
     pub d_ms: Duration,
-    /// D_snm: first-bit delay from slave n back to the master [ns].
+    /// D_snm: first-bit delay from slave n back to the master \[ns\].
     pub d_snm: Duration,
-    /// T_syn = T_lmf + D_ms(n) + D_snm + T_rest (eq. 2) [ns].
+    /// T_syn = T_lmf + D_ms(n) + D_snm + T_rest (eq. 2) \[ns\].
     pub t_syn: Duration,
-    /// T_cmf: wire time of a command frame [ns].
+    /// T_cmf: wire time of a command frame \[ns\].
     pub t_cmf: Duration,
-    /// Wire time of a response frame (not in eq. 2) [ns].
+    /// Wire time of a response frame (not in eq. 2) \[ns\].
     pub t_rmf: Duration,
-    /// D_ci for i = 1..n: first-bit delay from the master to slave i [ns].
+    /// D_ci for i = 1..n: first-bit delay from the master to slave i \[ns\].
     pub d_c: Vec<Duration>,
-    /// T_slot(i) = T_cmf + 2·D_ci + T_ti for i = 1..n (eq. 2) [ns].
+    /// T_slot(i) = T_cmf + 2·D_ci + T_ti for i = 1..n (eq. 2) \[ns\].
     pub slot: Vec<Duration>,
     /// Number of reserve slices, ⌊n/4⌋ + 1.
     pub reserve_slices: u32,
-    /// Length of one reserve slice, T_slot(n) [ns].
+    /// Length of one reserve slice, T_slot(n) \[ns\].
     pub reserve_slice: Duration,
-    /// T_idle from eq. 1 [ns]; negative when the cycle is too short.
+    /// T_idle from eq. 1 \[ns\]; negative when the cycle is too short.
     pub t_idle: Duration,
-    /// Shortest T_cyc by eq. 1 (T_idle = 0) [ns].
+    /// Shortest T_cyc by eq. 1 (T_idle = 0) \[ns\].
     pub min_t_cyc: Duration,
     /// The same cycle on the physical ring path.
     pub event: EventLevel,
-    /// The lumped-only plan of ref. [3] on the same ring.
+    /// The lumped-only plan of ref. \[3\] on the same ring.
     pub lumped_only: LumpedOnlyPlan,
 }
 

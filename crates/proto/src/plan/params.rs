@@ -14,29 +14,29 @@ pub struct RingParams {
     pub slaves: u32,
     /// Link bit rate [bit/s].
     pub bit_rate_bps: u64,
-    /// PHY receive latency [ns] (MII, DP83848 family: 240 ns).
+    /// PHY receive latency \[ns\] (MII, DP83848 family: 240 ns).
     pub phy_rx: Duration,
-    /// PHY transmit latency [ns] (MII: about 60 ns).
+    /// PHY transmit latency \[ns\] (MII: about 60 ns).
     pub phy_tx: Duration,
-    /// Cable length of each hop [m].
+    /// Cable length of each hop \[m\].
     pub cable_m: f64,
     /// Signal propagation in the cable [ns/m] (about 5 ns/m).
     pub propagation_ns_per_m: f64,
     /// Residence time T_t of a slave that forwards a frame, first bit in to first bit out
-    /// [ns] (cut-through).
+    /// \[ns\] (cut-through).
     pub residence: Duration,
     /// Response delay T_ti of a slave, last bit of its command in to first bit of its
-    /// response out [ns].
+    /// response out \[ns\].
     pub response_delay: Duration,
-    /// Reserve T_rest between the sync phase and the P2P phase (master computes) [ns].
+    /// Reserve T_rest between the sync phase and the P2P phase (master computes) \[ns\].
     pub t_rest: Duration,
-    /// Cycle time T_cyc [ns].
+    /// Cycle time T_cyc \[ns\].
     pub t_cyc: Duration,
-    /// Bytes per slave in the proposed plan's lumped frame [B] (wire format: 20).
+    /// Bytes per slave in the proposed plan's lumped frame \[B\] (wire format: 20).
     pub slot_bytes: usize,
-    /// Bytes per slave in the lumped-only plan's frame [B] (wire format: 32).
+    /// Bytes per slave in the lumped-only plan's frame \[B\] (wire format: 32).
     pub lumped_only_slot_bytes: usize,
-    /// Largest Ethernet payload [B] (standard: 1500).
+    /// Largest Ethernet payload \[B\] (standard: 1500).
     pub mtu: usize,
 }
 

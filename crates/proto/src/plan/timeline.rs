@@ -81,7 +81,7 @@ pub struct Phase {
 /// Every frame passage and every phase of one loss-free cycle.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Timeline {
-    /// Cycle time [ns].
+    /// Cycle time \[ns\].
     pub t_cyc: Duration,
     /// Frame passages, in the order the frames are sent, each frame along its path.
     pub passages: Vec<Passage>,

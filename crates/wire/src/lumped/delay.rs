@@ -31,7 +31,7 @@ pub mod field {
 
     /// Residence, u32 [ns, slave's own clock].
     pub const RESIDENCE: Field = 0..4;
-    /// Path delay, u32 [ns], written by the master in a closing frame.
+    /// Path delay, u32 \[ns\], written by the master in a closing frame.
     pub const PATH_DELAY: Field = 4..8;
     /// Sequence number of the probe whose residence the slot reports, u16.
     pub const RESIDENCE_OF: Field = 8..10;
@@ -78,7 +78,7 @@ impl DelayMarker {
 pub struct DelaySlot {
     /// Residence of probe `residence_of` at this slave [ns, its own clock].
     pub residence_ns: u32,
-    /// This slave's path delay, master send to its first bit in [ns] (closing frames; 0 in
+    /// This slave's path delay, master send to its first bit in \[ns\] (closing frames; 0 in
     /// a probe).
     pub path_delay_ns: u32,
     /// Header sequence number of the probe whose residence this is.
@@ -126,7 +126,7 @@ view! {
 
 fields!(DelaySlotView {
     residence_ns, set_residence_ns: u32 = field::RESIDENCE, "Residence of probe `residence_of` [ns, the slave's own clock].";
-    path_delay_ns, set_path_delay_ns: u32 = field::PATH_DELAY, "Path delay the master measured for this slave [ns] (0 in a probe).";
+    path_delay_ns, set_path_delay_ns: u32 = field::PATH_DELAY, "Path delay the master measured for this slave \\[ns\\] (0 in a probe).";
     residence_of, set_residence_of: u16 = field::RESIDENCE_OF, "Sequence number of the probe whose residence the slot reports.";
 });
 

@@ -41,7 +41,7 @@ pub struct FeedbackSlot {
     pub position: i32,
     /// Velocity measured by the slave [counts/s].
     pub velocity: i32,
-    /// Sampling instant on the slave's synchronised clock [ns].
+    /// Sampling instant on the slave's synchronised clock \[ns\].
     pub sample_time_ns: u64,
     /// Status bits.
     pub status: Status,

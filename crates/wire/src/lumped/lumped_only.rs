@@ -25,7 +25,7 @@ pub mod field {
     pub const DESIRED_POSITION: Field = 20..24;
     /// Desired velocity, i32 [counts/s], written by the master.
     pub const DESIRED_VELOCITY: Field = 24..28;
-    /// Command the slave applied, f32 [V], finite.
+    /// Command the slave applied, f32 \[V\], finite.
     pub const COMMAND: Field = 28..32;
 }
 
@@ -39,7 +39,7 @@ pub struct LumpedOnlySlot {
     pub desired_position: i32,
     /// Desired velocity for this cycle [counts/s].
     pub desired_velocity: i32,
-    /// Command the slave applied [V]; finite.
+    /// Command the slave applied \[V\]; finite.
     pub command_v: f32,
 }
 
@@ -88,7 +88,7 @@ view! {
 fields!(LumpedOnlySlotView {
     desired_position, set_desired_position: i32 = field::DESIRED_POSITION, "Desired position for this cycle [encoder counts], written by the master.";
     desired_velocity, set_desired_velocity: i32 = field::DESIRED_VELOCITY, "Desired velocity for this cycle [counts/s], written by the master.";
-    command_v, set_command_v: f32 = field::COMMAND, "Command the slave applied [V] (raw: may be non-finite before `check`).";
+    command_v, set_command_v: f32 = field::COMMAND, "Command the slave applied \\[V\\] (raw: may be non-finite before `check`).";
 });
 
 impl<T: AsRef<[u8]>> LumpedOnlySlotView<T> {

@@ -42,7 +42,7 @@ pub mod field {
     pub const SLOTS: Rest = 12..;
 }
 
-/// Bytes of the lumped payload before the first slot [B].
+/// Bytes of the lumped payload before the first slot \[B\].
 pub const LUMPED_PREFIX_LEN: usize = field::SLOTS.start;
 
 /// Most slots of `slot_len` bytes that one lumped frame carries within the Ethernet MTU.
@@ -50,7 +50,7 @@ pub const fn slot_capacity(slot_len: usize) -> usize {
     (MTU - HEADER_LEN - CRC_LEN - LUMPED_PREFIX_LEN) / slot_len
 }
 
-/// Length of a lumped PDU with `slots` slots of `slot_len` bytes, header to CRC [B].
+/// Length of a lumped PDU with `slots` slots of `slot_len` bytes, header to CRC \[B\].
 pub const fn lumped_pdu_len(slots: usize, slot_len: usize) -> usize {
     HEADER_LEN + LUMPED_PREFIX_LEN + slots * slot_len + CRC_LEN
 }
@@ -59,7 +59,7 @@ pub const fn lumped_pdu_len(slots: usize, slot_len: usize) -> usize {
 pub trait SlotCodec: Sized + Copy {
     /// Frame kind that carries this slot layout.
     const KIND: FrameKind;
-    /// Encoded length of one slot [B].
+    /// Encoded length of one slot \[B\].
     const LEN: usize;
     /// Decodes one slot from the first `LEN` bytes of `b`, checking every field.
     fn parse(b: &[u8]) -> Result<Self>;
@@ -141,7 +141,7 @@ impl<S: SlotCodec> LumpedRepr<S> {
         })
     }
 
-    /// Length of the emitted PDU [B].
+    /// Length of the emitted PDU \[B\].
     pub fn buffer_len(&self) -> usize {
         lumped_pdu_len(self.slots.len(), S::LEN)
     }
@@ -240,7 +240,7 @@ impl<T: AsRef<[u8]>> LumpedPayload<T> {
     pub fn kind(&self) -> FrameKind {
         self.kind
     }
-    /// Length of one slot [B]: 20 (kind 1), 32 (kind 4) or 12 (kind 5).
+    /// Length of one slot \[B\]: 20 (kind 1), 32 (kind 4) or 12 (kind 5).
     pub fn slot_len(&self) -> usize {
         match self.kind {
             FrameKind::LumpedOnly => LumpedOnlySlot::LEN,
