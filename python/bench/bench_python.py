@@ -41,9 +41,14 @@ def median_time(fn: Any, repeat: int) -> tuple[float, list[float]]:
     return statistics.median(times), times
 
 
-def pd_loop_python_control() -> tuple[Any, np.ndarray]:
-    """The four reference axes under PD with viscous friction, no network, as a
-    python-control nonlinear I/O system, and the output times (4 s at 1 ms)."""
+def pd_loop_python_control(friction: str = "viscous") -> tuple[Any, np.ndarray]:
+    """The four reference axes under PD, no network, as a python-control nonlinear I/O
+    system, and the output times (4 s at 1 ms).
+
+    ``friction``: ``"viscous"`` (b·v only: the loop of docs/python.md), or with the axes'
+    Coulomb friction T_c = 0.02 × rated torque as well, ``"sign"`` (T_c·sgn(v), as
+    ringsync's exact model) or ``"tanh"`` (T_c·tanh(v / 1 mrad/s), ringsync's smooth one).
+    """
     import control
 
     import ringsync
@@ -54,6 +59,12 @@ def pd_loop_python_control() -> tuple[Any, np.ndarray]:
     k_a = np.array([a["rated_torque"] / 10.0 for a in axes])
     J = np.array([a["j_over_ka"] for a in axes]) * k_a
     b = np.array([a["viscous"] for a in axes])
+    t_c = np.array([a["rated_torque"] * a.get("coulomb_fraction", 0.02) for a in axes])
+    coulomb = {
+        "viscous": lambda v: 0.0,
+        "sign": lambda v: t_c * np.sign(v),
+        "tanh": lambda v: t_c * np.tanh(v / 1e-3),
+    }[friction]
     k_p, k_d, u_max = s["control.kp"], s["control.kd"], axes[0]["u_max"]
     P = 2.0
     A = s["trajectory.peak_speed"] * P / (2 * np.pi)
@@ -63,7 +74,7 @@ def pd_loop_python_control() -> tuple[Any, np.ndarray]:
         pos, vel = x[:n], x[n:]
         x_d, v_d = A * (1 - np.cos(w * t)), A * w * np.sin(w * t)
         cmd = np.clip(k_p * (x_d - pos) + k_d * (v_d - vel), -u_max, u_max)
-        return np.concatenate([vel, (k_a * cmd - b * vel) / J])
+        return np.concatenate([vel, (k_a * cmd - b * vel - coulomb(vel)) / J])
 
     def output(t: float, x: np.ndarray, u: np.ndarray, params: Any) -> np.ndarray:
         return A * (1 - np.cos(w * t)) - x[:n]
@@ -94,6 +105,13 @@ def bench_simulate(repeat: int) -> None:
           f"(min {min(all_pc) * 1e3:.2f}, max {max(all_pc) * 1e3:.2f}, {len(all_pc)} runs); "
           f"Track-RMSE {track_pc:.5f} rad")
     print(f"    ratio python-control / ringsync: {t_pc / t_rs:.1f}× (PD vs PD: {t_pc / t_pd:.1f}×)")
+    for friction in ("tanh", "sign"):
+        loop_f, _ = pd_loop_python_control(friction)
+        run_f = lambda: control.input_output_response(loop_f, T, 0, X0=np.zeros(2 * n))  # noqa: E731
+        t_f, all_f = median_time(run_f, 3)
+        print(f"    the same with the axes' Coulomb friction ({friction}): median {t_f * 1e3:8.2f} ms "
+              f"(min {min(all_f) * 1e3:.2f}, max {max(all_f) * 1e3:.2f}, 3 runs); "
+              f"ratio {t_f / t_rs:.1f}×")
 
 
 def bench_sweep(runs: int, repeat: int) -> None:
@@ -133,6 +151,7 @@ def bench_sweep(runs: int, repeat: int) -> None:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--quick", action="store_true", help="fewer repetitions, a 200-run sweep")
+    ap.add_argument("--no-sweep", action="store_true", help="(a) only")
     args = ap.parse_args()
     import control
     import dask
@@ -143,7 +162,8 @@ def main() -> None:
           f"numpy {np.__version__}, Python {platform.python_version()}, {os.cpu_count()} CPUs, "
           f"load {os.getloadavg()[0]:.2f}")
     bench_simulate(5 if args.quick else 21)
-    bench_sweep(200 if args.quick else 1000, 1 if args.quick else 3)
+    if not args.no_sweep:
+        bench_sweep(200 if args.quick else 1000, 1 if args.quick else 3)
 
 
 if __name__ == "__main__":
