@@ -274,7 +274,8 @@ def reproduce(scenario: ScenarioLike | None = None, *, seeds: int = 8, **overrid
     number 1 ..= 10 000, numpy integers too, as ``ringsync reproduce --seeds``): six runs
     per seed (PD, sync, ring-coupled × the two plans), in parallel inside Rust, the GIL
     released. ``overrides`` set scenario keys first. The first seed's rows are the
-    numbers ``ringsync reproduce`` prints.
+    numbers ``ringsync reproduce`` prints. Ctrl-C (a Jupyter kernel's interrupt) ends
+    it early and raises ``KeyboardInterrupt``.
 
     Raises :class:`ringsync.ScenarioError` for a bad scenario, key or value, or ``seeds``
     out of range (naming it).

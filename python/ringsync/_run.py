@@ -365,7 +365,8 @@ def simulate(scenario: ScenarioLike, *, seed: int | None = None, **overrides: An
     ``seed`` holds; numpy integers too, not bools). ``overrides`` set scenario keys first, dotted keys through
     ``**``: ``simulate("paper-2015", **{"control.alpha": 0.3})``, top-level ones directly:
     ``simulate("paper-2015", duration="1s")``. Same scenario and seed, same numbers, to the
-    last bit, as ``ringsync sim``. The GIL is released while it runs.
+    last bit, as ``ringsync sim``. The GIL is released while it runs; Ctrl-C (a Jupyter
+    kernel's interrupt) ends it at its next cycle and raises ``KeyboardInterrupt``.
 
     Raises :class:`ringsync.ScenarioError` for a bad scenario, key or value, or a
     ``seed`` out of range (naming it).

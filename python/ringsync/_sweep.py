@@ -242,7 +242,9 @@ def sweep(
     Where the runs go:
 
     - ``executor=None`` (default): in parallel on ``jobs`` threads inside Rust (a whole
-      number 1 ..= 4096; default: the CPUs), the GIL released.
+      number 1 ..= 4096; default: the CPUs), the GIL released. Ctrl-C (a Jupyter
+      kernel's interrupt) starts no further run, ends those running at their next cycle
+      and raises ``KeyboardInterrupt``.
     - ``executor=`` a ``dask.distributed.Client``, or a scheduler address such as
       ``"tcp://10.0.0.5:8786"`` (a client is made and closed): on Dask. The first few runs
       are timed here (unless ``run_seconds`` [s], the time of one run, is given), then the

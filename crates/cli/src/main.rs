@@ -28,7 +28,8 @@ const ERROR_LINE_CHARS: usize = 400;
 const EXIT_STATUSES: &str = "\
 Exit status:
   0  success
-  1  a runtime or I/O error; also an interrupted `rt` run (its partial results are written)
+  1  a runtime or I/O error; also work interrupted by Ctrl-C: an `rt` run or a `sweep`
+     writes what it finished, a `sim` or `reproduce` writes nothing
   2  bad usage or input: options, scenario files, an --out that is not a results directory
   3  the work finished and its results are written, but `sim`, `reproduce`, `sweep` (any
      case) or `rt` ended in a group stop, or `check` could not show the loop stable

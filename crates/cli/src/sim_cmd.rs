@@ -48,7 +48,11 @@ fn outputs(list: &str) -> Result<ringsync::Outputs, String> {
 }
 
 /// The results directory for `--out`, which must not hold the scenario file: it is replaced.
+/// From here on Ctrl-C, SIGTERM and SIGHUP only raise the stop flag
+/// (`ringsync::layers::runtime::stop_flag`), which the command looks at: an interrupted
+/// command ends cleanly and removes the directory it was writing beside `--out`.
 pub(crate) fn out_dir(out: &Path, scenario: &Loaded) -> Result<OutDir, CliError> {
+    ringsync::layers::runtime::stop_flag();
     let dir = OutDir::create("--out", out)?;
     if !scenario.is_builtin() {
         dir.keep_out(Path::new(&scenario.origin))?;
@@ -76,9 +80,12 @@ pub(crate) fn sim(args: &SimArgs) -> Result<Outcome, CliError> {
         s.seed = seed;
     }
     let wall = WallClock::now();
+    // Ctrl-C, SIGTERM, SIGHUP: the run ends at its next cycle and nothing is written.
+    let stop = ringsync::layers::runtime::stop_flag();
     let opts = SimOptions {
         trace: args.outputs.needs_trace(),
         capture: args.pcap.is_some(),
+        stop: Some(ringsync::Stop::Static(stop)),
         ..SimOptions::default()
     };
     // A progress line on a terminal once the run has taken more than a second.
@@ -111,10 +118,11 @@ pub(crate) fn sim(args: &SimArgs) -> Result<Outcome, CliError> {
     };
     #[cfg(not(feature = "scope"))]
     let observers = Vec::new();
-    let r = ringsync::simulate_with(&s, &opts, observers, &mut progress)?;
+    let r = ringsync::simulate_with(&s, &opts, observers, &mut progress);
     if shown {
         eprintln!();
     }
+    let r = r.map_err(interrupted_nothing_written)?;
     #[cfg(feature = "scope")]
     scope.finish(&s, loaded.hash, &r);
     let elapsed = wall.elapsed();
@@ -127,6 +135,11 @@ pub(crate) fn sim(args: &SimArgs) -> Result<Outcome, CliError> {
         args.outputs,
     )?;
     ringsync::identify::write_scenario(&dir, &loaded, args.seed)?;
+    if stop.load(std::sync::atomic::Ordering::Relaxed) {
+        return Err(CliError::Failure(
+            "interrupted while writing the results; nothing written".into(),
+        ));
+    }
     dir.commit()?;
     out(&format!(
         "{}  wrote {}: {} in {:.1} ms\n",
@@ -136,6 +149,14 @@ pub(crate) fn sim(args: &SimArgs) -> Result<Outcome, CliError> {
         elapsed.as_secs_f64() * 1e3
     ))?;
     Ok(Outcome::flagged_if(r.group_stop.is_some()))
+}
+
+/// The error of work that was interrupted before it had anything to write.
+fn interrupted_nothing_written(e: ringsync::Error) -> CliError {
+    match e {
+        ringsync::Error::Interrupted(m) => CliError::Failure(format!("{m}; nothing written")),
+        e => e.into(),
+    }
 }
 
 /// Options of `ringsync reproduce`.
@@ -174,11 +195,16 @@ pub(crate) fn reproduce(args: &ReproduceArgs) -> Result<Outcome, CliError> {
         seeds: args.seeds,
         jobs: args.jobs.unwrap_or_else(ringsync::sweep::default_jobs),
         progress: &progress,
+        // Ctrl-C, SIGTERM, SIGHUP: no run starts after it, and nothing is written.
+        stop: Some(ringsync::Stop::Static(
+            ringsync::layers::runtime::stop_flag(),
+        )),
     };
-    let r = ringsync::reproduce_with(base, &opts)?;
+    let r = ringsync::reproduce_with(base, &opts);
     if tty {
         eprintln!();
     }
+    let r = r.map_err(interrupted_nothing_written)?;
     ringsync::write_reproduction(&dir, &r)?;
     dir.commit()?;
     let stopped = r.stopped();
@@ -227,26 +253,39 @@ pub struct SweepArgs {
 
 /// Runs `ringsync sweep`: exit status 3 when any case ends in a group stop.
 pub(crate) fn sweep(args: &SweepArgs) -> Result<Outcome, CliError> {
-    use ringsync::sweep::{Sweep, cases, run_cases, write_sweep};
+    use ringsync::sweep::{Sweep, cases, run_cases_until, write_sweep};
     let base = ringsync::load(&args.scenario)?;
     let cases = cases(&base, &args.set, args.seeds, args.auto_cycle)?;
     let dir = out_dir(&args.out, &base)?;
     let jobs = args.jobs.unwrap_or_else(ringsync::sweep::default_jobs);
     let tty = std::io::stderr().is_terminal();
     let wall = WallClock::now();
-    let results = run_cases(&cases, jobs, &|done, total| {
-        if tty {
-            eprint!("\r  case {done}/{total}");
-        }
-    });
+    // Ctrl-C, SIGTERM, SIGHUP: no case starts after it; the runs that finished are written.
+    let stop = ringsync::Stop::Static(ringsync::layers::runtime::stop_flag());
+    let results = run_cases_until(
+        &cases,
+        jobs,
+        &|done, total| {
+            if tty {
+                eprint!("\r  case {done}/{total}");
+            }
+        },
+        &stop,
+    );
     if tty {
         eprintln!();
     }
-    let n = cases.len();
-    let sw = Sweep::new(&base, &args.set, args.seeds, cases, results)?;
+    let planned = cases.len();
+    let (sw, not_run) = Sweep::finished(&base, &args.set, args.seeds, cases, results)?;
+    if sw.results.is_empty() {
+        return Err(CliError::Failure(
+            "interrupted before any run finished; nothing written".into(),
+        ));
+    }
     write_sweep(&dir, &sw)?;
     dir.commit()?;
     let stopped = sw.stopped();
+    let n = sw.results.len();
     out(&format!(
         "{}\n{n} runs on {jobs} threads in {:.2} s; wrote {}/sweep.csv, means.csv and sweep.svg\n{}",
         sw.table(),
@@ -258,6 +297,11 @@ pub(crate) fn sweep(args: &SweepArgs) -> Result<Outcome, CliError> {
             String::new()
         }
     ))?;
+    if not_run > 0 {
+        return Err(CliError::Failure(format!(
+            "interrupted: {n} of {planned} runs finished and are written ({not_run} not run; the means are over the seeds that finished)"
+        )));
+    }
     Ok(Outcome::flagged_if(stopped > 0))
 }
 

@@ -1,6 +1,6 @@
 //! `ringsync sim` and `ringsync reproduce` end to end.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 mod common;
 
 use common::ringsync;
@@ -743,4 +743,116 @@ fn a_broken_link_is_reported_in_the_summary() {
     let stop = &v["faults"]["group_stop"];
     assert_eq!(stop["reason"], "ring-split");
     assert_eq!(stop["isolated_slaves"], serde_json::json!([2, 3]));
+}
+
+/// Starts `ringsync ARGS` with every signal at its default (a suite run in a background job
+/// ignores SIGINT) and sends it SIGINT, as Ctrl-C does, once the directory it writes beside
+/// `out` exists (the command takes the signal as a request from then on); returns its exit
+/// status and stderr.
+fn interrupt(args: &[&str], out: &Path) -> (Option<i32>, String) {
+    let mut child = std::process::Command::new("env")
+        .arg("--default-signal")
+        .arg(env!("CARGO_BIN_EXE_ringsync"))
+        .args(args)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("start ringsync");
+    let pid = child.id();
+    let name = out.file_name().and_then(|n| n.to_str()).expect("name");
+    let tmp = out.with_file_name(format!(".{name}.tmp-{pid}"));
+    let started = std::time::Instant::now();
+    while !tmp.exists() {
+        if let Ok(Some(status)) = child.try_wait() {
+            let mut err = String::new();
+            if let Some(mut e) = child.stderr.take() {
+                let _ = std::io::Read::read_to_string(&mut e, &mut err);
+            }
+            panic!("ringsync {args:?} ended before its results directory existed: {status}, {err}");
+        }
+        assert!(
+            started.elapsed() < std::time::Duration::from_secs(120),
+            "{} never appeared",
+            tmp.display()
+        );
+        std::thread::sleep(std::time::Duration::from_millis(10));
+    }
+    // Some runs of a sweep finish first (on a busy host perhaps none: both are checked).
+    std::thread::sleep(std::time::Duration::from_millis(500));
+    let sent = std::process::Command::new("kill")
+        .args(["-INT", &pid.to_string()])
+        .status()
+        .expect("kill");
+    assert!(sent.success());
+    let o = child.wait_with_output().expect("wait");
+    assert!(!tmp.exists(), "{} left behind", tmp.display());
+    (
+        o.status.code(),
+        String::from_utf8_lossy(&o.stderr).into_owned(),
+    )
+}
+
+/// Ctrl-C: a sweep starts no case after it and writes the runs that finished (exit 1, the
+/// count named); a simulation ends at its next cycle and writes nothing (exit 1); neither
+/// leaves anything beside `--out`.
+#[test]
+fn ctrl_c_keeps_a_sweeps_finished_runs_and_a_sim_writes_nothing() {
+    let d = dir("interrupted");
+    std::fs::create_dir_all(&d).expect("dir");
+    let p = |p: &Path| p.to_str().expect("utf-8 path").to_string();
+    let out = d.join("sweep");
+    let (code, err) = interrupt(
+        &[
+            "sweep",
+            "paper-2015",
+            "--set",
+            "control.alpha=0.1,0.2,0.3,0.4,0.5,0.6,0.7,0.8,0.9,1.0",
+            "--seeds",
+            "1000",
+            "--jobs",
+            "1",
+            "--out",
+            &p(&out),
+        ],
+        &out,
+    );
+    assert_eq!(code, Some(1), "{err}");
+    if out.exists() {
+        let rows = std::fs::read_to_string(out.join("sweep.csv")).expect("sweep.csv");
+        let finished = rows.lines().count() - 1;
+        assert!((1..10_000).contains(&finished), "{finished} rows");
+        assert!(
+            err.contains(&format!(
+                "interrupted: {finished} of 10000 runs finished and are written ({} not run;",
+                10_000 - finished
+            )),
+            "{err}"
+        );
+        let means = std::fs::read_to_string(out.join("means.csv")).expect("means.csv");
+        assert!(means.lines().count() >= 2, "{means}");
+    } else {
+        assert!(
+            err.contains("interrupted before any run finished; nothing written"),
+            "{err}"
+        );
+    }
+    let out = d.join("sim");
+    let (code, err) = interrupt(
+        &[
+            "sim",
+            "paper-2015",
+            "--set",
+            "duration=\"3600s\"",
+            "--out",
+            &p(&out),
+        ],
+        &out,
+    );
+    assert_eq!(code, Some(1), "{err}");
+    assert!(
+        err.contains("ringsync: error: interrupted at cycle "),
+        "{err}"
+    );
+    assert!(err.contains(" of 3600000; nothing written"), "{err}");
+    assert!(!out.exists());
 }

@@ -16,10 +16,13 @@
 //! which becomes `ringsync.RunError` instead of ending the interpreter (`guard`).
 
 use std::panic::{AssertUnwindSafe, catch_unwind};
+use std::sync::mpsc::{self, RecvTimeoutError};
+use std::time::Duration;
 
 use pyo3::create_exception;
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
+use ringsync::Stop;
 
 mod convert;
 mod run;
@@ -73,6 +76,55 @@ pub(crate) fn guard<T: Send>(
         Ok(r) => r.map_err(to_py),
         Err(panic) => Err(panicked(panic.as_ref())),
     }
+}
+
+/// Runs `work` without the GIL on a thread of its own, looking for Ctrl-C
+/// (KeyboardInterrupt, a Jupyter kernel's interrupt) every 50 ms: on it, the [`Stop`] flag
+/// `work` was given rises, the work ends early (a run at its next cycle, a sweep before its
+/// next case), and the interrupt is raised once the thread has finished. A panic becomes
+/// `RunError`, as in [`guard`].
+pub(crate) fn interruptible<T: Send>(
+    py: Python<'_>,
+    work: impl FnOnce(&Stop) -> Result<T, ringsync::Error> + Send,
+) -> PyResult<T> {
+    let stop = Stop::new();
+    let (tx, rx) = mpsc::channel();
+    std::thread::scope(|scope| {
+        let flag = stop.clone();
+        scope.spawn(move || {
+            let _ = tx.send(catch_unwind(AssertUnwindSafe(|| work(&flag))));
+        });
+        let mut interrupted: Option<PyErr> = None;
+        let mut rx = rx;
+        loop {
+            let (got, back) = py.detach(move || (rx.recv_timeout(Duration::from_millis(50)), rx));
+            rx = back;
+            match got {
+                Ok(done) => {
+                    return match (interrupted, done) {
+                        (Some(e), _) => Err(e),
+                        (None, Ok(r)) => r.map_err(to_py),
+                        (None, Err(panic)) => Err(panicked(panic.as_ref())),
+                    };
+                }
+                Err(RecvTimeoutError::Timeout) => {
+                    if interrupted.is_none()
+                        && let Err(e) = py.check_signals()
+                    {
+                        stop.raise();
+                        interrupted = Some(e);
+                    }
+                }
+                Err(RecvTimeoutError::Disconnected) => {
+                    return Err(interrupted.unwrap_or_else(|| {
+                        RunError::new_err(
+                            "internal error in ringsync: the work ended without a result",
+                        )
+                    }));
+                }
+            }
+        }
+    })
 }
 
 /// The `RunError` for a caught panic, with its message.

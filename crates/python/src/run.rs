@@ -58,7 +58,7 @@ fn simulate(
     let seed = seed
         .map(|s| whole("seed", &s, 0, MAX_SEED, SEED_RANGE))
         .transpose()?;
-    guard(py, move || {
+    crate::interruptible(py, move |stop| {
         let loaded = ringsync::parse(&text, &origin)?;
         let mut scenario = loaded.scenario;
         if let Some(seed) = seed {
@@ -66,6 +66,7 @@ fn simulate(
         }
         let opts = SimOptions {
             trace: true,
+            stop: Some(stop.clone()),
             ..SimOptions::default()
         };
         let result = ringsync::simulate(&scenario, &opts)?;
@@ -419,10 +420,11 @@ fn reproduce<'py>(
     let max = ringsync::reproduce::MAX_SEEDS;
     let seeds = whole("seeds", &seeds, 1, u64::from(max), " (seeds per case)")?;
     let seeds = u32::try_from(seeds).unwrap_or(max);
-    let rows = guard(py, move || {
+    let rows = crate::interruptible(py, move |stop| {
         let s = ringsync::parse(&text, &origin)?.scenario;
         let opts = ringsync::ReproOptions {
             seeds,
+            stop: Some(stop.clone()),
             ..Default::default()
         };
         let r = ringsync::reproduce_with(&s, &opts)?;

@@ -159,11 +159,11 @@ fn sweep<'py>(
     let jobs = jobs_arg(jobs.as_ref())?.max(1);
     let axes = sweep_axes(&grid)?;
     let axes_run = axes.clone();
-    let (sw, runs): (Sweep, usize) = guard(py, move || {
+    let (sw, runs): (Sweep, usize) = crate::interruptible(py, move |stop| {
         let base = ringsync::parse(&text, &origin)?;
         let cs: Vec<Case> = cases(&base, &axes_run, seeds, false)?;
         let runs = cs.len();
-        let results = run_all(&cs, jobs, &|_, _| {});
+        let results = ringsync::sweep::run_cases_until(&cs, jobs, &|_, _| {}, stop);
         Ok((Sweep::new(&base, &axes_run, seeds, cs, results)?, runs))
     })?;
     // The threads used: no more than there are runs.

@@ -32,6 +32,9 @@ pub enum Error {
     /// Another failure while doing the work.
     #[error("{0}")]
     Failed(String),
+    /// The caller's stop flag rose (Ctrl-C): the work ended early; the message says where.
+    #[error("{0}")]
+    Interrupted(String),
 }
 
 /// The library's result.
@@ -71,6 +74,9 @@ impl From<ringsync_sim::run::RunError> for Error {
             // on what the scenario asks (more slaves than a delay frame holds, a slave
             // silent from the start).
             e @ ringsync_sim::run::RunError::StartUp(_) => Error::Input(e.to_string()),
+            e @ ringsync_sim::run::RunError::Interrupted { .. } => {
+                Error::Interrupted(e.to_string())
+            }
         }
     }
 }

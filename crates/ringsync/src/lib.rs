@@ -53,6 +53,7 @@ pub use load::{Loaded, key_value, load, parse, with_values};
 pub use output::OutDir;
 pub use plan::{plan, plan_of};
 pub use reproduce::{ReproOptions, Reproduction, reproduce, reproduce_with, write_reproduction};
+pub use ringsync_sim::Stop;
 pub use rt::{RtPrediction, SimPrediction, predict, predict_rt, run_rt};
 pub use simulate::{Outputs, SimOptions, sim_text, simulate, simulate_with, write_sim};
 pub use sweep::run_case;

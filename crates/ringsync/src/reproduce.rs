@@ -45,6 +45,9 @@ pub struct ReproOptions<'a> {
     pub jobs: usize,
     /// Called after each run with (runs done, runs in all).
     pub progress: &'a (dyn Fn(usize, usize) + Sync),
+    /// The caller's stop flag (Ctrl-C): once it rises no run starts, those running end at
+    /// their next cycle, and the reproduction is an [`crate::Error::Interrupted`].
+    pub stop: Option<crate::Stop>,
 }
 
 impl Default for ReproOptions<'_> {
@@ -53,6 +56,7 @@ impl Default for ReproOptions<'_> {
             seeds: DEFAULT_SEEDS,
             jobs: crate::sweep::default_jobs(),
             progress: &|_, _| {},
+            stop: None,
         }
     }
 }
@@ -134,11 +138,13 @@ pub fn reproduce_with(base: &Scenario, opts: &ReproOptions<'_>) -> Result<Reprod
         |j| {
             let o = crate::SimOptions {
                 trace: j.trace,
+                stop: opts.stop.clone(),
                 ..Default::default()
             };
             crate::simulate(&j.scenario, &o)
         },
         opts.progress,
+        opts.stop.as_ref(),
     );
     let mut rows: Vec<ReproRow> = combos
         .iter()

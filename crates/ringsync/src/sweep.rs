@@ -32,6 +32,7 @@ use ringsync_proto::{CyclePlan, Duration, PlanKind};
 use crate::error::{Error, Result};
 use crate::load::Loaded;
 use crate::output::OutDir;
+pub use ringsync_sim::Stop;
 
 /// One swept key and its values, from `key=v1,v2,…`.
 #[derive(Debug, Clone, PartialEq)]
@@ -411,8 +412,17 @@ fn cycle_that_holds(s: &Scenario) -> Option<Duration> {
 
 /// Runs one case: a pure function of the case (same case, same result, wherever it runs).
 pub fn run_case(case: &Case) -> Result<CaseResult> {
+    run_case_until(case, None)
+}
+
+/// [`run_case`], ended early (an [`Error::Interrupted`]) when `stop` rises.
+pub fn run_case_until(case: &Case, stop: Option<&Stop>) -> Result<CaseResult> {
     let s = case.scenario()?;
-    let r = crate::simulate(&s, &crate::SimOptions::default())?;
+    let opts = crate::SimOptions {
+        stop: stop.cloned(),
+        ..Default::default()
+    };
+    let r = crate::simulate(&s, &opts)?;
     Ok(CaseResult {
         track_rmse: r.summary.track_rmse,
         sync_rmse: r.summary.sync_rmse,
@@ -438,17 +448,37 @@ pub fn run_cases(
     jobs: usize,
     progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Vec<Result<CaseResult>> {
-    par_map(cases, jobs, run_case, progress)
+    par_map(cases, jobs, run_case, progress, None)
+}
+
+/// [`run_cases`] until `stop` rises (Ctrl-C): no case starts after it, the cases running
+/// end at their next cycle; every case that did not finish is an [`Error::Interrupted`]
+/// ([`Sweep::finished`] keeps the others).
+pub fn run_cases_until(
+    cases: &[Case],
+    jobs: usize,
+    progress: &(dyn Fn(usize, usize) + Sync),
+    stop: &Stop,
+) -> Vec<Result<CaseResult>> {
+    par_map(
+        cases,
+        jobs,
+        |c| run_case_until(c, Some(stop)),
+        progress,
+        Some(stop),
+    )
 }
 
 /// `f` on every item, on `jobs` threads taking the next item as they finish one; results in
 /// item order. `progress(done, total)` is called after each item. A thread that panics
-/// leaves its item's result as an error.
+/// leaves its item's result as an error. Once `stop` rises no item starts: those left are
+/// [`Error::Interrupted`].
 pub(crate) fn par_map<T: Sync, R: Send>(
     items: &[T],
     jobs: usize,
     f: impl Fn(&T) -> Result<R> + Sync,
     progress: &(dyn Fn(usize, usize) + Sync),
+    stop: Option<&Stop>,
 ) -> Vec<Result<R>> {
     let next = AtomicUsize::new(0);
     let done = AtomicUsize::new(0);
@@ -457,6 +487,9 @@ pub(crate) fn par_map<T: Sync, R: Send>(
         for _ in 0..jobs.max(1).min(items.len().max(1)) {
             scope.spawn(|| {
                 loop {
+                    if stop.is_some_and(Stop::raised) {
+                        break;
+                    }
                     let i = next.fetch_add(1, Ordering::Relaxed);
                     if i >= items.len() {
                         break;
@@ -470,13 +503,17 @@ pub(crate) fn par_map<T: Sync, R: Send>(
             });
         }
     });
+    let stopped = stop.is_some_and(Stop::raised);
     slots
         .into_iter()
         .map(|slot| {
-            slot.into_inner()
-                .ok()
-                .flatten()
-                .unwrap_or_else(|| Err(Error::Failed("a case was not run".into())))
+            slot.into_inner().ok().flatten().unwrap_or_else(|| {
+                Err(if stopped {
+                    Error::Interrupted("not run: interrupted".into())
+                } else {
+                    Error::Failed("a case was not run".into())
+                })
+            })
         })
         .collect()
 }
@@ -547,6 +584,24 @@ pub struct Sweep {
 }
 
 impl Sweep {
+    /// The cases of an interrupted sweep ([`run_cases_until`]) that finished, as a sweep of
+    /// their own (means over the seeds that finished), and how many did not: the first case
+    /// that failed otherwise is the error, as in [`Sweep::new`].
+    pub fn finished(
+        base: &Loaded,
+        axes: &[SweepAxis],
+        seeds: u32,
+        cases: Vec<Case>,
+        results: Vec<Result<CaseResult>>,
+    ) -> Result<(Sweep, usize)> {
+        let (kept, left): (Vec<_>, Vec<_>) = cases
+            .into_iter()
+            .zip(results)
+            .partition(|(_, r)| !matches!(r, Err(Error::Interrupted(_))));
+        let (cases, results) = kept.into_iter().unzip();
+        Ok((Sweep::new(base, axes, seeds, cases, results)?, left.len()))
+    }
+
     /// Collects the results of [`run_cases`]: the first failed case is the error, named.
     pub fn new(
         base: &Loaded,
@@ -818,6 +873,41 @@ mod tests {
         assert!(e.to_string().contains("whole number"), "{e}");
         let e = one(&base().text, "axis.encoder_bits=1").expect_err("range");
         assert!(e.to_string().contains("encoder_bits"), "{e}");
+    }
+
+    /// A stop flag raised during a sweep: no case starts after it, the finished ones are
+    /// kept (their means over the seeds that finished), the rest counted; raised before,
+    /// nothing runs.
+    #[test]
+    fn an_interrupted_sweep_keeps_what_finished() {
+        let short = crate::parse("duration = \"100ms\"\n", "t").expect("text");
+        let axes = ["control.alpha=0.2,0.4".parse().expect("axis")];
+        let c = cases(&short, &axes, 5, false).expect("cases");
+        let stop = Stop::new();
+        let r = run_cases_until(
+            &c,
+            1,
+            &|done, _| {
+                if done == 3 {
+                    stop.raise();
+                }
+            },
+            &stop,
+        );
+        assert!(r[..3].iter().all(Result::is_ok));
+        assert!(
+            r[3..]
+                .iter()
+                .all(|r| matches!(r, Err(Error::Interrupted(_))))
+        );
+        let (sw, not_run) = Sweep::finished(&short, &axes, 5, c.clone(), r).expect("sweep");
+        assert_eq!((sw.results.len(), not_run), (3, 7));
+        assert_eq!(sw.means.len(), 1, "only alpha = 0.2 ran");
+        assert_eq!(sw.means[0].runs, 3);
+        assert_eq!(sw.results[0], run_case(&c[0]).expect("run"));
+        let r = run_cases_until(&c, 2, &|_, _| {}, &stop);
+        let (sw, not_run) = Sweep::finished(&short, &axes, 5, c, r).expect("sweep");
+        assert_eq!((sw.results.len(), not_run), (0, 10));
     }
 
     #[test]

@@ -11,4 +11,4 @@ pub mod run;
 pub use predict::{SimPrediction, predict};
 pub use ringsync_model::result::RunResult;
 pub use ringsync_model::{Scenario, ScenarioError, builtin, builtin_names};
-pub use run::{RunOptions, run, run_with_progress, simulate};
+pub use run::{RunOptions, Stop, run, run_with_progress, simulate};

@@ -12,6 +12,9 @@
 //! Same scenario and seed → the same events in the same order → identical outputs.
 //! Assumptions beyond the paper are listed in [`ASSUMPTIONS`].
 
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+
 use ringsync_proto::Instant;
 use ringsync_proto::PlanKind;
 use ringsync_proto::node::{FrameOutcome, Port, WireFrame};
@@ -44,6 +47,48 @@ pub struct RunOptions {
     /// decoded (no bytes, no CRC, where nothing reads them). The results are the same
     /// (a test compares the two); bytes cost more.
     pub bytes: bool,
+    /// The caller's stop flag (Ctrl-C): when it rises, the run ends at the next cycle start
+    /// and [`simulate`] returns [`RunError::Interrupted`] (no partial result).
+    pub stop: Option<Stop>,
+}
+
+/// A flag that asks a run (or a sweep) to stop, looked at once per cycle (and before each
+/// case of a sweep).
+#[derive(Debug, Clone)]
+pub enum Stop {
+    /// A flag the caller shares with whatever raises it.
+    Shared(Arc<AtomicBool>),
+    /// A flag that lives for the whole process (a signal handler's).
+    Static(&'static AtomicBool),
+}
+
+impl Stop {
+    /// A new shared flag, down.
+    pub fn new() -> Self {
+        Stop::Shared(Arc::new(AtomicBool::new(false)))
+    }
+
+    /// Whether the flag has risen.
+    pub fn raised(&self) -> bool {
+        match self {
+            Stop::Shared(f) => f.load(Ordering::Relaxed),
+            Stop::Static(f) => f.load(Ordering::Relaxed),
+        }
+    }
+
+    /// Raises the flag.
+    pub fn raise(&self) {
+        match self {
+            Stop::Shared(f) => f.store(true, Ordering::Relaxed),
+            Stop::Static(f) => f.store(true, Ordering::Relaxed),
+        }
+    }
+}
+
+impl Default for Stop {
+    fn default() -> Self {
+        Stop::new()
+    }
 }
 
 /// What can stop a run from starting.
@@ -58,6 +103,14 @@ pub enum RunError {
     /// The nodes' start-up phase failed (`clock.path_delays = "measured"`).
     #[error("the start-up phase failed: {0}")]
     StartUp(#[from] ringsync_proto::node::CalibrationError),
+    /// The caller's [`Stop`] flag rose before the run's end.
+    #[error("interrupted at cycle {cycle} of {cycles}")]
+    Interrupted {
+        /// The cycle whose start saw the flag.
+        cycle: i64,
+        /// Cycles in the whole run.
+        cycles: i64,
+    },
 }
 
 #[derive(Debug)]
@@ -145,6 +198,9 @@ struct Sim {
     slots_per_frame: usize,
     log_cycles: Option<(i64, i64)>,
     passages: Vec<PassageLog>,
+    stop: Option<Stop>,
+    /// The cycle at whose start the stop flag was seen.
+    interrupted: Option<i64>,
 }
 
 /// Runs a scenario.
@@ -206,6 +262,12 @@ pub fn simulate(
         sim.dev.observe(o);
     }
     sim.run(progress);
+    if let Some(cycle) = sim.interrupted {
+        return Err(RunError::Interrupted {
+            cycle,
+            cycles: sim.end / sim.t_cyc,
+        });
+    }
     let mut r = sim.finish(&s.name);
     r.start_up = start_up;
     Ok(r)
@@ -236,6 +298,8 @@ impl Sim {
             slots_per_frame: spec.plan.lumped.slots_per_frame,
             log_cycles: opts.log_cycles,
             passages: Vec::new(),
+            stop: opts.stop,
+            interrupted: None,
         };
         sim.schedule_master();
         for i in 0..n {
@@ -382,6 +446,10 @@ impl Sim {
                     self.recycle();
                 }
                 Ev::Probe { k } => {
+                    if self.stop.as_ref().is_some_and(Stop::raised) {
+                        self.interrupted = Some(k);
+                        return;
+                    }
                     if k % 100 == 0 {
                         progress(k, cycles);
                     }

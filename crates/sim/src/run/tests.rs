@@ -568,6 +568,7 @@ fn decoded_frames_and_bytes_give_the_same_run() {
                     capture: true,
                     log_cycles: Some((0, 3)),
                     bytes,
+                    ..Default::default()
                 },
             )
             .expect("run");
@@ -698,4 +699,42 @@ fn the_check_finds_the_simulated_edge_of_stability_on_both_plans() {
     }
     // The lead lengthens every sample-to-actuation delay: the edge comes down.
     assert!(edge("p2p-lumped+lead") < 0.9 * edge("p2p-lumped"));
+}
+
+/// A stop flag ends a run at the next cycle start, as an error that names that cycle; a
+/// flag already up ends it before the first; a run whose flag stays down is the run without
+/// one.
+#[test]
+fn a_stop_flag_ends_the_run_at_the_next_cycle() {
+    let s = Scenario::default();
+    let spec = s.build().expect("valid");
+    let stop = Stop::new();
+    let flag = stop.clone();
+    let opts = RunOptions {
+        stop: Some(stop),
+        ..Default::default()
+    };
+    let r = simulate(&spec, opts.clone(), Vec::new(), &mut |k, _| {
+        if k == 200 {
+            flag.raise();
+        }
+    });
+    match r {
+        Err(RunError::Interrupted { cycle, cycles }) => {
+            assert_eq!((cycle, cycles), (201, 4000));
+        }
+        other => panic!("expected an interruption, got {other:?}"),
+    }
+    let e = simulate(&spec, opts, Vec::new(), &mut |_, _| {}).expect_err("the flag is up");
+    assert_eq!(e.to_string(), "interrupted at cycle 0 of 4000");
+    let down = RunOptions {
+        stop: Some(Stop::new()),
+        ..Default::default()
+    };
+    let with = simulate(&spec, down, Vec::new(), &mut |_, _| {}).expect("run");
+    let without = simulate(&spec, RunOptions::default(), Vec::new(), &mut |_, _| {}).expect("run");
+    assert_eq!(
+        format!("{:?}", with.summary),
+        format!("{:?}", without.summary)
+    );
 }
