@@ -182,18 +182,25 @@ def distributed_results(
 
             done_runs = 0
             sizes = {f.key: len(p) for f, p in zip(futures, packs)}
-            for n, f in enumerate(distributed.as_completed(futures), start=1):
-                for key, result in f.result():
-                    keyed[key] = result
-                done_runs += sizes[f.key]
-                if progress:
-                    print(
-                        f"\rringsync sweep: {n}/{len(futures)} tasks, "
-                        f"{done_runs + start}/{len(cases)} runs",
-                        end="" if n < len(futures) else "\n",
-                        file=sys.stderr,
-                        flush=True,
-                    )
+            try:
+                for n, f in enumerate(distributed.as_completed(futures), start=1):
+                    for key, result in f.result():
+                        keyed[key] = result
+                    done_runs += sizes[f.key]
+                    if progress:
+                        print(
+                            f"\rringsync sweep: {n}/{len(futures)} tasks, "
+                            f"{done_runs + start}/{len(cases)} runs",
+                            end="" if n < len(futures) else "\n",
+                            file=sys.stderr,
+                            flush=True,
+                        )
+            except BaseException:
+                # Ctrl-C (or a failed task): the cluster stops the sweep's other tasks
+                # rather than running them for nobody (a traceback kept in Jupyter would
+                # otherwise hold the futures, and so the work, alive).
+                client.cancel(futures)
+                raise
         return [keyed[k] for k in keys], [len(p) for p in packs]
     finally:
         if own:

@@ -58,6 +58,34 @@ def test_progress_line(client: object, capsys: pytest.CaptureFixture[str]) -> No
     assert re.search(r"ringsync sweep: (\d+)/\1 tasks, 3/3 runs\n$", err), err
 
 
+def test_an_interrupted_sweep_cancels_its_tasks(client: object, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Ctrl-C while the results come in (KeyboardInterrupt raised where the sweep waits):
+    the cluster drops the sweep's other tasks, although the traceback (as Jupyter keeps
+    it) still holds their futures."""
+    import distributed
+
+    real = distributed.as_completed
+
+    def interrupted_after_one(futures: object) -> Iterator[object]:
+        for f in real(futures):
+            yield f
+            raise KeyboardInterrupt
+
+    monkeypatch.setattr(distributed, "as_completed", interrupted_after_one)
+    with pytest.raises(KeyboardInterrupt) as caught:
+        ringsync.sweep("paper-2015", {"control.alpha": [0.1, 0.2]}, seeds=100, duration="0.2s",
+                       executor=client, run_seconds=0.1, task_seconds=0.1)
+    assert caught.traceback  # held, with the sweep's frames and their futures
+
+    def tasks() -> int:
+        return client.run_on_scheduler(lambda dask_scheduler: len(dask_scheduler.tasks))  # type: ignore[attr-defined]
+
+    deadline = time.monotonic() + 30
+    while tasks() and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert tasks() == 0
+
+
 def _free_port() -> int:
     import socket
 
