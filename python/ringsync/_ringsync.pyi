@@ -123,10 +123,12 @@ def sweep(
     grid: list[tuple[str, list[Any]]],
     seeds: int = 1,
     jobs: int | None = None,
+    progress: bool = False,
 ) -> dict[str, Any]:
     """``rows`` (one per run) and ``means`` (one per combination), values named by their
     index in the grid; ``seeds`` (1 ..= 1 000 000) and ``jobs`` (threads, 1 ..= 4096) as
-    used."""
+    used. ``progress``: a line ``ringsync sweep: DONE/ALL runs`` on ``sys.stderr`` as runs
+    finish. Ctrl-C raises ``KeyboardInterrupt`` once the runs under way have stopped."""
 
 def sweep_cases(
     text: str, origin: str, grid: list[tuple[str, list[Any]]], seeds: int = 1

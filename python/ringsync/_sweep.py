@@ -244,7 +244,8 @@ def sweep(
     - ``executor=None`` (default): in parallel on ``jobs`` threads inside Rust (a whole
       number 1 ..= 4096; default: the CPUs), the GIL released. Ctrl-C (a Jupyter
       kernel's interrupt) starts no further run, ends those running at their next cycle
-      and raises ``KeyboardInterrupt``.
+      and raises ``KeyboardInterrupt``. ``progress=True`` prints ``ringsync sweep:
+      DONE/ALL runs`` on standard error, rewritten as runs finish.
     - ``executor=`` a ``dask.distributed.Client``, or a scheduler address such as
       ``"tcp://10.0.0.5:8786"`` (a client is made and closed): on Dask. The first few runs
       are timed here (unless ``run_seconds`` [s], the time of one run, is given), then the
@@ -309,7 +310,7 @@ def sweep(
     items = list(g.items())
     tasks: list[int] | None = None
     if executor is None:
-        out = _rs.sweep(s.to_toml(), s.origin, items, seeds, jobs)
+        out = _rs.sweep(s.to_toml(), s.origin, items, seeds, jobs, progress)
     else:
         from ._dask import distributed_results
 

@@ -104,3 +104,12 @@ def test_a_grid_that_would_mislabel_its_rows_is_refused() -> None:
         ringsync.sweep(
             ringsync.load("paper-2015").set("seed", 2**63 - 1), {}, seeds=3, duration="0.1s"
         )
+
+
+def test_progress_line_in_process(capsys: pytest.CaptureFixture[str]) -> None:
+    ringsync.sweep("paper-2015", {"control.alpha": [0.3, 0.4]}, seeds=3, duration="0.2s",
+                   progress=True)
+    err = capsys.readouterr().err
+    assert err.endswith("\rringsync sweep: 6/6 runs\n"), repr(err)
+    ringsync.sweep("paper-2015", {"control.alpha": [0.3]}, seeds=2, duration="0.2s")
+    assert capsys.readouterr().err == ""

@@ -87,6 +87,16 @@ pub(crate) fn interruptible<T: Send>(
     py: Python<'_>,
     work: impl FnOnce(&Stop) -> Result<T, ringsync::Error> + Send,
 ) -> PyResult<T> {
+    interruptible_ticking(py, work, &mut |_, _| Ok(()))
+}
+
+/// [`interruptible`], calling `tick(py, finished)` every 50 ms while the work runs and once
+/// when it has finished (for a progress line).
+pub(crate) fn interruptible_ticking<T: Send>(
+    py: Python<'_>,
+    work: impl FnOnce(&Stop) -> Result<T, ringsync::Error> + Send,
+    tick: &mut dyn FnMut(Python<'_>, bool) -> PyResult<()>,
+) -> PyResult<T> {
     let stop = Stop::new();
     let (tx, rx) = mpsc::channel();
     std::thread::scope(|scope| {
@@ -101,6 +111,9 @@ pub(crate) fn interruptible<T: Send>(
             rx = back;
             match got {
                 Ok(done) => {
+                    if interrupted.is_none() {
+                        tick(py, true)?;
+                    }
                     return match (interrupted, done) {
                         (Some(e), _) => Err(e),
                         (None, Ok(r)) => r.map_err(to_py),
@@ -108,11 +121,14 @@ pub(crate) fn interruptible<T: Send>(
                     };
                 }
                 Err(RecvTimeoutError::Timeout) => {
-                    if interrupted.is_none()
-                        && let Err(e) = py.check_signals()
-                    {
-                        stop.raise();
-                        interrupted = Some(e);
+                    if interrupted.is_none() {
+                        if let Err(e) = py.check_signals() {
+                            stop.raise();
+                            interrupted = Some(e);
+                        } else if let Err(e) = tick(py, false) {
+                            stop.raise();
+                            interrupted = Some(e);
+                        }
                     }
                 }
                 Err(RecvTimeoutError::Disconnected) => {

@@ -4,6 +4,9 @@
 //! runs some of them anywhere (a pure function of the cases' text) and [`sweep_collect`]
 //! assembles the results into the same rows and means as [`sweep`].
 
+use std::sync::Arc;
+use std::sync::atomic::{AtomicUsize, Ordering};
+
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
@@ -144,9 +147,10 @@ fn sweep_dict<'py>(
 
 /// Sweeps the scenario `text` over `grid` [(dotted key, values)], `seeds` seeds each
 /// (1 ..= [`MAX_SEEDS`]), on `jobs` threads (1 ..= [`MAX_JOBS`]; default: the CPUs): see
-/// [`sweep_dict`].
+/// [`sweep_dict`]. With `progress`, a line `ringsync sweep: DONE/ALL runs` on
+/// `sys.stderr`, rewritten as runs finish (at most every 50 ms), ended by a newline.
 #[pyfunction]
-#[pyo3(signature = (text, origin, grid, seeds=None, jobs=None))]
+#[pyo3(signature = (text, origin, grid, seeds=None, jobs=None, progress=false))]
 fn sweep<'py>(
     py: Python<'py>,
     text: String,
@@ -154,18 +158,50 @@ fn sweep<'py>(
     grid: Vec<(String, Vec<Bound<'py, PyAny>>)>,
     seeds: Option<Bound<'py, PyAny>>,
     jobs: Option<Bound<'py, PyAny>>,
+    progress: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     let seeds = seeds.as_ref().map_or(Ok(1), seeds_arg)?;
     let jobs = jobs_arg(jobs.as_ref())?.max(1);
     let axes = sweep_axes(&grid)?;
     let axes_run = axes.clone();
-    let (sw, runs): (Sweep, usize) = crate::interruptible(py, move |stop| {
+    // (runs done, runs in all), as the threads report them.
+    let counts = Arc::new((AtomicUsize::new(0), AtomicUsize::new(0)));
+    let seen = Arc::clone(&counts);
+    let mut shown = None;
+    let mut tick = |py: Python<'_>, finished: bool| -> PyResult<()> {
+        let (done, all) = (
+            counts.0.load(Ordering::Relaxed),
+            counts.1.load(Ordering::Relaxed),
+        );
+        if !progress || all == 0 || (shown == Some(done) && !finished) {
+            return Ok(());
+        }
+        shown = Some(done);
+        let end = if finished { "\n" } else { "" };
+        let err = py.import("sys")?.getattr("stderr")?;
+        err.call_method1(
+            "write",
+            (format!("\rringsync sweep: {done}/{all} runs{end}"),),
+        )?;
+        err.call_method0("flush")?;
+        Ok(())
+    };
+    let work = move |stop: &ringsync::Stop| {
         let base = ringsync::parse(&text, &origin)?;
         let cs: Vec<Case> = cases(&base, &axes_run, seeds, false)?;
         let runs = cs.len();
-        let results = ringsync::sweep::run_cases_until(&cs, jobs, &|_, _| {}, stop);
+        seen.1.store(runs, Ordering::Relaxed);
+        let results = ringsync::sweep::run_cases_until(
+            &cs,
+            jobs,
+            &|done, _| {
+                seen.0.fetch_max(done, Ordering::Relaxed);
+            },
+            stop,
+        );
         Ok((Sweep::new(&base, &axes_run, seeds, cs, results)?, runs))
-    })?;
+    };
+    let (sw, runs): (Sweep, usize) = crate::interruptible_ticking(py, work, &mut tick)?;
     // The threads used: no more than there are runs.
     sweep_dict(py, &sw, &axes, seeds, jobs.min(runs.max(1)))
 }
