@@ -31,6 +31,11 @@ const MAX_CLIENT_MESSAGE: usize = 4096;
 /// never completes its request must not hold the run's end (and its results) hostage.
 const SHUTDOWN_GRACE: Duration = Duration::from_secs(1);
 
+/// Longest time a connection may take to send a request's headers [s]; then it is closed
+/// (a client that opens connections and never finishes a request would otherwise hold a
+/// descriptor each for the whole run).
+const HEADER_TIMEOUT: Duration = Duration::from_secs(5);
+
 const INDEX: &str = include_str!("../assets/index.html");
 const SCRIPT: &str = include_str!("../assets/scope.js");
 const UPLOT_JS: &str = include_str!("../assets/uPlot.iife.min.js");
@@ -154,30 +159,59 @@ pub(crate) fn run(
             )
             .route("/ws", get(ws))
             .with_state(app);
+        serve(listener, router, stop).await;
+    });
+}
+
+/// Serves `router` on `listener` until `stop`: HTTP/1.1 with upgrades (the WebSocket), a
+/// request's headers within [`HEADER_TIMEOUT`]. Once stopped, connections get
+/// [`SHUTDOWN_GRACE`] to finish; then the runtime, dropped, closes what is left.
+async fn serve(listener: tokio::net::TcpListener, router: Router, stop: oneshot::Receiver<()>) {
+    use hyper_util::rt::{TokioExecutor, TokioIo, TokioTimer};
+    use hyper_util::server::conn::auto::Builder;
+    use hyper_util::server::graceful::GracefulShutdown;
+    use hyper_util::service::TowerToHyperService;
+
+    let mut builder = Builder::new(TokioExecutor::new());
+    builder
+        .http1()
+        .timer(TokioTimer::new())
+        .header_read_timeout(HEADER_TIMEOUT);
+    let builder = builder.http1_only();
+    let graceful = GracefulShutdown::new();
+    let mut stop = std::pin::pin!(stop);
+    loop {
+        let tcp = tokio::select! {
+            accepted = listener.accept() => match accepted {
+                Ok((tcp, _)) => tcp,
+                // Out of descriptors, say: wait a little rather than spin.
+                Err(_) => {
+                    tokio::time::sleep(Duration::from_millis(50)).await;
+                    continue;
+                }
+            },
+            _ = &mut stop => break,
+        };
         // A small send buffer per client: a client that stops reading blocks its own task
         // after ~SEND_BUFFER bytes and then skips updates, rather than the kernel holding
         // seconds of stale frames for it.
-        let listener =
-            axum::serve::ListenerExt::tap_io(listener, |tcp: &mut tokio::net::TcpStream| {
-                let _ = tcp.set_nodelay(true);
-                let _ = socket2::SockRef::from(&*tcp).set_send_buffer_size(SEND_BUFFER);
-            });
-        let stopping = Arc::new(tokio::sync::Notify::new());
-        let stopped = stopping.clone();
-        let serve = axum::serve(listener, router).with_graceful_shutdown(async move {
-            let _ = stop.await;
-            stopped.notify_one();
+        let _ = tcp.set_nodelay(true);
+        let _ = socket2::SockRef::from(&tcp).set_send_buffer_size(SEND_BUFFER);
+        let conn = builder
+            .serve_connection_with_upgrades(
+                TokioIo::new(tcp),
+                TowerToHyperService::new(router.clone()),
+            )
+            .into_owned();
+        let conn = graceful.watch(conn);
+        tokio::spawn(async move {
+            let _ = conn.await;
         });
-        // Once stopped, connections get SHUTDOWN_GRACE to finish; then the runtime, dropped,
-        // closes what is left.
-        tokio::select! {
-            _ = async { serve.await } => {}
-            _ = async {
-                stopping.notified().await;
-                tokio::time::sleep(SHUTDOWN_GRACE).await;
-            } => {}
-        }
-    });
+    }
+    tokio::select! {
+        _ = graceful.shutdown() => {}
+        _ = tokio::time::sleep(SHUTDOWN_GRACE) => {}
+    }
 }
 
 async fn ws(State(app): State<App>, upgrade: WebSocketUpgrade) -> Response {

@@ -419,3 +419,45 @@ fn hostile_clients_cannot_hold_the_scope() {
     );
     drop(slow);
 }
+
+/// A request that stops in its headers is closed once the header time limit (5 s) has
+/// passed, while the scope goes on serving (not at the run's end: it would hold a
+/// descriptor per such connection for the whole run).
+#[test]
+fn a_request_stalled_in_its_headers_is_closed() {
+    use std::io::{Read as _, Write as _};
+    let _one = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let mut s = Scenario::default();
+    s.duration.0 = Duration::from_ms(100);
+    let (scope, observer) = Scope::start(
+        "127.0.0.1:0".parse().expect("addr"),
+        &s,
+        Source::Replay { speed: 1.0 },
+    )
+    .expect("the scope starts");
+    let mut slow = std::net::TcpStream::connect(scope.addr()).expect("connect");
+    slow.write_all(b"GET / HTTP/1.1\r\nHost: x\r\nX-Slow: a")
+        .expect("write");
+    slow.set_read_timeout(Some(Wall::from_secs(60)))
+        .expect("timeout");
+    let sent = std::time::Instant::now();
+    let mut answer = Vec::new();
+    let closed = slow.read_to_end(&mut answer);
+    let after = sent.elapsed();
+    assert!(
+        closed.is_ok(),
+        "still open after {after:?}: {closed:?} {:?}",
+        String::from_utf8_lossy(&answer)
+    );
+    // Not before the limit (a busy host only makes it later).
+    assert!(after >= Wall::from_secs(4), "closed after {after:?}");
+    // The scope still serves a page.
+    let mut page = std::net::TcpStream::connect(scope.addr()).expect("connect");
+    page.write_all(b"GET /uPlot-LICENSE HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n")
+        .expect("write");
+    let mut text = String::new();
+    page.read_to_string(&mut text).expect("the page");
+    assert!(text.starts_with("HTTP/1.1 200"), "{text}");
+    drop(observer);
+    scope.finish(serde_json::json!({}), Wall::from_millis(200));
+}
