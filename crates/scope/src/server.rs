@@ -167,18 +167,12 @@ pub(crate) fn run(
 /// request's headers within [`HEADER_TIMEOUT`]. Once stopped, connections get
 /// [`SHUTDOWN_GRACE`] to finish; then the runtime, dropped, closes what is left.
 async fn serve(listener: tokio::net::TcpListener, router: Router, stop: oneshot::Receiver<()>) {
-    use hyper_util::rt::{TokioExecutor, TokioIo, TokioTimer};
-    use hyper_util::server::conn::auto::Builder;
-    use hyper_util::server::graceful::GracefulShutdown;
+    use hyper::server::conn::http1;
+    use hyper_util::rt::{TokioIo, TokioTimer};
     use hyper_util::service::TowerToHyperService;
 
-    let mut builder = Builder::new(TokioExecutor::new());
-    builder
-        .http1()
-        .timer(TokioTimer::new())
-        .header_read_timeout(HEADER_TIMEOUT);
-    let builder = builder.http1_only();
-    let graceful = GracefulShutdown::new();
+    let (closing_tx, closing) = tokio::sync::watch::channel(false);
+    let mut conns = tokio::task::JoinSet::new();
     let mut stop = std::pin::pin!(stop);
     loop {
         let tcp = tokio::select! {
@@ -190,6 +184,7 @@ async fn serve(listener: tokio::net::TcpListener, router: Router, stop: oneshot:
                     continue;
                 }
             },
+            Some(_) = conns.join_next(), if !conns.is_empty() => continue,
             _ = &mut stop => break,
         };
         // A small send buffer per client: a client that stops reading blocks its own task
@@ -197,21 +192,27 @@ async fn serve(listener: tokio::net::TcpListener, router: Router, stop: oneshot:
         // seconds of stale frames for it.
         let _ = tcp.set_nodelay(true);
         let _ = socket2::SockRef::from(&tcp).set_send_buffer_size(SEND_BUFFER);
-        let conn = builder
-            .serve_connection_with_upgrades(
-                TokioIo::new(tcp),
-                TowerToHyperService::new(router.clone()),
-            )
-            .into_owned();
-        let conn = graceful.watch(conn);
-        tokio::spawn(async move {
+        let service = TowerToHyperService::new(router.clone());
+        let mut closing = closing.clone();
+        conns.spawn(async move {
+            let conn = http1::Builder::new()
+                .timer(TokioTimer::new())
+                .header_read_timeout(HEADER_TIMEOUT)
+                .serve_connection(TokioIo::new(tcp), service)
+                .with_upgrades();
+            let mut conn = std::pin::pin!(conn);
+            tokio::select! {
+                _ = conn.as_mut() => return,
+                _ = closing.wait_for(|c| *c) => conn.as_mut().graceful_shutdown(),
+            }
             let _ = conn.await;
         });
     }
-    tokio::select! {
-        _ = graceful.shutdown() => {}
-        _ = tokio::time::sleep(SHUTDOWN_GRACE) => {}
-    }
+    let _ = closing_tx.send(true);
+    let _ = tokio::time::timeout(SHUTDOWN_GRACE, async {
+        while conns.join_next().await.is_some() {}
+    })
+    .await;
 }
 
 async fn ws(State(app): State<App>, upgrade: WebSocketUpgrade) -> Response {
