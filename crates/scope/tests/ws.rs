@@ -342,6 +342,18 @@ fn stalled_client_run() -> Option<String> {
     None
 }
 
+/// A scope on loopback for a 100 ms replay of the reference scenario, and its observer.
+fn short_replay() -> (Scope, ringsync_scope::ScopeObserver) {
+    let mut s = Scenario::default();
+    s.duration.0 = Duration::from_ms(100);
+    Scope::start(
+        "127.0.0.1:0".parse().expect("addr"),
+        &s,
+        Source::Replay { speed: 1.0 },
+    )
+    .expect("the scope starts")
+}
+
 /// Hostile clients (a scope audit's findings): a request that never completes does not
 /// hold the run's end (and with it the results) for ever; a page's oversized message is
 /// refused and its connection closed; beyond the pages the scope serves at once, a new one
@@ -351,14 +363,7 @@ fn hostile_clients_cannot_hold_the_scope() {
     use futures_util::SinkExt;
     use std::io::{Read as _, Write as _};
     let _one = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
-    let mut s = Scenario::default();
-    s.duration.0 = Duration::from_ms(100);
-    let (scope, observer) = Scope::start(
-        "127.0.0.1:0".parse().expect("addr"),
-        &s,
-        Source::Replay { speed: 1.0 },
-    )
-    .expect("the scope starts");
+    let (scope, observer) = short_replay();
     let addr = scope.addr();
     // A request that stops in its headers, left open.
     let mut slow = std::net::TcpStream::connect(addr).expect("connect");
@@ -427,14 +432,7 @@ fn hostile_clients_cannot_hold_the_scope() {
 fn a_request_stalled_in_its_headers_is_closed() {
     use std::io::{Read as _, Write as _};
     let _one = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
-    let mut s = Scenario::default();
-    s.duration.0 = Duration::from_ms(100);
-    let (scope, observer) = Scope::start(
-        "127.0.0.1:0".parse().expect("addr"),
-        &s,
-        Source::Replay { speed: 1.0 },
-    )
-    .expect("the scope starts");
+    let (scope, observer) = short_replay();
     let mut slow = std::net::TcpStream::connect(scope.addr()).expect("connect");
     slow.write_all(b"GET / HTTP/1.1\r\nHost: x\r\nX-Slow: a")
         .expect("write");
