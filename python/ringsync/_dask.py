@@ -173,16 +173,15 @@ def distributed_results(
             costs = [float(run_seconds)] * (len(cases) - start)
         slots = sum(client.nthreads().values())
         packs = [[start + i for i in p] for p in pack(costs, task_seconds, slots)]
-        futures = [
-            client.submit(run_pack, [(keys[i], cases[i][2]) for i in p], pure=True)
-            for p in packs
-        ]
-        if futures:
-            import distributed
+        futures: list[Any] = []
+        try:
+            for p in packs:
+                futures.append(client.submit(run_pack, [(keys[i], cases[i][2]) for i in p], pure=True))
+            if futures:
+                import distributed
 
-            done_runs = 0
-            sizes = {f.key: len(p) for f, p in zip(futures, packs)}
-            try:
+                done_runs = 0
+                sizes = {f.key: len(p) for f, p in zip(futures, packs)}
                 for n, f in enumerate(distributed.as_completed(futures), start=1):
                     for key, result in f.result():
                         keyed[key] = result
@@ -195,12 +194,16 @@ def distributed_results(
                             file=sys.stderr,
                             flush=True,
                         )
-            except BaseException:
-                # Ctrl-C (or a failed task): the cluster stops the sweep's other tasks
-                # rather than running them for nobody (a traceback kept in Jupyter would
-                # otherwise hold the futures, and so the work, alive).
+        except BaseException:
+            # Ctrl-C (or a failed task): the cluster stops the sweep's other tasks rather
+            # than running them for nobody (a traceback kept in Jupyter would otherwise hold
+            # the futures, and so the work, alive). A cancel that fails (the scheduler gone)
+            # does not hide why.
+            try:
                 client.cancel(futures)
-                raise
+            except Exception:
+                pass
+            raise
         return [keyed[k] for k in keys], [len(p) for p in packs]
     finally:
         if own:

@@ -21,7 +21,7 @@ const EXIT_FAILURE: u8 = 1;
 /// Exit status for work that finished, results written, with a bad outcome.
 const EXIT_FLAGGED: u8 = 3;
 
-/// Longest line of an error message \[characters\]: echoed values are cut in the middle.
+/// Longest line of an error message [characters]: echoed values are cut in the middle.
 const ERROR_LINE_CHARS: usize = 400;
 
 /// The exit statuses, for `ringsync --help` (README.md says the same).

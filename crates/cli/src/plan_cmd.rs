@@ -35,7 +35,7 @@ pub struct PlanArgs {
     /// PHY transmit latency (MII: about 60ns).
     #[arg(long, default_value = "60ns", value_parser = duration, allow_hyphen_values = true)]
     phy_tx: Duration,
-    /// Cable length of each hop \[m\].
+    /// Cable length of each hop [m].
     #[arg(long, default_value_t = 2.0, allow_negative_numbers = true)]
     cable_m: f64,
     /// Signal propagation in the cable [ns/m].
@@ -50,16 +50,16 @@ pub struct PlanArgs {
     /// Reserve T_rest between the sync and P2P phases (master computes).
     #[arg(long, default_value = "100us", value_parser = duration, allow_hyphen_values = true)]
     t_rest: Duration,
-    /// Bytes per slave in the lumped frame (wire format: 20) \[B\].
+    /// Bytes per slave in the lumped frame (wire format: 20) [B].
     #[arg(long, default_value_t = 20, allow_negative_numbers = true)]
     slot_bytes: i64,
-    /// Bytes per slave in the lumped-only plan's frame (wire format: 32) \[B\].
+    /// Bytes per slave in the lumped-only plan's frame (wire format: 32) [B].
     #[arg(long, default_value_t = 32, allow_negative_numbers = true)]
     lumped_only_slot_bytes: i64,
-    /// Largest Ethernet payload \[B\].
+    /// Largest Ethernet payload [B].
     #[arg(long, default_value_t = 1500, allow_negative_numbers = true)]
     mtu: i64,
-    /// Plan whose cycle is checked and shown: p2p-lumped (the paper's) or lumped-only (ref. \[3\]).
+    /// Plan whose cycle is checked and shown: p2p-lumped (the paper's) or lumped-only (ref. [3]).
     #[arg(long, default_value = "p2p-lumped", value_parser = |s: &str| s.parse::<PlanKind>())]
     plan: PlanKind,
     /// Print one JSON object in integer nanoseconds instead of the table.

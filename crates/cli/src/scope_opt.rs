@@ -120,8 +120,23 @@ impl Running {
                 wait.as_ns() as f64 * 1e-9
             );
             let w = std::time::Duration::from_nanos(u64::try_from(wait.as_ns()).unwrap_or(0));
-            if !s.wait_for_client(w) {
-                eprintln!("ringsync {what}: no page connected; replaying anyway");
+            // In slices, so that Ctrl-C (the stop flag, raised from `out_dir` on) ends the
+            // wait at once; the run then sees the flag at its first cycle.
+            let stop = ringsync::layers::runtime::stop_flag();
+            let end = std::time::Instant::now() + w;
+            let slice = std::time::Duration::from_millis(100);
+            loop {
+                if stop.load(std::sync::atomic::Ordering::Relaxed) {
+                    return;
+                }
+                let left = end.saturating_duration_since(std::time::Instant::now());
+                if s.wait_for_client(left.min(slice)) {
+                    break;
+                }
+                if left <= slice {
+                    eprintln!("ringsync {what}: no page connected; replaying anyway");
+                    break;
+                }
             }
         }
     }

@@ -206,6 +206,11 @@ pub(crate) fn reproduce(args: &ReproduceArgs) -> Result<Outcome, CliError> {
     }
     let r = r.map_err(interrupted_nothing_written)?;
     ringsync::write_reproduction(&dir, &r)?;
+    if ringsync::layers::runtime::stop_flag().load(std::sync::atomic::Ordering::Relaxed) {
+        return Err(CliError::Failure(
+            "interrupted while writing the results; nothing written".into(),
+        ));
+    }
     dir.commit()?;
     let stopped = r.stopped();
     out(&format!(

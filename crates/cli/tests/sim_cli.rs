@@ -748,8 +748,8 @@ fn a_broken_link_is_reported_in_the_summary() {
 /// Starts `ringsync ARGS` with every signal at its default (a suite run in a background job
 /// ignores SIGINT) and sends it SIGINT, as Ctrl-C does, once the directory it writes beside
 /// `out` exists (the command takes the signal as a request from then on); returns its exit
-/// status and stderr.
-fn interrupt(args: &[&str], out: &Path) -> (Option<i32>, String) {
+/// status and stderr, and how long it took to end after the signal.
+fn interrupt(args: &[&str], out: &Path) -> (Option<i32>, String, std::time::Duration) {
     let mut child = std::process::Command::new("env")
         .arg("--default-signal")
         .arg(env!("CARGO_BIN_EXE_ringsync"))
@@ -784,24 +784,27 @@ fn interrupt(args: &[&str], out: &Path) -> (Option<i32>, String) {
         .status()
         .expect("kill");
     assert!(sent.success());
+    let signalled = std::time::Instant::now();
     let o = child.wait_with_output().expect("wait");
+    let took = signalled.elapsed();
     assert!(!tmp.exists(), "{} left behind", tmp.display());
     (
         o.status.code(),
         String::from_utf8_lossy(&o.stderr).into_owned(),
+        took,
     )
 }
 
 /// Ctrl-C: a sweep starts no case after it and writes the runs that finished (exit 1, the
-/// count named); a simulation ends at its next cycle and writes nothing (exit 1); neither
-/// leaves anything beside `--out`.
+/// count named); a simulation ends at its next cycle and writes nothing (exit 1), also
+/// while it waits for a page of its scope; none leaves anything beside `--out`.
 #[test]
 fn ctrl_c_keeps_a_sweeps_finished_runs_and_a_sim_writes_nothing() {
     let d = dir("interrupted");
     std::fs::create_dir_all(&d).expect("dir");
     let p = |p: &Path| p.to_str().expect("utf-8 path").to_string();
     let out = d.join("sweep");
-    let (code, err) = interrupt(
+    let (code, err, _) = interrupt(
         &[
             "sweep",
             "paper-2015",
@@ -837,7 +840,7 @@ fn ctrl_c_keeps_a_sweeps_finished_runs_and_a_sim_writes_nothing() {
         );
     }
     let out = d.join("sim");
-    let (code, err) = interrupt(
+    let (code, err, _) = interrupt(
         &[
             "sim",
             "paper-2015",
@@ -855,4 +858,22 @@ fn ctrl_c_keeps_a_sweeps_finished_runs_and_a_sim_writes_nothing() {
     );
     assert!(err.contains(" of 3600000; nothing written"), "{err}");
     assert!(!out.exists());
+    // Waiting for a page to open the scope: Ctrl-C ends the wait (two minutes) at once.
+    let out = d.join("scope");
+    let (code, err, took) = interrupt(
+        &[
+            "sim",
+            "paper-2015",
+            "--scope",
+            "127.0.0.1:0",
+            "--scope-wait",
+            "120s",
+            "--out",
+            &p(&out),
+        ],
+        &out,
+    );
+    assert_eq!(code, Some(1), "{err}");
+    assert!(err.contains("interrupted at cycle 0 of 4000"), "{err}");
+    assert!(took < std::time::Duration::from_secs(60), "{took:?}");
 }

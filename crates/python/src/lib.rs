@@ -111,12 +111,11 @@ pub(crate) fn interruptible_ticking<T: Send>(
             rx = back;
             match got {
                 Ok(done) => {
-                    if interrupted.is_none() {
-                        tick(py, true)?;
-                    }
+                    // The last tick ends a progress line, interrupted or not.
+                    let ticked = tick(py, true);
                     return match (interrupted, done) {
                         (Some(e), _) => Err(e),
-                        (None, Ok(r)) => r.map_err(to_py),
+                        (None, Ok(r)) => ticked.and_then(|()| r.map_err(to_py)),
                         (None, Err(panic)) => Err(panicked(panic.as_ref())),
                     };
                 }

@@ -730,10 +730,9 @@ fn sweep_svg(sw: &Sweep) -> String {
         let mean = sw.means.first().map_or(f64::NAN, |m| m.sync_rmse);
         return line_chart(
             &format!(
-                "Sync-RMSE of each seed ({}, {} seed{}, mean {mean:.7} rad)",
+                "Sync-RMSE of each seed ({}, {}, mean {mean:.7} rad)",
                 sw.origin,
-                sw.seeds,
-                if sw.seeds == 1 { "" } else { "s" }
+                seeds_run(sw)
             ),
             "seed",
             "Sync-RMSE [rad]",
@@ -769,15 +768,27 @@ fn sweep_svg(sw: &Sweep) -> String {
         .collect();
     line_chart(
         &format!(
-            "Sync-RMSE against {first} ({}, mean of {} seed{})",
+            "Sync-RMSE against {first} ({}, mean of {})",
             sw.origin,
-            sw.seeds,
-            if sw.seeds == 1 { "" } else { "s" }
+            seeds_run(sw)
         ),
         first,
         "Sync-RMSE [rad]",
         &series,
     )
+}
+
+/// The seeds behind each mean, for a figure's title: "8 seeds", or for an interrupted sweep
+/// "3 to 7 of 8 seeds (interrupted)".
+fn seeds_run(sw: &Sweep) -> String {
+    let runs = sw.means.iter().map(|m| m.runs);
+    let (lo, hi) = (runs.clone().min().unwrap_or(0), runs.max().unwrap_or(0));
+    let plural = if sw.seeds == 1 { "" } else { "s" };
+    match (lo, hi) {
+        (lo, hi) if lo == hi && hi == sw.seeds as usize => format!("{hi} seed{plural}"),
+        (lo, hi) if lo == hi => format!("{hi} of {} seed{plural} (interrupted)", sw.seeds),
+        (lo, hi) => format!("{lo} to {hi} of {} seed{plural} (interrupted)", sw.seeds),
+    }
 }
 
 #[cfg(test)]
@@ -905,6 +916,10 @@ mod tests {
         assert_eq!(sw.means.len(), 1, "only alpha = 0.2 ran");
         assert_eq!(sw.means[0].runs, 3);
         assert_eq!(sw.results[0], run_case(&c[0]).expect("run"));
+        assert!(
+            sweep_svg(&sw).contains("mean of 3 of 5 seeds (interrupted)"),
+            "the figure says which seeds its means are over"
+        );
         let r = run_cases_until(&c, 2, &|_, _| {}, &stop);
         let (sw, not_run) = Sweep::finished(&short, &axes, 5, c, r).expect("sweep");
         assert_eq!((sw.results.len(), not_run), (0, 10));
