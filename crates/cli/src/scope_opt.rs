@@ -122,7 +122,7 @@ impl Running {
             let w = std::time::Duration::from_nanos(u64::try_from(wait.as_ns()).unwrap_or(0));
             // In slices, so that Ctrl-C (the stop flag, raised from `out_dir` on) ends the
             // wait at once; the run then sees the flag at its first cycle.
-            let stop = ringsync::layers::runtime::stop_flag();
+            let stop = ringsync::layers::runtime::stop_flag_or_twice_exit();
             let end = std::time::Instant::now() + w;
             let slice = std::time::Duration::from_millis(100);
             loop {

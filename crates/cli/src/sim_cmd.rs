@@ -48,11 +48,13 @@ fn outputs(list: &str) -> Result<ringsync::Outputs, String> {
 }
 
 /// The results directory for `--out`, which must not hold the scenario file: it is replaced.
-/// From here on Ctrl-C, SIGTERM and SIGHUP only raise the stop flag
-/// (`ringsync::layers::runtime::stop_flag`), which the command looks at: an interrupted
-/// command ends cleanly and removes the directory it was writing beside `--out`.
+/// From here on Ctrl-C, SIGTERM and SIGHUP raise the stop flag
+/// (`ringsync::layers::runtime::stop_flag_or_twice_exit`), which the command looks at: an
+/// interrupted command ends cleanly and removes the directory it was writing beside `--out`;
+/// a second signal ends the process at once. (`rt` and `node` put back the flag-only handler
+/// before their ring exists: a second signal must not skip removing it.)
 pub(crate) fn out_dir(out: &Path, scenario: &Loaded) -> Result<OutDir, CliError> {
-    ringsync::layers::runtime::stop_flag();
+    ringsync::layers::runtime::stop_flag_or_twice_exit();
     let dir = OutDir::create("--out", out)?;
     if !scenario.is_builtin() {
         dir.keep_out(Path::new(&scenario.origin))?;
@@ -81,7 +83,7 @@ pub(crate) fn sim(args: &SimArgs) -> Result<Outcome, CliError> {
     }
     let wall = WallClock::now();
     // Ctrl-C, SIGTERM, SIGHUP: the run ends at its next cycle and nothing is written.
-    let stop = ringsync::layers::runtime::stop_flag();
+    let stop = ringsync::layers::runtime::stop_flag_or_twice_exit();
     let opts = SimOptions {
         trace: args.outputs.needs_trace(),
         capture: args.pcap.is_some(),
@@ -197,7 +199,7 @@ pub(crate) fn reproduce(args: &ReproduceArgs) -> Result<Outcome, CliError> {
         progress: &progress,
         // Ctrl-C, SIGTERM, SIGHUP: no run starts after it, and nothing is written.
         stop: Some(ringsync::Stop::Static(
-            ringsync::layers::runtime::stop_flag(),
+            ringsync::layers::runtime::stop_flag_or_twice_exit(),
         )),
     };
     let r = ringsync::reproduce_with(base, &opts);
@@ -206,7 +208,9 @@ pub(crate) fn reproduce(args: &ReproduceArgs) -> Result<Outcome, CliError> {
     }
     let r = r.map_err(interrupted_nothing_written)?;
     ringsync::write_reproduction(&dir, &r)?;
-    if ringsync::layers::runtime::stop_flag().load(std::sync::atomic::Ordering::Relaxed) {
+    if ringsync::layers::runtime::stop_flag_or_twice_exit()
+        .load(std::sync::atomic::Ordering::Relaxed)
+    {
         return Err(CliError::Failure(
             "interrupted while writing the results; nothing written".into(),
         ));
@@ -266,7 +270,7 @@ pub(crate) fn sweep(args: &SweepArgs) -> Result<Outcome, CliError> {
     let tty = std::io::stderr().is_terminal();
     let wall = WallClock::now();
     // Ctrl-C, SIGTERM, SIGHUP: no case starts after it; the runs that finished are written.
-    let stop = ringsync::Stop::Static(ringsync::layers::runtime::stop_flag());
+    let stop = ringsync::Stop::Static(ringsync::layers::runtime::stop_flag_or_twice_exit());
     let results = run_cases_until(
         &cases,
         jobs,

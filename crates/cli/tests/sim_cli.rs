@@ -877,3 +877,73 @@ fn ctrl_c_keeps_a_sweeps_finished_runs_and_a_sim_writes_nothing() {
     assert!(err.contains("interrupted at cycle 0 of 4000"), "{err}");
     assert!(took < std::time::Duration::from_secs(60), "{took:?}");
 }
+
+/// Ctrl-C twice: a command stuck where it does not look at the stop flag (here opening a
+/// `--pcap` FIFO that nobody reads, after the run) ends at the second signal, as it would
+/// have without a handler; the first only asks.
+#[test]
+fn a_second_ctrl_c_ends_a_stuck_command() {
+    use std::os::unix::process::ExitStatusExt as _;
+    let d = dir("twice");
+    std::fs::create_dir_all(&d).expect("dir");
+    let fifo = d.join("capture.pcapng");
+    let made = std::process::Command::new("mkfifo")
+        .arg(&fifo)
+        .status()
+        .expect("mkfifo");
+    assert!(made.success());
+    let out = d.join("run");
+    let mut child = std::process::Command::new("env")
+        .arg("--default-signal")
+        .arg(env!("CARGO_BIN_EXE_ringsync"))
+        .args(["sim", "paper-2015", "--set", "duration=\"0.2s\""])
+        .arg("--pcap")
+        .arg(&fifo)
+        .arg("--out")
+        .arg(&out)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .expect("start ringsync");
+    let pid = child.id();
+    // Until it waits for a reader of the FIFO (the kernel names where it sleeps).
+    let wchan = format!("/proc/{pid}/wchan");
+    let started = std::time::Instant::now();
+    while std::fs::read_to_string(&wchan).unwrap_or_default() != "wait_for_partner" {
+        assert!(
+            child.try_wait().expect("wait").is_none(),
+            "ended before it opened the FIFO"
+        );
+        assert!(
+            started.elapsed() < std::time::Duration::from_secs(120),
+            "never opened the FIFO"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    let int = |pid: u32| {
+        let sent = std::process::Command::new("kill")
+            .args(["-INT", &pid.to_string()])
+            .status()
+            .expect("kill");
+        assert!(sent.success());
+    };
+    int(pid);
+    std::thread::sleep(std::time::Duration::from_millis(500));
+    assert!(
+        child.try_wait().expect("wait").is_none(),
+        "the first Ctrl-C only asks"
+    );
+    int(pid);
+    let signalled = std::time::Instant::now();
+    let status = loop {
+        if let Some(status) = child.try_wait().expect("wait") {
+            break status;
+        }
+        if signalled.elapsed() > std::time::Duration::from_secs(60) {
+            let _ = child.kill();
+            panic!("still running 60 s after the second Ctrl-C");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    };
+    assert_eq!(status.signal(), Some(2), "{status}");
+}

@@ -42,3 +42,11 @@ pub use transport::TransportKind;
 pub fn stop_flag() -> &'static std::sync::atomic::AtomicBool {
     sys::stop_flag()
 }
+
+/// [`stop_flag`] for work with nothing outside the process to clean up (a simulation, a
+/// sweep): the first signal raises the flag, a second one takes the signal's default action
+/// (the process ends at once). [`stop_flag`] called afterwards puts back the flag-only
+/// handler (the same flag).
+pub fn stop_flag_or_twice_exit() -> &'static std::sync::atomic::AtomicBool {
+    sys::stop_flag_or_twice_exit()
+}

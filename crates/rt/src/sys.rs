@@ -193,15 +193,39 @@ extern "C" fn on_signal(_: libc::c_int) {
     STOP.store(true, Ordering::SeqCst);
 }
 
+/// A second signal once the flag is up: the signal's default action (the process ends, as
+/// it would have without a handler).
+extern "C" fn on_signal_twice(sig: libc::c_int) {
+    if STOP.swap(true, Ordering::SeqCst) {
+        // SAFETY: signal and raise are async-signal-safe; SIG_DFL is a valid action.
+        unsafe {
+            libc::signal(sig, libc::SIG_DFL);
+            libc::raise(sig);
+        }
+    }
+}
+
 /// Installs SIGINT, SIGTERM and SIGHUP handlers that only raise a flag, so that a run ends
 /// cleanly (and removes what it created) on Ctrl-C, on `kill`, and when its terminal closes.
 /// A SIGHUP the process was started ignoring (`nohup`) stays ignored. Returns the flag.
 pub fn stop_flag() -> &'static AtomicBool {
-    // SAFETY: the handler only stores to an atomic (async-signal-safe); `sa` and `old` are
-    // zeroed plain data, `sa` with the handler set; a null new action only reads the old.
+    install(on_signal)
+}
+
+/// [`stop_flag`] for work with nothing outside the process to clean up (a simulation, a
+/// sweep): the first signal raises the flag, a second one ends the process at once, as a
+/// user who presses Ctrl-C twice expects.
+pub fn stop_flag_or_twice_exit() -> &'static AtomicBool {
+    install(on_signal_twice)
+}
+
+fn install(handler: extern "C" fn(libc::c_int)) -> &'static AtomicBool {
+    // SAFETY: the handlers only store to an atomic, or take the default action again and
+    // raise the signal (async-signal-safe); `sa` and `old` are zeroed plain data, `sa` with
+    // the handler set; a null new action only reads the old.
     unsafe {
         let mut sa: libc::sigaction = std::mem::zeroed();
-        sa.sa_sigaction = on_signal as *const () as libc::sighandler_t;
+        sa.sa_sigaction = handler as *const () as libc::sighandler_t;
         libc::sigemptyset(&mut sa.sa_mask);
         libc::sigaction(libc::SIGINT, &sa, std::ptr::null_mut());
         libc::sigaction(libc::SIGTERM, &sa, std::ptr::null_mut());
