@@ -145,6 +145,8 @@ pub fn node(cmd: &NodeCmd) -> Result<Outcome, CliError> {
             (*index, args)
         }
     };
+    // An --out that cannot be written fails now, not after the run.
+    ringsync::output::writable(&args.out)?;
     let stop = ringsync::layers::runtime::stop_flag();
     let rec = ringsync::rt::run_node(&args.plan, index, stop)?;
     ringsync::rt::write_node_record(&rec, &args.out)?;

@@ -65,7 +65,7 @@ pub struct PlanArgs {
     /// Print one JSON object in integer nanoseconds instead of the table.
     #[arg(long)]
     json: bool,
-    /// With --json: include the frame-by-frame timeline of the cycle.
+    /// With --json: include the frame-by-frame timeline of the cycle (at most 256 slaves).
     #[arg(long)]
     events: bool,
     /// Also draw the cycle as an SVG timing diagram (like the paper's Fig. 1) into FILE.
@@ -159,6 +159,10 @@ fn usage(e: ringsync::Error) -> CliError {
 }
 
 /// Converts an integer option to its type, or says which range it must be in.
+/// Most slaves `--events` lists (its passages grow as n²: 256 slaves make 19 MB of JSON and
+/// 200 MB of memory).
+const MAX_EVENTS_SLAVES: u32 = 256;
+
 fn int<T: TryFrom<i64>>(option: &str, v: i64, allowed: &str) -> Result<T, CliError> {
     T::try_from(v)
         .map_err(|_| CliError::Usage(format!("{option} {v} is out of range: allowed {allowed}")))
@@ -221,6 +225,12 @@ pub(crate) fn run(args: &PlanArgs) -> Result<Outcome, CliError> {
             ))
         })?;
         ringsync::output::write_file(path, svg)?;
+    }
+    if args.events && params.slaves > MAX_EVENTS_SLAVES {
+        return Err(CliError::Usage(format!(
+            "--events lists every frame's passage at every node, some n² of them: at most {MAX_EVENTS_SLAVES} slaves (about 20 MB of JSON), --slaves is {}",
+            params.slaves
+        )));
     }
     if args.json {
         let mut v = plan_json(&plan, args.plan, args.events);

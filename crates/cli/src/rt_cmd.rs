@@ -233,6 +233,15 @@ pub(crate) fn rt(args: &RtArgs) -> Result<Outcome, CliError> {
             )));
         }
     }
+    if let Some(b) = s.faults.break_link.iter().find(|b| b.at >= run_for) {
+        let secs = |d: Duration| d.as_ns() as f64 * 1e-9;
+        return Err(CliError::Usage(format!(
+            "the break of link {} at {} s (--break-link or faults.break_link) is not inside the run ({} s): it would never happen",
+            b.link,
+            secs(b.at),
+            secs(run_for)
+        )));
+    }
     if let Some(d) = args.flap_for
         && d <= Duration::ZERO
     {

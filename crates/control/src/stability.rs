@@ -422,6 +422,15 @@ impl DiscreteLoop {
 /// powers of two, so the same eigenvalues to the last bit of the arithmetic) and
 /// decomposed again, with the tolerance loosened step by step to 10⁻¹⁰.
 fn spectral_radius(m: &DMatrix<f64>) -> Result<f64, ControlError> {
+    // Gains near f64's range overflow into the matrix: the decomposition (and its balancing)
+    // would never end on them.
+    if let Some(&x) = m.iter().find(|x| !x.is_finite()) {
+        return Err(ControlError::InvalidParameter {
+            name: "an entry of the loop matrix".into(),
+            value: x,
+            expected: "a finite number: the gains are too large for double precision".into(),
+        });
+    }
     let radius = |s: Schur<f64, nalgebra::Dyn>| {
         s.complex_eigenvalues()
             .iter()

@@ -14,6 +14,7 @@
 //! The reference scenario is `paper-2015` (docs/system.md, "The reference scenario").
 
 pub mod axes;
+pub mod bounded;
 pub mod check;
 pub mod devices;
 pub mod locate;

@@ -85,6 +85,10 @@ impl From<ringsync_model::check::CheckError> for Error {
     fn from(e: ringsync_model::check::CheckError) -> Self {
         match e {
             ringsync_model::check::CheckError::Scenario(e) => Error::Scenario(e),
+            // Gains the arithmetic cannot hold: the scenario's fault, as a bad value is.
+            e @ ringsync_model::check::CheckError::Control(
+                ringsync_control::ControlError::InvalidParameter { .. },
+            ) => Error::Input(e.to_string()),
             other => Error::Failed(other.to_string()),
         }
     }

@@ -54,14 +54,38 @@ pub fn write_scenario(dir: &crate::OutDir, run: &Loaded, seed: Option<u64>) -> R
     )
 }
 
+/// Largest `scenario.toml` or `summary.json` of a run read \[bytes\] (a run's summary grows
+/// with its axes: about 1 MB for 1 024).
+const MAX_RUN_FILE: u64 = 64 << 20;
+
+/// Longest line of a trace.csv read \[bytes\] (a row is about 150).
+const MAX_TRACE_LINE: usize = 64 << 10;
+
 fn read(dir: &Path, name: &str) -> Result<String> {
     let p = dir.join(name);
-    std::fs::read_to_string(&p).map_err(|e| {
+    ringsync_model::bounded::read_text(&p, MAX_RUN_FILE, "a run's file").map_err(|e| {
         Error::Input(format!(
             "{}: {e}; expected a run directory written by `ringsync sim` or `ringsync rt` (with {name})",
             p.display()
         ))
     })
+}
+
+/// Refuses an `out` for the identified scenario that is one of the run's own files in
+/// `dir` (writing it would replace that file).
+pub fn check_out(dir: &Path, out: &Path) -> Result<()> {
+    let Ok(target) = std::fs::canonicalize(out) else {
+        return Ok(()); // not there yet: none of the run's files
+    };
+    for name in [SCENARIO_FILE, "summary.json", "trace.csv"] {
+        if std::fs::canonicalize(dir.join(name)).is_ok_and(|p| p == target) {
+            return Err(Error::Input(format!(
+                "--out {} is the run's own {name}: write the identified scenario elsewhere",
+                out.display()
+            )));
+        }
+    }
+    Ok(())
 }
 
 /// Identifies every axis of the run in `dir` (its `scenario.toml`, `trace.csv` and
@@ -99,6 +123,15 @@ pub fn identify_run(dir: &Path) -> Result<Identification> {
         .map_err(|(i, e)| Error::Input(format!("axis[{i}]: {e}")))?;
     let n = models.len();
     let trace = Trace::read(&dir.join("trace.csv"), n)?;
+    if let Some(cycles) = summary["cycles"].as_u64()
+        && trace.t.len() as u64 != cycles
+    {
+        return Err(Error::Input(format!(
+            "{}/trace.csv: {} cycles, where summary.json says {cycles}: a trace cut short or of another run",
+            dir.display(),
+            trace.t.len()
+        )));
+    }
     let mut axes = Vec::with_capacity(n);
     for (i, m) in models.iter().enumerate() {
         let AxisModel::Torque(ax) = m else {
@@ -267,7 +300,11 @@ impl Trace {
     /// Reads `trace.csv` of a run of `n` axes: one row per cycle and axis, axes in order.
     fn read(path: &Path, n: usize) -> Result<Trace> {
         let bad = |what: String| Error::Input(format!("{}: {what}", path.display()));
-        let mut rd = csv::Reader::from_path(path).map_err(|e| bad(e.to_string()))?;
+        let file = std::fs::File::open(path).map_err(|e| bad(e.to_string()))?;
+        let mut rd = csv::Reader::from_reader(ringsync_model::bounded::LineLimit::new(
+            file,
+            MAX_TRACE_LINE,
+        ));
         let head = rd.headers().map_err(|e| bad(e.to_string()))?.clone();
         let col = |name: &str| {
             head.iter()

@@ -166,8 +166,12 @@ fn replaceable(dir: &Path) -> Result<bool> {
         std::fs::read_dir(dir).map_err(|e| failure(e, format!("cannot read {}", dir.display())))?;
     Ok(entries.next().is_none()
         || RESULT_MARKERS.iter().any(|m| dir.join(m).is_file())
-        || std::fs::read_to_string(dir.join(crate::identify::SCENARIO_FILE))
-            .is_ok_and(|t| t.starts_with(crate::identify::SCENARIO_HEADER)))
+        || ringsync_model::bounded::read_text(
+            &dir.join(crate::identify::SCENARIO_FILE),
+            1 << 20,
+            "a run's scenario",
+        )
+        .is_ok_and(|t| t.starts_with(crate::identify::SCENARIO_HEADER)))
 }
 
 impl OutDir {

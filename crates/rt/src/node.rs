@@ -278,9 +278,10 @@ impl NodePlan {
     /// Reads a plan written as JSON.
     pub fn read(path: &Path) -> Result<NodePlan, RtError> {
         // A plan that cannot be read is bad input (exit status 2), as a scenario file is.
-        let text = std::fs::read_to_string(path).map_err(|e| {
-            RtError::Config(format!("cannot read the node plan {}: {e}", path.display()))
-        })?;
+        let text = ringsync_model::bounded::read_text(path, MAX_PLAN_BYTES, "a node plan")
+            .map_err(|e| {
+                RtError::Config(format!("cannot read the node plan {}: {e}", path.display()))
+            })?;
         serde_json::from_str(&text).map_err(|e| {
             RtError::Config(format!(
                 "the node plan {} is not valid: {e}",
@@ -1348,13 +1349,24 @@ fn write_json(json: serde_json::Result<Vec<u8>>, path: &Path, what: &str) -> Res
     std::fs::rename(&tmp, path).map_err(io_err(&format!("writing {}", path.display())))
 }
 
+/// Largest node plan read \[bytes\] (a plan grows with the ring's nodes and links).
+pub const MAX_PLAN_BYTES: u64 = 64 << 20;
+
+/// Largest node record read \[bytes\]: a record holds its node's trace, about 100 bytes a
+/// cycle (a 600 s run at 1 ms: some 60 MB; an hour, some 360 MB).
+pub const MAX_RECORD_BYTES: u64 = 2 << 30;
+
 /// Reads a record [`write_record`] wrote.
 pub fn read_record(path: &Path) -> Result<NodeRecord, RtError> {
-    let text = std::fs::read(path).map_err(io_err(&format!(
-        "reading the node record {}",
-        path.display()
-    )))?;
-    serde_json::from_slice(&text).map_err(|e| {
+    // A record the caller names that cannot be read is bad input, as a missing plan is.
+    let text = ringsync_model::bounded::read_text(path, MAX_RECORD_BYTES, "a node record")
+        .map_err(|e| {
+            RtError::Config(format!(
+                "cannot read the node record {}: {e}",
+                path.display()
+            ))
+        })?;
+    serde_json::from_str(&text).map_err(|e| {
         RtError::Config(format!(
             "the node record {} is not valid: {e}",
             path.display()

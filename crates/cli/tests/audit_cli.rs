@@ -1,0 +1,113 @@
+//! Inputs an audit of the less-used commands found mishandled (2026-11-27): each is now one
+//! line and exit status 2, without running out of memory, hanging, or overwriting a run.
+
+mod common;
+
+use std::path::Path;
+
+use common::ringsync;
+
+/// Runs `ringsync ARGS`, asserting exit status 2 and a stderr line containing `says`.
+fn refused(args: &[&str], says: &str) {
+    let o = ringsync(args);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+    assert!(err.contains(says), "{args:?}: {err}");
+    assert_eq!(err.lines().count(), 1, "{args:?}: {err}");
+}
+
+fn p(path: &Path) -> &str {
+    path.to_str().expect("utf-8 path")
+}
+
+/// A run directory and what `identify` makes of it edited: a trace that is /dev/zero (it
+/// read it whole: the machine's memory), a trace cut at a row's end (it fitted half the
+/// run), an `--out` that is the run's own trace (it replaced it).
+#[test]
+fn identify_refuses_endless_short_and_own_files() {
+    let d = common::scratch("audit", "identify");
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).expect("dir");
+    let run = d.join("run");
+    let o = ringsync(&[
+        "sim",
+        "paper-2015",
+        "--set",
+        "duration=\"1s\"",
+        "--out",
+        p(&run),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let trace = run.join("trace.csv");
+    let text = std::fs::read_to_string(&trace).expect("trace");
+    let out = d.join("id.toml");
+    refused(
+        &["identify", p(&run), "--out", p(&trace)],
+        "is the run's own trace.csv",
+    );
+    assert_eq!(std::fs::read_to_string(&trace).expect("trace"), text);
+    // Half the rows, cut where a cycle ends (4 axes a cycle).
+    let lines: Vec<&str> = text.lines().collect();
+    let half = 1 + (lines.len() - 1) / 2 / 4 * 4;
+    std::fs::write(&trace, lines[..half].join("\n") + "\n").expect("write");
+    refused(
+        &["identify", p(&run), "--out", p(&out)],
+        "cycles, where summary.json says 1000",
+    );
+    std::fs::remove_file(&trace).expect("remove");
+    std::os::unix::fs::symlink("/dev/zero", &trace).expect("link");
+    refused(
+        &["identify", p(&run), "--out", p(&out)],
+        "a line longer than 65536 bytes",
+    );
+    std::fs::remove_file(&trace).expect("remove");
+    std::fs::remove_file(run.join("summary.json")).expect("remove");
+    std::os::unix::fs::symlink("/dev/zero", run.join("summary.json")).expect("link");
+    refused(
+        &["identify", p(&run), "--out", p(&out)],
+        "not a regular file",
+    );
+    assert!(!out.exists());
+}
+
+/// Gains beyond double precision made `check` run for ever; `plan --events` on a long
+/// ring, and node plans that are /dev/zero, took all the memory; a link break after the
+/// run's end was accepted and never happened.
+#[test]
+fn what_would_hang_or_exhaust_memory_is_refused() {
+    let d = common::scratch("audit", "check");
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).expect("dir");
+    let huge = d.join("huge.toml");
+    std::fs::write(&huge, "[control]\nkp = 1.5e308\n").expect("write");
+    refused(
+        &["check", p(&huge)],
+        "the gains are too large for double precision",
+    );
+    refused(
+        &[
+            "plan", "--slaves", "300", "--cycle", "10s", "--json", "--events",
+        ],
+        "at most 256 slaves",
+    );
+    let rec = d.join("m.json");
+    refused(
+        &["node", "master", "--plan", "/dev/zero", "--out", p(&rec)],
+        "not a regular file, as a node plan must be",
+    );
+    refused(
+        &[
+            "rt",
+            "paper-2015",
+            "--transport",
+            "udp",
+            "--duration",
+            "1s",
+            "--break-link",
+            "2@5s",
+            "--out",
+            p(&d.join("rt")),
+        ],
+        "would never happen",
+    );
+}
