@@ -197,6 +197,9 @@ impl PlanArgs {
 /// Runs `ringsync plan`.
 pub(crate) fn run(args: &PlanArgs) -> Result<Outcome, CliError> {
     let params = args.params()?;
+    if let Some(path) = &args.svg {
+        ringsync::output::writable(path)?;
+    }
     let plan = ringsync::plan(&params, args.plan).map_err(usage)?;
     let broken = match args.break_link {
         None => None,

@@ -218,6 +218,14 @@ pub(crate) fn rt(args: &RtArgs) -> Result<Outcome, CliError> {
         )));
     }
     let n = s.axes_count();
+    if let Some(c) = args.cycle
+        && c <= Duration::ZERO
+    {
+        return Err(CliError::Usage(format!(
+            "--cycle {} s: a cycle must last some time (e.g. 1ms)",
+            c.as_ns() as f64 * 1e-9
+        )));
+    }
     args.realtime.check(args.cycle.unwrap_or(s.ring.cycle.0))?;
     // The faults must fall inside the run, or they would silently never happen.
     let run_for = args.duration.unwrap_or(s.duration.0);
@@ -340,9 +348,12 @@ pub(crate) fn rt(args: &RtArgs) -> Result<Outcome, CliError> {
         &args.out,
     )?;
     if r.interrupted {
-        return Err(CliError::Failure(
-            "interrupted; partial results written, namespaces and links removed".into(),
-        ));
+        return Err(CliError::Failure(match args.transport {
+            Transport::Veth => {
+                "interrupted; partial results written, namespaces and links removed".into()
+            }
+            Transport::Udp => "interrupted; partial results written".into(),
+        }));
     }
     Ok(Outcome::flagged_if(r.run.group_stop.is_some()))
 }

@@ -329,6 +329,7 @@ pub struct IdentifyArgs {
 /// Runs `ringsync identify`: the table of estimates, and the scenario with them.
 pub(crate) fn identify(args: &IdentifyArgs) -> Result<Outcome, CliError> {
     ringsync::identify::check_out(&args.run, &args.out)?;
+    ringsync::output::writable(&args.out)?;
     let id = ringsync::identify::identify_run(&args.run)?;
     ringsync::output::write_file(&args.out, ringsync::identify::identified_toml(&id)?)?;
     out(&format!(

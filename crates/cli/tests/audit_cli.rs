@@ -111,3 +111,33 @@ fn what_would_hang_or_exhaust_memory_is_refused() {
         "would never happen",
     );
 }
+
+/// A file target in a missing directory is refused before the work, as `latency --json`
+/// already was (they failed with status 1 after it); `rt --cycle 0ns` names the cycle (it
+/// blamed `--spin`).
+#[test]
+fn targets_and_cycles_are_checked_before_the_work() {
+    let d = common::scratch("audit", "targets");
+    let missing = d.join("no-such-dir");
+    refused(
+        &["plan", "--svg", p(&missing.join("x.svg"))],
+        "its directory",
+    );
+    refused(
+        &["identify", p(&d), "--out", p(&missing.join("id.toml"))],
+        "its directory",
+    );
+    refused(
+        &[
+            "rt",
+            "paper-2015",
+            "--transport",
+            "udp",
+            "--cycle",
+            "0ns",
+            "--out",
+            p(&d.join("rt")),
+        ],
+        "--cycle 0 s: a cycle must last some time",
+    );
+}

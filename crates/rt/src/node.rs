@@ -558,8 +558,7 @@ pub fn run_node(plan: &NodePlan, node: usize, stop: &AtomicBool) -> Result<NodeR
     let n = spec.axes();
     let link = plan.links.get(node).ok_or_else(|| {
         RtError::Config(format!(
-            "node {node} is not on this ring of {} nodes",
-            n + 1
+            "slave {node} is not on this ring: its slaves are 1 to {n} (the master is `ringsync node master`)"
         ))
     })?;
     let port = open_port(link, node).map_err(io_err("opening the node's port"))?;
