@@ -46,6 +46,27 @@ fn identify_refuses_endless_short_and_own_files() {
         "is the run's own trace.csv",
     );
     assert_eq!(std::fs::read_to_string(&trace).expect("trace"), text);
+    // A position that is not a number, a summary that is not a run's.
+    let head: Vec<&str> = text.lines().next().expect("header").split(',').collect();
+    let cx = head.iter().position(|&h| h == "x_rad").expect("x_rad");
+    let mut rows: Vec<String> = text.lines().map(str::to_string).collect();
+    let mut cells: Vec<&str> = rows[5].split(',').collect();
+    cells[cx] = "nan";
+    rows[5] = cells.join(",");
+    std::fs::write(&trace, rows.join("\n") + "\n").expect("write");
+    refused(
+        &["identify", p(&run), "--out", p(&out)],
+        "row 6, column x_rad: NaN, where a run that did not stop has a finite number",
+    );
+    std::fs::write(&trace, &text).expect("write");
+    let summary = run.join("summary.json");
+    let kept = std::fs::read_to_string(&summary).expect("summary");
+    std::fs::write(&summary, "{}").expect("write");
+    refused(
+        &["identify", p(&run), "--out", p(&out)],
+        "holds no `cycles`",
+    );
+    std::fs::write(&summary, kept).expect("write");
     // Half the rows, cut where a cycle ends (4 axes a cycle).
     let lines: Vec<&str> = text.lines().collect();
     let half = 1 + (lines.len() - 1) / 2 / 4 * 4;

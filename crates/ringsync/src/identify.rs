@@ -122,10 +122,14 @@ pub fn identify_run(dir: &Path) -> Result<Identification> {
         .axis_models()
         .map_err(|(i, e)| Error::Input(format!("axis[{i}]: {e}")))?;
     let n = models.len();
+    let Some(cycles) = summary["cycles"].as_u64() else {
+        return Err(Error::Input(format!(
+            "{}/summary.json holds no `cycles`: expected a run's summary.json from `ringsync sim` or `ringsync rt`",
+            dir.display()
+        )));
+    };
     let trace = Trace::read(&dir.join("trace.csv"), n)?;
-    if let Some(cycles) = summary["cycles"].as_u64()
-        && trace.t.len() as u64 != cycles
-    {
+    if trace.t.len() as u64 != cycles {
         return Err(Error::Input(format!(
             "{}/trace.csv: {} cycles, where summary.json says {cycles}: a trace cut short or of another run",
             dir.display(),
@@ -329,6 +333,20 @@ impl Trace {
                 v.parse::<f64>()
                     .map_err(|_| bad(format!("row {}: '{v}' is not a number", k + 2)))
             };
+            // Time, position and command are finite in a run that did not stop (the
+            // application time may be unknown).
+            let finite = |c: usize| -> Result<f64> {
+                let x = num(c)?;
+                if x.is_finite() {
+                    Ok(x)
+                } else {
+                    Err(bad(format!(
+                        "row {}, column {}: {x}, where a run that did not stop has a finite number",
+                        k + 2,
+                        &head[c]
+                    )))
+                }
+            };
             let axis = num(ca)?;
             if axis != (k % n + 1) as f64 {
                 return Err(bad(format!(
@@ -339,10 +357,10 @@ impl Trace {
             }
             let a = &mut tr.axes[k % n];
             if k % n == 0 {
-                tr.t.push(num(ct)?);
+                tr.t.push(finite(ct)?);
             }
-            a.x.push(num(cx)?);
-            a.u.push(num(cu)?);
+            a.x.push(finite(cx)?);
+            a.u.push(finite(cu)?);
             a.apply_time.push(num(cap)?);
         }
         if tr.axes.iter().any(|a| a.x.len() != tr.t.len()) {
