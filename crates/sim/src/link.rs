@@ -67,6 +67,20 @@ fn slots_of(route: Option<Route>) -> Option<(usize, usize)> {
     }
 }
 
+#[cfg(test)]
+thread_local! {
+    /// Tests: links built on this thread take the general path for every frame.
+    pub(crate) static GENERAL_PATH_ONLY: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
+}
+
+/// Whether the links must take the general path (tests comparing it with the plain one).
+fn general_path_only() -> bool {
+    #[cfg(test)]
+    return GENERAL_PATH_ONLY.with(std::cell::Cell::get);
+    #[cfg(not(test))]
+    false
+}
+
 /// What became of a frame sent.
 pub(crate) enum Delivery {
     /// Its last bit reaches `node` (0 = the master, on `port`) at true time `at` [ns], its
@@ -107,6 +121,9 @@ pub(crate) struct Link {
     /// Frames sent before `end`, when capturing.
     pub captured: Option<Vec<Captured>>,
     end: i64,
+    /// Nothing captured, no jitter, loss, corruption, silent slave or broken link: every
+    /// frame takes its closed-form path without a draw.
+    plain: bool,
 }
 
 impl Link {
@@ -118,7 +135,7 @@ impl Link {
         let per_hop = |p: f64| 1.0 - (1.0 - p).powf(1.0 / (n + 1) as f64);
         let (hop_loss, hop_corruption) = (per_hop(s.faults.loss), per_hop(s.faults.corruption));
         let over = |p: f64, h: usize| 1.0 - (1.0 - p).powi(h as i32);
-        Link {
+        let mut link = Link {
             n,
             hop: plan.hop.as_ns(),
             residence: s.ring.residence.0.as_ns(),
@@ -151,7 +168,16 @@ impl Link {
             counters: LinkCounters::default(),
             captured: capture.then(Vec::new),
             end,
-        }
+            plain: false,
+        };
+        link.plain = !capture
+            && !general_path_only()
+            && link.jitter == 0
+            && link.hop_loss == 0.0
+            && link.hop_corruption == 0.0
+            && link.silent.is_none()
+            && link.breaks.is_empty();
+        link
     }
 
     /// Wire time of a frame going `route` [ns].
@@ -246,11 +272,51 @@ impl Link {
         }
     }
 
+    /// On an unbroken ring, the node (0 = master) that processes a frame going `route` from
+    /// node `from` next, and the hops to it (at least 1).
+    fn next_stop(&self, from: usize, route: Option<Route>) -> (usize, i64) {
+        let ring = self.n + 1;
+        let stop = match (route, slots_of(route)) {
+            (Some(Route::Command { target }), _) if from == 0 => usize::from(target).min(self.n),
+            (_, Some((first, count))) => {
+                // Slots f..f+m belong to slaves f+1..=f+m.
+                let next = from + 1;
+                if next <= first {
+                    (first + 1).min(ring) % ring
+                } else if next <= first + count && next <= self.n {
+                    next
+                } else {
+                    0
+                }
+            }
+            _ => 0,
+        };
+        let stop = if stop == 0 && from == 0 { ring } else { stop };
+        let hops = ((stop + ring - from) % ring).max(1) as i64;
+        (stop % ring, hops)
+    }
+
     /// Sends `frame` from node `from` (0 = master, n + 1 = the master's port B), first bit
     /// out at true `t_tx` [ns], along the ring to the first node that processes it: a
     /// command's target, each slave whose slot a lumped frame carries, and the master for
     /// everything that comes back round.
     pub fn send(&mut self, from: usize, t_tx: i64, mut frame: WireFrame) -> Delivery {
+        if self.plain && from <= self.n {
+            // Nothing to capture, draw, break or silence: the frame arrives where the route
+            // says, at the closed-form time.
+            let Some((_, route)) = cycle_route(&frame) else {
+                return Delivery::Gone;
+            };
+            let (stop, hops) = self.next_stop(from, route);
+            let rx = t_tx + hops * self.hop + (hops - 1) * self.residence;
+            return Delivery::Arrive {
+                node: stop,
+                port: Port::B,
+                rx_start: rx,
+                at: rx + self.wire_ns(route),
+                frame,
+            };
+        }
         let capturing = self.captured.is_some();
         // A decoded frame's bytes, emitted once for the capture.
         let record = match &frame {
@@ -273,26 +339,8 @@ impl Link {
         if from == ring || self.breaks.iter().any(|b| b.broken_at(t_tx)) {
             return self.send_broken(from, t_tx, route, frame, record);
         }
-        // The node (0 = master) that processes the frame next.
-        let stop = match (route, slots_of(route)) {
-            (Some(Route::Command { target }), _) if from == 0 => usize::from(target).min(self.n),
-            (_, Some((first, count))) => {
-                // Slots f..f+m belong to slaves f+1..=f+m.
-                let next = from + 1;
-                if next <= first {
-                    (first + 1).min(ring) % ring
-                } else if next <= first + count && next <= self.n {
-                    next
-                } else {
-                    0
-                }
-            }
-            _ => 0,
-        };
         let dur = self.wire_ns(route);
-        let stop = if stop == 0 && from == 0 { ring } else { stop };
-        let hops = ((stop + ring - from) % ring).max(1) as i64;
-        let stop = stop % ring;
+        let (stop, hops) = self.next_stop(from, route);
         // The slaves between sender and receiver relay the frame; a dead one forwards nothing
         // (the frame is gone unless a hop before loses it).
         let mut relays = hops - 1;

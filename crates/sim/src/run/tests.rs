@@ -584,6 +584,49 @@ fn decoded_frames_and_bytes_give_the_same_run() {
     }
 }
 
+/// On a ring without capture, jitter, loss, corruption, silent slave or broken link, frames
+/// take the plain closed-form path (`Link::send`); it gives the same run, to the last bit, as
+/// the general path with its (here empty) draws: each law, both plans, no clock sync, a
+/// sampling lead, a long ring with a train of lumped frames, the arm.
+#[test]
+fn the_plain_path_gives_what_the_general_path_gives() {
+    let cases = [
+        "duration = \"200ms\"\n",
+        "duration = \"200ms\"\n[control]\nlaw = \"pd\"\n",
+        "duration = \"200ms\"\n[control]\nlaw = \"ring-coupled\"\n",
+        "duration = \"200ms\"\n[ring]\nplan = \"lumped-only\"\n",
+        "duration = \"200ms\"\n[clock]\nsync = false\n",
+        "duration = \"200ms\"\n[clock]\nsample_lead = \"50us\"\n",
+        "duration = \"200ms\"\n[ring]\nslaves = 80\ncycle = \"20ms\"\n[faults]\nbrake_gain = 0.1\n",
+    ];
+    let arm = Scenario::from_toml(
+        ringsync_model::builtin("arm-2link").expect("built in"),
+        "arm-2link",
+    )
+    .expect("valid");
+    for s in cases.iter().map(|c| scenario(c)).chain([arm]) {
+        let run_on = |general: bool| {
+            crate::link::GENERAL_PATH_ONLY.with(|g| g.set(general));
+            let r = run(
+                &s,
+                RunOptions {
+                    trace: true,
+                    log_cycles: Some((0, 3)),
+                    ..Default::default()
+                },
+            );
+            crate::link::GENERAL_PATH_ONLY.with(|g| g.set(false));
+            format!("{:?}", r.expect("run"))
+        };
+        let (plain, general) = (run_on(false), run_on(true));
+        assert!(
+            plain == general,
+            "the plain and general paths differ: {}",
+            s.name
+        );
+    }
+}
+
 /// The lumped-only check's delays are the simulated ring's: every slave applies its command
 /// when the lumped frame's last bit reaches it, `lumped_only_passes` after the cycle start.
 #[test]
