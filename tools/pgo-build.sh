@@ -1,9 +1,9 @@
 #!/usr/bin/env bash
 # A profile-guided (PGO) build of the ringsync command, for long sweeps: the same code and
 # the same results to the last bit (no flag changes floating point), laid out by the
-# compiler from a profile of the simulator at work. Measured on the reference run: about
-# 15 % fewer instructions and 10 % less time than the plain release build
-# (docs/benchmarks.md, "A profile-guided build").
+# compiler from a profile of the simulator at work. Measured on a 200-run sweep: 6.5 % less
+# time than the plain release build at its opt-level 2 (10-13 % when the release profile
+# was at level 3; docs/benchmarks.md, "A profile-guided build" and "opt-level 2").
 #
 #   tools/pgo-build.sh [OUTDIR]     # default target/pgo; prints the binary's path last
 #
