@@ -104,7 +104,7 @@ fn values<'py>(py: Python<'py>, text: &str) -> PyResult<Bound<'py, PyDict>> {
 fn parse_table(text: &str, origin: &str) -> Result<toml::Table, LibScenarioError> {
     toml::from_str(text).map_err(|e| LibScenarioError::Syntax {
         origin: origin.to_string(),
-        message: e.message().trim().replace('\n', " "),
+        message: ringsync::layers::model::scenario::toml_message(e.message()),
     })
 }
 

@@ -26,7 +26,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 
 use serde::{Deserialize, Serialize};
 
-use ringsync_model::scenario::{ECHO_CHARS, Scenario, ScenarioError, clip, clip_middle};
+use ringsync_model::scenario::{ECHO_CHARS, Scenario, ScenarioError, clip, toml_message};
 use ringsync_proto::{CyclePlan, Duration, PlanKind};
 
 use crate::error::{Error, Result};
@@ -323,7 +323,7 @@ fn make_cases(
     let origin = &base.origin;
     let table: toml::Table = toml::from_str(&base.text).map_err(|e| ScenarioError::Syntax {
         origin: clip(origin, ECHO_CHARS).into_owned(),
-        message: clip_middle(e.message().trim(), 2 * ECHO_CHARS).replace('\n', " "),
+        message: toml_message(e.message()),
     })?;
     let mut combos: Vec<Labels> = vec![Vec::new()];
     for a in axes {
@@ -351,7 +351,7 @@ fn make_cases(
         let s = Scenario::deserialize(toml::Value::Table(t.clone())).map_err(|e| {
             ScenarioError::Syntax {
                 origin: with(),
-                message: clip_middle(e.message().trim(), 2 * ECHO_CHARS).replace('\n', " "),
+                message: toml_message(e.message()),
             }
         })?;
         if auto_cycle && let Some(cycle) = cycle_that_holds(&s) {
@@ -364,7 +364,7 @@ fn make_cases(
         let s = Scenario::deserialize(toml::Value::Table(t.clone())).map_err(|e| {
             ScenarioError::Syntax {
                 origin: with(),
-                message: e.message().to_string(),
+                message: toml_message(e.message()),
             }
         })?;
         s.validate().map_err(|e| ScenarioError::Syntax {

@@ -62,8 +62,46 @@ pub(crate) fn out_of_range(
 ) -> ScenarioError {
     ScenarioError::OutOfRange {
         key: key.into(),
-        value: value.to_string(),
+        value: shortened(value.to_string()),
         allowed: allowed.into(),
+    }
+}
+
+/// The TOML parser's (or deserialiser's) message for a [`ScenarioError::Syntax`]: on one
+/// line, a number it quotes in scientific notation where its digits would run long, cut in
+/// the middle to at most about 2 × [`ECHO_CHARS`] characters.
+pub fn toml_message(message: &str) -> String {
+    let one_line = message.trim().replace('\n', " ");
+    clip_middle(&shorten_quoted_numbers(&one_line), 2 * ECHO_CHARS).into_owned()
+}
+
+/// `message` with each number quoted in backticks (as the TOML parser quotes a value of the
+/// wrong type) passed through [`shortened`].
+fn shorten_quoted_numbers(message: &str) -> String {
+    let mut out = String::with_capacity(message.len());
+    for (i, part) in message.split('`').enumerate() {
+        if i > 0 {
+            out.push('`');
+        }
+        // Odd parts lie between backticks.
+        if i % 2 == 1 {
+            out.push_str(&shortened(part.to_string()));
+        } else {
+            out.push_str(part);
+        }
+    }
+    out
+}
+
+/// A value's text for a message: a plain decimal longer than 24 characters (a number's
+/// `Display`, which never uses an exponent: 1e300 has 301 digits) in scientific notation.
+fn shortened(text: String) -> String {
+    let plain = text
+        .bytes()
+        .all(|b| b.is_ascii_digit() || b == b'-' || b == b'.');
+    match text.parse::<f64>() {
+        Ok(x) if plain && text.len() > 24 => short_number(x),
+        _ => text,
     }
 }
 
@@ -90,15 +128,7 @@ pub fn clip_middle(text: &str, max_chars: usize) -> std::borrow::Cow<'_, str> {
     format!("{head}…{tail}").into()
 }
 
-/// `x` for a message: as written up to a billion, in scientific notation beyond (or below a
-/// thousandth), so that 1e300 does not print 300 digits.
-pub(crate) fn short_number(x: f64) -> String {
-    if x == 0.0 || !x.is_finite() || (1e-3..1e9).contains(&x.abs()) {
-        format!("{x}")
-    } else {
-        format!("{x:e}")
-    }
-}
+pub(crate) use ringsync_proto::plan::short_number;
 
 /// `x` with `d` decimals, or in scientific notation with `d` where that would be long or
 /// show nothing.

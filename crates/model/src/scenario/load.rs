@@ -2,7 +2,7 @@
 //! TOML text with syntax errors placed by line and column, and the hash that names the
 //! exact input in every output.
 
-use super::error::{ECHO_CHARS, ScenarioError, clip, clip_middle};
+use super::error::{ECHO_CHARS, ScenarioError, clip, toml_message};
 use super::schema::Scenario;
 
 /// Largest scenario file read \[bytes\]: 1 MiB.
@@ -116,15 +116,14 @@ impl Scenario {
                     message,
                 };
             }
-            let msg = e.message().trim().replace('\n', " ");
-            let msg = clip_middle(&msg, 2 * ECHO_CHARS);
+            let msg = toml_message(e.message());
             let message = match e.span() {
                 Some(span) => {
                     let (l, c) = line_col(text, span.start);
                     let src = echo_line(text, l);
                     format!("line {l}, column {c} ({}): {msg}", clip(&src, ECHO_CHARS))
                 }
-                None => msg.into_owned(),
+                None => msg,
             };
             ScenarioError::Syntax {
                 origin: clip(origin, ECHO_CHARS).into_owned(),

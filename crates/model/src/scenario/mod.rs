@@ -16,7 +16,7 @@ pub mod plant;
 pub mod schema;
 pub mod validate;
 
-pub use error::{ECHO_CHARS, ScenarioError, clip, clip_middle};
+pub use error::{ECHO_CHARS, ScenarioError, clip, clip_middle, toml_message};
 pub use load::{MAX_SCENARIO_BYTES, builtin, builtin_names, fnv1a};
 pub use plant::{ARM_MAX_STEP, ArmSpec, PlantSpec};
 pub use schema::*;

@@ -184,6 +184,24 @@ fn bad_syntax_and_bad_types() {
 
 #[test]
 fn out_of_range_values_name_key_value_and_range() {
+    // A huge or tiny number is echoed in scientific notation, not as hundreds of digits.
+    assert_eq!(
+        err("[faults]\nloss = 1e300\n"),
+        "faults.loss = 1e300 is out of range: allowed 0 ..= 1 (a probability)"
+    );
+    let e = err("[clock]\ndrift_ppm = -1e300\n");
+    assert!(
+        e.starts_with("clock.drift_ppm = -1e300 is out of range"),
+        "{e}"
+    );
+    let e = err("[faults]\nbrake_gain = -1e-300\n");
+    assert!(
+        e.starts_with("faults.brake_gain = -1e-300 is out of range"),
+        "{e}"
+    );
+    // The same where the TOML parser quotes a value of the wrong type.
+    let e = err("[trajectory]\nperiod = 1e300\n");
+    assert!(e.contains("`1e300`") && e.len() < 200, "{e}");
     assert_eq!(
         err("[ring]\nslaves = 0\n"),
         "ring.slaves = 0 is out of range: allowed 1..=65535"

@@ -24,7 +24,7 @@ mod timeline;
 
 pub use broken::{BrokenRing, RingModel};
 pub use link::{Link, parse_bit_rate};
-pub use params::{PlanError, RingParams};
+pub use params::{PlanError, RingParams, short_number};
 pub use timeline::{FrameRef, Node, Passage, Phase, PhaseKind, Timeline};
 
 use ringsync_wire::ethernet::frame_len;

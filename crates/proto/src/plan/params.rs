@@ -92,6 +92,16 @@ pub enum PlanError {
     },
 }
 
+/// `x` for a message: as written up to a billion, in scientific notation beyond (or below a
+/// thousandth), so that 1e300 does not print 300 digits.
+pub fn short_number(x: f64) -> String {
+    if x == 0.0 || !x.is_finite() || (1e-3..1e9).contains(&x.abs()) {
+        format!("{x}")
+    } else {
+        format!("{x:e}")
+    }
+}
+
 /// Largest value of any time parameter [ns]: 10 s.
 const MAX_SPAN_NS: i64 = 10_000_000_000;
 
@@ -138,7 +148,7 @@ impl RingParams {
         if !(self.cable_m.is_finite() && (0.0..=100_000.0).contains(&self.cable_m)) {
             return Err(PlanError::OutOfRange {
                 field: "cable_m",
-                value: format!("{} m", self.cable_m),
+                value: format!("{} m", short_number(self.cable_m)),
                 allowed: "0 ..= 100000 m",
             });
         }
@@ -147,7 +157,7 @@ impl RingParams {
         {
             return Err(PlanError::OutOfRange {
                 field: "propagation_ns_per_m",
-                value: format!("{} ns/m", self.propagation_ns_per_m),
+                value: format!("{} ns/m", short_number(self.propagation_ns_per_m)),
                 allowed: "0 ..= 1000 ns/m",
             });
         }

@@ -118,6 +118,29 @@ fn too_short_cycle_names_the_shortfall() {
     assert!(msg.contains("short by 24.690 µs"), "{msg}");
 }
 
+/// A huge or tiny value is echoed in scientific notation, not as hundreds of digits.
+#[test]
+fn an_extreme_value_is_echoed_short() {
+    let msg = |p: RingParams| CyclePlan::new(&p).expect_err("out of range").to_string();
+    let d = RingParams::default;
+    assert_eq!(
+        msg(RingParams {
+            cable_m: 1e300,
+            ..d()
+        }),
+        "cable_m = 1e300 m is out of range: allowed 0 ..= 100000 m"
+    );
+    assert_eq!(
+        msg(RingParams {
+            propagation_ns_per_m: -2.5e-300,
+            ..d()
+        }),
+        "propagation_ns_per_m = -2.5e-300 ns/m is out of range: allowed 0 ..= 1000 ns/m"
+    );
+    assert_eq!(super::short_number(1500.0), "1500");
+    assert_eq!(super::short_number(0.0), "0");
+}
+
 #[test]
 fn out_of_range_parameters_are_named() {
     let bad = |p: RingParams| match CyclePlan::new(&p) {
