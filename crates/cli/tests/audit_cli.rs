@@ -162,3 +162,34 @@ fn targets_and_cycles_are_checked_before_the_work() {
         "--cycle 0 s: a cycle must last some time",
     );
 }
+
+/// A node started from a plan whose run has already begun was told its start-up phase "ran
+/// past the run's start … give it more time" (exit 1); it is told the plan is stale.
+#[test]
+fn a_node_plan_whose_run_has_begun_is_refused_as_stale() {
+    let d = common::scratch("audit", "stale-plan");
+    std::fs::create_dir_all(&d).expect("scratch directory");
+    let plan = d.join("plan.json");
+    let o = ringsync(&[
+        "node",
+        "plan",
+        "paper-2015",
+        "--links",
+        "lo:lo,lo:lo,lo:lo,lo:lo,lo:lo",
+        "--start-in",
+        "1.5s",
+        "--duration",
+        "1s",
+        "--out",
+        p(&plan),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    std::thread::sleep(std::time::Duration::from_millis(1_700));
+    let rec = d.join("rec");
+    for node in [&["master"][..], &["slave", "--index", "2"][..]] {
+        let mut args = vec!["node"];
+        args.extend_from_slice(node);
+        args.extend(["--plan", p(&plan), "--out", p(&rec)]);
+        refused(&args, "the run this node plan describes started");
+    }
+}

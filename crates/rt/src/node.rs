@@ -561,6 +561,15 @@ pub fn run_node(plan: &NodePlan, node: usize, stop: &AtomicBool) -> Result<NodeR
             "slave {node} is not on this ring: its slaves are 1 to {n} (the master is `ringsync node master`)"
         ))
     })?;
+    // A node started after the run's start cannot take part: say so, rather than let its
+    // start-up phase fail as if it had been given too little time.
+    let late = Clock::starting_at(plan.epoch_ns).now();
+    if late >= 0 {
+        return Err(RtError::Config(format!(
+            "the run this node plan describes started {:.1} s ago: write a new plan (`ringsync node plan`; its --start-in leaves time to start every node)",
+            late as f64 * 1e-9
+        )));
+    }
     let port = open_port(link, node).map_err(io_err("opening the node's port"))?;
     // (The writer thread starts before the real-time settings, which are the calling
     // thread's alone: it stays at the normal priority, on any CPU.)
