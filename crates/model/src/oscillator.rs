@@ -51,18 +51,31 @@ impl Oscillator {
     /// The first true time \[ns\] at which the local clock reads at least `l`, searching up
     /// from the estimate ⌈(l − offset)/rate⌉.
     pub fn true_at(&self, l: Instant) -> i64 {
-        let t0 = self.estimate(l.as_ns());
         // A reading off the timestamp grid is first reached where the raw clock reaches the
         // next grid point: start from that point's estimate (the search from t0 would step
         // up to res − 1 ns one at a time), back down while the reading still suffices (the
-        // reading never falls as t grows, so this finds the same instant), then up.
+        // reading never falls as t grows, so this finds the same instant), but not below
+        // t0, then up. t0 (a division) is computed only where it decides something: on the
+        // grid, or when the reading one nanosecond earlier suffices too (rarely: the grid
+        // point's estimate is its first instant but for rounding).
         let mut t = match self.grid_above(l.as_ns()) {
-            Some(g) if g != l.as_ns() => self.estimate(g).max(t0),
-            _ => t0,
+            Some(g) if g != l.as_ns() => {
+                let t = self.estimate(g);
+                if self.local(t - 1) < l {
+                    // As `max(t0)` then the downward search: t ≥ t0 here, since the
+                    // estimates never fall as the reading grows (g > l).
+                    t
+                } else {
+                    let t0 = self.estimate(l.as_ns());
+                    let mut t = t.max(t0);
+                    while t > t0 && self.local(t - 1) >= l {
+                        t -= 1;
+                    }
+                    t
+                }
+            }
+            _ => self.estimate(l.as_ns()),
         };
-        while t > t0 && self.local(t - 1) >= l {
-            t -= 1;
-        }
         while self.local(t) < l {
             t += 1;
         }
@@ -133,7 +146,11 @@ mod tests {
                 rate: 1.0 + r.symmetric(2e-4),
                 res,
             };
-            let l = Instant::from_ns(r.symmetric(1e10) as i64);
+            // Readings up to 10 s, and up to 10⁷ s, where the estimates' rounding is coarse
+            // enough that a grid point's estimate is sometimes past its first instant (the
+            // search then steps down).
+            let far = [1e10, 1e13, 1e16][k % 3];
+            let l = Instant::from_ns(r.symmetric(far) as i64);
             assert_eq!(o.true_at(l), plain(&o, l), "{o:?} l = {l:?}");
         }
     }
