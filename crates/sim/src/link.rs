@@ -296,25 +296,44 @@ impl Link {
         (stop % ring, hops)
     }
 
+    /// Where and when a frame sent as [`Link::send`] takes it arrives, on a plain ring
+    /// (nothing to capture, draw, break or silence: the closed-form time): `Some(Some((node,
+    /// rx_start, at)))` as [`Delivery::Arrive`] on port B, `Some(None)` if it goes nowhere;
+    /// `None` when the ring is not plain (then [`Link::send`] decides). The frame stays
+    /// where it is: the driver moves it once, into its event.
+    #[inline]
+    pub fn plain_path(
+        &self,
+        from: usize,
+        t_tx: i64,
+        frame: &WireFrame,
+    ) -> Option<Option<(usize, i64, i64)>> {
+        if !self.plain || from > self.n {
+            return None;
+        }
+        let Some((_, route)) = cycle_route(frame) else {
+            return Some(None);
+        };
+        let (stop, hops) = self.next_stop(from, route);
+        let rx = t_tx + hops * self.hop + (hops - 1) * self.residence;
+        Some(Some((stop, rx, rx + self.wire_ns(route))))
+    }
+
     /// Sends `frame` from node `from` (0 = master, n + 1 = the master's port B), first bit
     /// out at true `t_tx` [ns], along the ring to the first node that processes it: a
     /// command's target, each slave whose slot a lumped frame carries, and the master for
     /// everything that comes back round.
     pub fn send(&mut self, from: usize, t_tx: i64, mut frame: WireFrame) -> Delivery {
-        if self.plain && from <= self.n {
-            // Nothing to capture, draw, break or silence: the frame arrives where the route
-            // says, at the closed-form time.
-            let Some((_, route)) = cycle_route(&frame) else {
-                return Delivery::Gone;
-            };
-            let (stop, hops) = self.next_stop(from, route);
-            let rx = t_tx + hops * self.hop + (hops - 1) * self.residence;
-            return Delivery::Arrive {
-                node: stop,
-                port: Port::B,
-                rx_start: rx,
-                at: rx + self.wire_ns(route),
-                frame,
+        if let Some(path) = self.plain_path(from, t_tx, &frame) {
+            return match path {
+                Some((node, rx_start, at)) => Delivery::Arrive {
+                    node,
+                    port: Port::B,
+                    rx_start,
+                    at,
+                    frame,
+                },
+                None => Delivery::Gone,
             };
         }
         let capturing = self.captured.is_some();

@@ -162,6 +162,21 @@ impl Net {
     }
 
     fn transmit(&mut self, from: usize, at: i64, frame: WireFrame) {
+        // On a plain ring the frame moves once, into its event.
+        if let Some(path) = self.link.plain_path(from, at, &frame) {
+            if let Some((node, rx_start, arrive)) = path {
+                self.q.push(
+                    arrive,
+                    Ev::Arrive {
+                        node,
+                        port: Port::B,
+                        rx_start,
+                        frame,
+                    },
+                );
+            }
+            return;
+        }
         match self.link.send(from, at, frame) {
             Delivery::Arrive {
                 node,
