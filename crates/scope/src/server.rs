@@ -36,6 +36,12 @@ const SHUTDOWN_GRACE: Duration = Duration::from_secs(1);
 /// descriptor each for the whole run).
 const HEADER_TIMEOUT: Duration = Duration::from_secs(5);
 
+/// Longest a write to a client may wait for the client to read [s]; then its connection is
+/// closed (a client that sends a request and never reads the answer, or a page that stops
+/// reading its stream, would otherwise hold its connection, and its place among the
+/// [`MAX_CLIENTS`] pages, until the run ends).
+const WRITE_TIMEOUT: Duration = Duration::from_secs(10);
+
 const INDEX: &str = include_str!("../assets/index.html");
 const SCRIPT: &str = include_str!("../assets/scope.js");
 const UPLOT_JS: &str = include_str!("../assets/uPlot.iife.min.js");
@@ -198,7 +204,7 @@ async fn serve(listener: tokio::net::TcpListener, router: Router, stop: oneshot:
             let conn = http1::Builder::new()
                 .timer(TokioTimer::new())
                 .header_read_timeout(HEADER_TIMEOUT)
-                .serve_connection(TokioIo::new(tcp), service)
+                .serve_connection(TokioIo::new(WriteLimit::new(tcp, WRITE_TIMEOUT)), service)
                 .with_upgrades();
             let mut conn = std::pin::pin!(conn);
             tokio::select! {
@@ -213,6 +219,101 @@ async fn serve(listener: tokio::net::TcpListener, router: Router, stop: oneshot:
         while conns.join_next().await.is_some() {}
     })
     .await;
+}
+
+/// A connection whose writes fail ([`std::io::ErrorKind::TimedOut`]) once one has waited
+/// `limit` for the peer to read: HTTP answers and, after the upgrade, the WebSocket stream
+/// alike (hyper hands the upgraded stream this same connection).
+struct WriteLimit<T> {
+    io: T,
+    limit: Duration,
+    /// Since when a write has been waiting, as the timer that ends the wait.
+    waiting: Option<std::pin::Pin<Box<tokio::time::Sleep>>>,
+}
+
+impl<T> WriteLimit<T> {
+    fn new(io: T, limit: Duration) -> Self {
+        WriteLimit {
+            io,
+            limit,
+            waiting: None,
+        }
+    }
+
+    /// What a write that made progress (`Ready`) or must wait (`Pending`) returns.
+    fn after<R>(
+        &mut self,
+        cx: &mut std::task::Context<'_>,
+        done: std::task::Poll<std::io::Result<R>>,
+    ) -> std::task::Poll<std::io::Result<R>> {
+        use std::future::Future as _;
+        use std::task::Poll;
+        if done.is_ready() {
+            self.waiting = None;
+            return done;
+        }
+        let limit = self.limit;
+        let timer = self
+            .waiting
+            .get_or_insert_with(|| Box::pin(tokio::time::sleep(limit)));
+        match timer.as_mut().poll(cx) {
+            Poll::Ready(()) => Poll::Ready(Err(std::io::Error::new(
+                std::io::ErrorKind::TimedOut,
+                "the client has not read for the write time limit",
+            ))),
+            Poll::Pending => Poll::Pending,
+        }
+    }
+}
+
+impl<T: tokio::io::AsyncRead + Unpin> tokio::io::AsyncRead for WriteLimit<T> {
+    fn poll_read(
+        mut self: std::pin::Pin<&mut Self>,
+        cx: &mut std::task::Context<'_>,
+        buf: &mut tokio::io::ReadBuf<'_>,
+    ) -> std::task::Poll<std::io::Result<()>> {
+        std::pin::Pin::new(&mut self.io).poll_read(cx, buf)
+    }
+}
+
+impl<T: tokio::io::AsyncWrite + Unpin> tokio::io::AsyncWrite for WriteLimit<T> {
+    fn poll_write(
+        mut self: std::pin::Pin<&mut Self>,
+        cx: &mut std::task::Context<'_>,
+        buf: &[u8],
+    ) -> std::task::Poll<std::io::Result<usize>> {
+        let done = std::pin::Pin::new(&mut self.io).poll_write(cx, buf);
+        self.after(cx, done)
+    }
+
+    fn poll_write_vectored(
+        mut self: std::pin::Pin<&mut Self>,
+        cx: &mut std::task::Context<'_>,
+        bufs: &[std::io::IoSlice<'_>],
+    ) -> std::task::Poll<std::io::Result<usize>> {
+        let done = std::pin::Pin::new(&mut self.io).poll_write_vectored(cx, bufs);
+        self.after(cx, done)
+    }
+
+    fn is_write_vectored(&self) -> bool {
+        self.io.is_write_vectored()
+    }
+
+    fn poll_flush(
+        mut self: std::pin::Pin<&mut Self>,
+        cx: &mut std::task::Context<'_>,
+    ) -> std::task::Poll<std::io::Result<()>> {
+        let done = std::pin::Pin::new(&mut self.io).poll_flush(cx);
+        self.after(cx, done)
+    }
+
+    fn poll_shutdown(
+        mut self: std::pin::Pin<&mut Self>,
+        cx: &mut std::task::Context<'_>,
+    ) -> std::task::Poll<std::io::Result<()>> {
+        let done = std::pin::Pin::new(&mut self.io).poll_shutdown(cx);
+        self.after(cx, done)
+    }
 }
 
 async fn ws(State(app): State<App>, upgrade: WebSocketUpgrade) -> Response {

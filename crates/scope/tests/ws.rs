@@ -459,3 +459,45 @@ fn a_request_stalled_in_its_headers_is_closed() {
     drop(observer);
     scope.finish(serde_json::json!({}), Wall::from_millis(200));
 }
+
+/// A client that sends a whole request and never reads the answer (left open in an audit:
+/// it held its connection until the run ended) is closed once a write has waited 10 s
+/// (`WRITE_TIMEOUT`): its answer stops short.
+#[test]
+fn a_client_that_never_reads_is_closed() {
+    use std::io::{Read as _, Write as _};
+    let _one = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let (scope, observer) = short_replay();
+    // A small receive window, so that the 51 KB script cannot all be in flight.
+    let sock =
+        socket2::Socket::new(socket2::Domain::IPV4, socket2::Type::STREAM, None).expect("socket");
+    sock.set_recv_buffer_size(2048).expect("receive buffer");
+    sock.connect(&scope.addr().into()).expect("connect");
+    let mut idle: std::net::TcpStream = sock.into();
+    idle.write_all(b"GET /uPlot.iife.min.js HTTP/1.1\r\nHost: x\r\n\r\n")
+        .expect("write");
+    std::thread::sleep(Wall::from_secs(13));
+    idle.set_read_timeout(Some(Wall::from_secs(20)))
+        .expect("timeout");
+    let mut answer = Vec::new();
+    let closed = idle.read_to_end(&mut answer);
+    assert!(
+        closed.is_ok(),
+        "still open after {} bytes: {closed:?}",
+        answer.len()
+    );
+    assert!(
+        answer.starts_with(b"HTTP/1.1 200") && answer.len() < 51_000,
+        "{} bytes: the answer was not cut short",
+        answer.len()
+    );
+    // The scope still serves a page.
+    let mut page = std::net::TcpStream::connect(scope.addr()).expect("connect");
+    page.write_all(b"GET /uPlot-LICENSE HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n")
+        .expect("write");
+    let mut text = String::new();
+    page.read_to_string(&mut text).expect("the page");
+    assert!(text.starts_with("HTTP/1.1 200"), "{text}");
+    drop(observer);
+    scope.finish(serde_json::json!({}), Wall::from_millis(200));
+}
