@@ -67,9 +67,20 @@ pub struct CheckArgs {
     json: bool,
 }
 
+/// From this many axes `check` says beforehand that it will take a while.
+const LONG_CHECK_AXES: usize = 64;
+
 /// Runs `ringsync check`: exit status 3 unless the verdict is stable.
 pub(crate) fn check(args: &CheckArgs) -> Result<Outcome, CliError> {
     let s = ringsync::load(&args.scenario)?.scenario;
+    let n = s.axes_count();
+    if n >= LONG_CHECK_AXES {
+        // The eigenvalues of the loop (about 9 states per axis) cost the cube of its size.
+        eprintln!(
+            "ringsync check: {n} axes: the loop has about {} states, and its eigenvalues cost the cube of that (100 axes take seconds, 200 half a minute)",
+            9 * n
+        );
+    }
     let r = ringsync::check(&s, args.points as usize)?;
     if args.json {
         let text = serde_json::to_string_pretty(&check_json(&r))
