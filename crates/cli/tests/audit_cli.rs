@@ -91,7 +91,8 @@ fn identify_refuses_endless_short_and_own_files() {
     assert!(!out.exists());
 }
 
-/// Gains beyond double precision made `check` run for ever; `plan --events` on a long
+/// Gains beyond double precision made `check` run for ever (now refused, as every gain
+/// beyond 10¹² is: a law's commands could overflow to NaN); `plan --events` on a long
 /// ring, and node plans that are /dev/zero, took all the memory; a link break after the
 /// run's end was accepted and never happened.
 #[test]
@@ -103,7 +104,7 @@ fn what_would_hang_or_exhaust_memory_is_refused() {
     std::fs::write(&huge, "[control]\nkp = 1.5e308\n").expect("write");
     refused(
         &["check", p(&huge)],
-        "the gains are too large for double precision",
+        "control.kp (axis 0) = 1.5e308 is out of range: allowed > 0 ..= 1e12 V/rad",
     );
     refused(
         &[

@@ -8,7 +8,7 @@
 //! - the split I + αT = P − Q with P = (1+α)·I and Q = (α/(n−1))·(1·1ᵀ − I);
 //! - for the ring-coupled baseline, E = (I + αL)·e with the ring Laplacian L.
 
-use crate::error::{ControlError, check, check_len};
+use crate::error::{ControlError, check_gain, check_len};
 
 /// The peer coupling of n ≥ 2 axes with weight α ≥ 0.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -27,7 +27,7 @@ impl Coupling {
                 min: 2,
             });
         }
-        check("alpha", alpha, 0.0, false, ">= 0 (dimensionless)")?;
+        check_gain("alpha", alpha, 0.0, false, ">= 0 ..= 1e12 (dimensionless)")?;
         Ok(Coupling { n, alpha })
     }
 

@@ -87,6 +87,30 @@ pub(crate) fn check(
     }
 }
 
+/// Largest magnitude of a gain (and of the sync coupling's α): beyond about 10¹⁵⁴ a law's
+/// products overflow double precision into a command that is not a number, and no drive's
+/// volts per radian come anywhere near this.
+pub const MAX_GAIN: f64 = 1e12;
+
+/// [`check`], and at most [`MAX_GAIN`] in magnitude (`expected` says both).
+pub(crate) fn check_gain(
+    name: &str,
+    value: f64,
+    min: f64,
+    strict: bool,
+    expected: &'static str,
+) -> Result<f64, ControlError> {
+    let v = check(name, value, min, strict, expected)?;
+    if v.abs() > MAX_GAIN {
+        return Err(ControlError::InvalidParameter {
+            name: name.to_string(),
+            value,
+            expected: expected.into(),
+        });
+    }
+    Ok(v)
+}
+
 /// Checks a slice's length.
 pub(crate) fn check_len(
     what: &'static str,

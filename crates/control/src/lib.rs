@@ -27,7 +27,7 @@ pub mod stability;
 pub mod trajectory;
 
 pub use coupling::Coupling;
-pub use error::ControlError;
+pub use error::{ControlError, MAX_GAIN};
 pub use estimator::{ErrorHistory, Estimator, EstimatorKind, Signal};
 pub use law::{
     ControlInput, ControlLaw, ControlOutput, Controller, ErrorObserver, Feedback, Gains, Pd,

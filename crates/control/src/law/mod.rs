@@ -25,7 +25,7 @@ pub use registry::{LawEntry, LawParams, ParamSpec};
 pub use ring::RingCoupled;
 pub use sync::{Sign, SyncController, SyncParams};
 
-use crate::error::{ControlError, check, check_len};
+use crate::error::{ControlError, check, check_gain, check_len};
 use crate::estimator::{ErrorHistory, Estimator};
 use crate::trajectory::State;
 
@@ -90,24 +90,48 @@ impl Gains {
             check_len(what, n, v.len())?;
         }
         for i in 0..n {
-            check(&format!("kp[{i}]"), self.kp[i], 0.0, true, "> 0 V/rad")?;
-            check(&format!("kd[{i}]"), self.kd[i], 0.0, true, "> 0 V·s/rad")?;
-            check(&format!("ke[{i}]"), self.ke[i], 0.0, false, ">= 0 V·s/rad")?;
-            check(
+            check_gain(
+                &format!("kp[{i}]"),
+                self.kp[i],
+                0.0,
+                true,
+                "> 0 ..= 1e12 V/rad",
+            )?;
+            check_gain(
+                &format!("kd[{i}]"),
+                self.kd[i],
+                0.0,
+                true,
+                "> 0 ..= 1e12 V·s/rad",
+            )?;
+            check_gain(
+                &format!("ke[{i}]"),
+                self.ke[i],
+                0.0,
+                false,
+                ">= 0 ..= 1e12 V·s/rad",
+            )?;
+            check_gain(
                 &format!("kh[{i}]"),
                 self.kh[i],
                 f64::MIN,
                 false,
-                "a finite gain in V·s²/rad",
+                "-1e12 ..= 1e12 V·s²/rad",
             )?;
-            check(
+            check_gain(
                 &format!("kc[{i}]"),
                 self.kc[i],
                 f64::MIN,
                 false,
-                "a finite gain in V·s/rad",
+                "-1e12 ..= 1e12 V·s/rad",
             )?;
-            check(&format!("kf[{i}]"), self.kf[i], 0.0, false, ">= 0 V")?;
+            check_gain(
+                &format!("kf[{i}]"),
+                self.kf[i],
+                0.0,
+                false,
+                ">= 0 ..= 1e12 V",
+            )?;
             check(&format!("u_max[{i}]"), self.u_max[i], 0.0, true, "> 0 V")?;
         }
         check("kf_velocity", self.kf_velocity, 0.0, true, "> 0 rad/s")?;

@@ -13,7 +13,7 @@
 
 use super::registry::LawEntry;
 use super::{ControlInput, ControlLaw, ControlOutput, Gains, ring_neighbours};
-use crate::error::{ControlError, check};
+use crate::error::{ControlError, check_gain};
 use crate::estimator::{ErrorHistory, Estimator, EstimatorKind};
 
 /// The registry's entry: `ring-coupled`, from K_P, K_D, K_H, K_C, α and the estimator; no
@@ -60,7 +60,7 @@ impl RingCoupled {
                 min: 2,
             });
         }
-        check("alpha", alpha, 0.0, false, ">= 0 (dimensionless)")?;
+        check_gain("alpha", alpha, 0.0, false, ">= 0 ..= 1e12 (dimensionless)")?;
         Ok(RingCoupled {
             gains,
             alpha,

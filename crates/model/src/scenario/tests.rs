@@ -199,6 +199,17 @@ fn out_of_range_values_name_key_value_and_range() {
         e.starts_with("faults.brake_gain = -1e-300 is out of range"),
         "{e}"
     );
+    // Gains (and α) beyond 10¹²: ke = 1e308 made the lumped-only plan's commands NaN (a
+    // trace of NaN, no stop) and stopped the proposed plan for "no response".
+    assert_eq!(
+        err("[control]\nke = 1e308\n"),
+        "control.ke (axis 0) = 1e308 is out of range: allowed >= 0 ..= 1e12 V·s/rad"
+    );
+    assert_eq!(
+        err("[control]\nalpha = 1e308\n"),
+        "control.alpha = 1e308 is out of range: allowed >= 0 ..= 1e12 (dimensionless)"
+    );
+    assert!(Scenario::from_toml("[control]\nkp = 1e12\nalpha = 1e12\n", "t").is_ok());
     // The same where the TOML parser quotes a value of the wrong type.
     let e = err("[trajectory]\nperiod = 1e300\n");
     assert!(e.contains("`1e300`") && e.len() < 200, "{e}");
@@ -212,7 +223,7 @@ fn out_of_range_values_name_key_value_and_range() {
     );
     assert_eq!(
         err("[control]\nkd = [1.0, -2.0]\n"),
-        "control.kd (axis 1) = -2 is out of range: allowed > 0 V·s/rad"
+        "control.kd (axis 1) = -2 is out of range: allowed > 0 ..= 1e12 V·s/rad"
     );
     let e = err("[[axis]]\nviscous = -1e-5\n");
     assert_eq!(
@@ -242,7 +253,7 @@ fn out_of_range_values_name_key_value_and_range() {
     assert!(e.starts_with("control.dob_bandwidth = 900"), "{e}");
     assert_eq!(
         err("[control]\nkf = [0.2, -0.1]\n"),
-        "control.kf (axis 1) = -0.1 is out of range: allowed >= 0 V"
+        "control.kf (axis 1) = -0.1 is out of range: allowed >= 0 ..= 1e12 V"
     );
 }
 
