@@ -449,15 +449,7 @@ fn a_request_stalled_in_its_headers_is_closed() {
     );
     // Not before the limit (a busy host only makes it later).
     assert!(after >= Wall::from_secs(4), "closed after {after:?}");
-    // The scope still serves a page.
-    let mut page = std::net::TcpStream::connect(scope.addr()).expect("connect");
-    page.write_all(b"GET /uPlot-LICENSE HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n")
-        .expect("write");
-    let mut text = String::new();
-    page.read_to_string(&mut text).expect("the page");
-    assert!(text.starts_with("HTTP/1.1 200"), "{text}");
-    drop(observer);
-    scope.finish(serde_json::json!({}), Wall::from_millis(200));
+    still_serves_then_finishes(scope, observer);
 }
 
 /// A client that sends a whole request and never reads the answer (left open in an audit:
@@ -491,7 +483,12 @@ fn a_client_that_never_reads_is_closed() {
         "{} bytes: the answer was not cut short",
         answer.len()
     );
-    // The scope still serves a page.
+    still_serves_then_finishes(scope, observer);
+}
+
+/// Asserts that `scope` still serves a page (after a hostile client), then ends its run.
+fn still_serves_then_finishes(scope: Scope, observer: ringsync_scope::ScopeObserver) {
+    use std::io::{Read as _, Write as _};
     let mut page = std::net::TcpStream::connect(scope.addr()).expect("connect");
     page.write_all(b"GET /uPlot-LICENSE HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n")
         .expect("write");
