@@ -115,8 +115,6 @@ pub enum RunError {
 
 #[derive(Debug)]
 enum Ev {
-    /// The master's next timeout; `generation` invalidates stale timers.
-    Master { generation: u64 },
     /// A frame's last bit reaches `node` (0 = master, on `port`).
     Arrive {
         node: usize,
@@ -202,11 +200,8 @@ impl Net {
 struct Sim {
     dev: Devices,
     net: Net,
-    /// Each slave's latch generation (a rescheduled latch invalidates the pending one).
-    gens: Vec<u64>,
-    /// True time of each slave's valid pending latch (None once it has run).
+    /// True time of each slave's pending latch (None once it has run).
     sample_at: Vec<Option<i64>>,
-    master_gen: u64,
     t_cyc: i64,
     end: i64,
     /// Most slots per lumped frame (frame j carries slots from j·this).
@@ -305,9 +300,7 @@ impl Sim {
                 spare: Vec::new(),
                 port_b: n + 1,
             },
-            gens: vec![0; n],
             sample_at: vec![None; n],
-            master_gen: 0,
             t_cyc,
             end,
             slots_per_frame: spec.plan.lumped.slots_per_frame,
@@ -328,26 +321,29 @@ impl Sim {
         Ok(sim)
     }
 
+    /// Schedules the master's next timeout in place of its pending one. A replaced timeout
+    /// counts as an event (it counted as one when it stayed in the queue, stale, until its
+    /// time, which was before the end).
     fn schedule_master(&mut self) {
-        self.master_gen += 1;
         let t = self.dev.master_deadline();
-        if t < self.end {
-            let generation = self.master_gen;
-            self.net.q.push(t, Ev::Master { generation });
+        if self.net.q.set_timer((t < self.end).then_some(t)).is_some() {
+            self.net.link.counters.events += 1;
         }
     }
 
     /// Schedules slave i's next latch. A clock sync moves the latch's local deadline by
-    /// nanoseconds at most, and often not at all in true time: then the pending event
-    /// stands (a new one would leave the old, invalidated, in the queue until its time).
+    /// nanoseconds at most, and often not at all in true time: then the pending latch
+    /// stands. A replaced latch before the end counts as an event, as the master's timeout
+    /// does.
     fn schedule_latch(&mut self, i: usize) {
         let t = self.dev.latch_at(i);
         if self.sample_at[i] == Some(t) {
             return;
         }
         self.sample_at[i] = Some(t);
-        self.gens[i] += 1;
-        self.net.q.push_latch(t, i, self.gens[i]);
+        if self.net.q.set_latch(t, i).is_some_and(|old| old < self.end) {
+            self.net.link.counters.events += 1;
+        }
     }
 
     /// Hands the buffers of lost frames back to their senders.
@@ -397,10 +393,7 @@ impl Sim {
         while let Some(next) = self.net.q.pop() {
             let (t, ev) = match next {
                 Next::Latch(l) => {
-                    if l.t >= self.end || l.generation != self.gens[l.slave] {
-                        if l.t < self.end {
-                            self.net.link.counters.events += 1;
-                        }
+                    if l.t >= self.end {
                         continue;
                     }
                     self.net.link.counters.events += 1;
@@ -412,6 +405,18 @@ impl Sim {
                     self.schedule_latch(l.slave);
                     continue;
                 }
+                Next::Timer(t) => {
+                    if t >= self.end {
+                        continue;
+                    }
+                    self.net.link.counters.events += 1;
+                    let net = &mut self.net;
+                    self.dev
+                        .master_timeout(t, &mut |from, at, b| net.send(from, at, b));
+                    self.recycle();
+                    self.schedule_master();
+                    continue;
+                }
                 Next::Event(t, ev) => (t, ev),
             };
             if t >= self.end && !matches!(ev, Ev::Probe { .. }) {
@@ -420,14 +425,6 @@ impl Sim {
             }
             self.net.link.counters.events += 1;
             match ev {
-                Ev::Master { generation } if generation == self.master_gen => {
-                    let net = &mut self.net;
-                    self.dev
-                        .master_timeout(t, &mut |from, at, b| net.send(from, at, b));
-                    self.recycle();
-                    self.schedule_master();
-                }
-                Ev::Master { .. } => {}
                 Ev::Arrive {
                     node,
                     port,
