@@ -102,28 +102,11 @@ impl Oscillator {
     }
 }
 
-/// ⌊y⌋ as an integer, for |y| < 2⁶³ (simulated times are far below), without a libm call.
-pub(crate) fn floor_i64(y: f64) -> i64 {
-    let l = y as i64;
-    if (l as f64) > y { l - 1 } else { l }
-}
+/// ⌊y⌋ as an integer, without a libm call.
+pub(crate) use ringsync_plant::rounding::floor_i64;
 
 #[cfg(test)]
 mod tests {
-
-    #[test]
-    fn integer_floor_matches_libm_floor() {
-        let mut r = crate::rng::Rng::stream(7, 7);
-        for _ in 0..100_000 {
-            let y = r.symmetric(1e13);
-            assert_eq!(super::floor_i64(y), y.floor() as i64, "{y}");
-            let z = y.round();
-            assert_eq!(super::floor_i64(z), z as i64, "{z}");
-        }
-        for y in [-1.0, -0.5, -0.0, 0.0, 0.5, 1.0, -1e-300, 4e15 + 0.5] {
-            assert_eq!(super::floor_i64(y), y.floor() as i64, "{y}");
-        }
-    }
 
     /// `true_at` against the plain search up from the estimate, for readings on and off
     /// the grid, several resolutions, offsets and drifts.

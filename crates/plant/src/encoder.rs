@@ -31,7 +31,7 @@ impl Encoder {
 
     /// The count for position `x` \[rad\]: the edges passed, floor(x / resolution).
     pub fn counts(&self, x: f64) -> i64 {
-        (x / self.resolution()).floor() as i64
+        crate::rounding::floor_i64(x / self.resolution())
     }
 
     /// The position a count stands for \[rad\].

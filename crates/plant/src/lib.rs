@@ -15,6 +15,7 @@ mod encoder;
 mod error;
 pub mod integrate;
 pub mod reference;
+pub mod rounding;
 
 pub use arm::{ArmParams, TwoLinkArm};
 pub use axis::{

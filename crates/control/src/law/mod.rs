@@ -463,7 +463,7 @@ impl<L: ControlLaw> Controller<L> {
                 && (held as usize) < crate::estimator::DEPTH
                 && matches!(self.velocity, VelocitySource::Differenced);
             if h.count[i] > 0 {
-                let steps = ((t - h.t[i]) / input.t_cyc).round();
+                let steps = ringsync_plant::rounding::round_f64((t - h.t[i]) / input.t_cyc);
                 if steps < 1.0 {
                     self.held[i] = held.saturating_add(1);
                     continue;

@@ -44,7 +44,7 @@ use super::motion::{CycleRecord, MonitorNews, Motion, MotionInput, MotionOutput,
 use super::reject::{Reject, Rejections};
 use super::{Outbox, Port, Transmit, TransmitPdu, WireFrame};
 use crate::plan::{BrokenRing, CyclePlan, FrameRef, Node, PlanKind, RingModel};
-use crate::time::{Duration, Instant};
+use crate::time::{Duration, Instant, round_i64};
 
 /// Everything the master knows about the ring and the motion.
 #[derive(Debug, Clone)]
@@ -997,14 +997,10 @@ impl Master {
                 let res = self.cfg.resolution[i];
                 let mut s = self.lo_slots[i];
                 s.feedback.written = false;
-                s.desired_position = (d.x / res)
-                    .round()
-                    .clamp(f64::from(i32::MIN), f64::from(i32::MAX))
-                    as i32;
-                s.desired_velocity = (d.v / res)
-                    .round()
-                    .clamp(f64::from(i32::MIN), f64::from(i32::MAX))
-                    as i32;
+                s.desired_position =
+                    round_i64(d.x / res).clamp(i32::MIN.into(), i32::MAX.into()) as i32;
+                s.desired_velocity =
+                    round_i64(d.v / res).clamp(i32::MIN.into(), i32::MAX.into()) as i32;
                 s
             })
             .collect();
@@ -1112,9 +1108,7 @@ impl Master {
             },
             target: (target + 1) as u16,
             command_v: self.mout.u[target] as f32,
-            sample_time_ns: (self.mout.record.sample_time[target] * 1e9)
-                .round()
-                .max(0.0) as u64,
+            sample_time_ns: ns_of(self.mout.record.sample_time[target]),
             link_ns: self.link.as_ref().map_or(0, LinkEstimate::wire),
         };
         if self
@@ -1740,5 +1734,30 @@ impl Master {
     #[must_use]
     pub fn poll_event(&mut self) -> Option<MasterEvent> {
         self.events.pop_front()
+    }
+}
+
+/// A time in seconds as whole nanoseconds, rounded, at least 0: `(s·10⁹).round().max(0.0) as
+/// u64` without libm's `round` (`round_i64` is exact below 2⁶³ ns).
+fn ns_of(s: f64) -> u64 {
+    let ns = s * 1e9;
+    if ns < 4e18 {
+        round_i64(ns).max(0) as u64
+    } else {
+        ns.round() as u64
+    }
+}
+
+#[cfg(test)]
+mod ns_tests {
+    proptest::proptest! {
+        /// `ns_of` is `(s·10⁹).round().max(0.0) as u64` for any time, bit pattern or a
+        /// run's seconds.
+        #[test]
+        fn ns_of_rounds_as_the_library_does(bits in proptest::num::u64::ANY, s in -1.0f64..1e6) {
+            for s in [f64::from_bits(bits), s, s * 1e3] {
+                proptest::prop_assert_eq!(super::ns_of(s), (s * 1e9).round().max(0.0) as u64);
+            }
+        }
     }
 }
