@@ -291,6 +291,13 @@ impl Devices {
         self.osc[i].true_at(self.slaves[i].poll_timeout())
     }
 
+    /// The local time of slave `i`'s (0-based) next encoder latch, and its true time \[ns\]
+    /// ([`Devices::latch_at`]).
+    pub fn latch_deadline(&self, i: usize) -> (Instant, i64) {
+        let l = self.slaves[i].poll_timeout();
+        (l, self.osc[i].true_at(l))
+    }
+
     /// Takes slave `i`'s next encoder latch at its own instant `at` (the
     /// [`Devices::latch_at`] a driver scheduled), with the axis moved on to that instant;
     /// returns whether the axis had already moved past it (a driver that gets to a latch

@@ -202,6 +202,9 @@ struct Sim {
     net: Net,
     /// True time of each slave's pending latch (None once it has run).
     sample_at: Vec<Option<i64>>,
+    /// Each slave's latch deadline in its local time when it was last scheduled: what its
+    /// `poll_timeout` reads until a latch or a frame changes it.
+    deadline: Vec<Instant>,
     t_cyc: i64,
     end: i64,
     /// Most slots per lumped frame (frame j carries slots from j·this).
@@ -301,6 +304,7 @@ impl Sim {
                 port_b: n + 1,
             },
             sample_at: vec![None; n],
+            deadline: vec![Instant::from_ns(0); n],
             t_cyc,
             end,
             slots_per_frame: spec.plan.lumped.slots_per_frame,
@@ -336,7 +340,8 @@ impl Sim {
     /// stands. A replaced latch before the end counts as an event, as the master's timeout
     /// does.
     fn schedule_latch(&mut self, i: usize) {
-        let t = self.dev.latch_at(i);
+        let (l, t) = self.dev.latch_deadline(i);
+        self.deadline[i] = l;
         if self.sample_at[i] == Some(t) {
             return;
         }
@@ -476,7 +481,8 @@ impl Sim {
     }
 
     fn on_slave_frame(&mut self, i: usize, rx_start: i64, rx_end: i64, mut frame: WireFrame) {
-        let before = self.dev.slaves[i].poll_timeout();
+        let before = self.deadline[i];
+        debug_assert_eq!(before, self.dev.slaves[i].poll_timeout());
         let net = &mut self.net;
         let send = &mut |from, at, f| net.send(from, at, f);
         let outcome = match &mut frame {
