@@ -248,7 +248,31 @@ pub fn sim_text(s: &Scenario, r: &RunResult) -> String {
     }
     text += &monitor_text(s, r);
     text += &ring_text(r);
+    text += &saturation_text(r);
     text
+}
+
+/// A line when a drive spent cycles pinned at its limit (a command clipped to ±u_max):
+/// how many axes, and the one most often (empty when none did).
+pub fn saturation_text(r: &RunResult) -> String {
+    let axes = &r.summary.axes;
+    let hit = axes.iter().filter(|a| a.saturations > 0).count();
+    let Some((i, most)) = axes
+        .iter()
+        .enumerate()
+        .max_by_key(|(i, a)| (a.saturations, std::cmp::Reverse(*i)))
+        .filter(|(_, a)| a.saturations > 0)
+    else {
+        return String::new();
+    };
+    format!(
+        "  saturated: {hit} of {} axes held at the drive's limit; most, axis {}: {} of {} cycles ({:.1} %)\n",
+        axes.len(),
+        i + 1,
+        most.saturations,
+        r.cycles,
+        100.0 * most.saturations as f64 / r.cycles.max(1) as f64
+    )
 }
 
 /// The ring's changes (a link broken, healed, the break moved), a line each; empty on a

@@ -163,7 +163,7 @@ pub struct Status(u16);
 impl Status {
     /// The axis is in its safe state (0 V) after a fault.
     pub const FAULT: Status = Status(0x0001);
-    /// The last command was clipped to the drive's range.
+    /// The drive's last command was at its range's limit (clipped to it, or sent at it).
     pub const SATURATED: Status = Status(0x0002);
     /// No valid command arrived for W cycles (watchdog expired).
     pub const WATCHDOG: Status = Status(0x0004);

@@ -1156,7 +1156,7 @@ impl Slave {
             self.reject(Reject::FutureTimestamp);
         }
         if !self.status.contains(Status::FAULT) && self.drive == Drive::Enabled {
-            let (u, sat) = saturate(u, self.cfg.u_max);
+            let (u, sat) = drive_command(u, self.cfg.u_max);
             self.u = u;
             let mut st = Status::from_bits(self.status.bits() & !Status::SATURATED.bits())
                 .unwrap_or(self.status);
@@ -1251,7 +1251,7 @@ impl Slave {
                     self.begin_brake(rx_end, true);
                 }
                 if !self.status.contains(Status::FAULT) && self.drive == Drive::Enabled {
-                    let (u, sat) = saturate(f64::from(cmd.command_v), self.cfg.u_max);
+                    let (u, sat) = drive_command(f64::from(cmd.command_v), self.cfg.u_max);
                     self.u = u;
                     let mut st = self.status;
                     st = Status::from_bits(st.bits() & !Status::SATURATED.bits()).unwrap_or(st);
@@ -1323,6 +1323,15 @@ impl Slave {
     pub fn poll_event(&mut self) -> Option<SlaveEvent> {
         self.events.pop_front()
     }
+}
+
+/// The command the drive applies, `u` clipped to ±`limit`, and whether the drive is
+/// saturated: `u` was clipped, or it is at the limit to the wire's precision (a command the
+/// master clipped arrives as the limit rounded to f32: the drive is pinned at its range all
+/// the same, and the SATURATED status says so).
+pub(crate) fn drive_command(u: f64, limit: f64) -> (f64, bool) {
+    let (clipped, beyond) = saturate(u, limit);
+    (clipped, beyond || u.abs() >= f64::from(limit as f32))
 }
 
 /// `u` clipped to ±`limit`, and whether it was clipped.

@@ -781,3 +781,31 @@ fn a_stop_flag_ends_the_run_at_the_next_cycle() {
         format!("{:?}", without.summary)
     );
 }
+
+/// The summary counts the cycles an axis's drive was pinned at its limit, on both plans:
+/// on the proposed plan the master clips the command and the drive receives it at the
+/// limit; on the lumped-only plan the slave clips it itself. Gains far too high drive
+/// every axis bang-bang; the reference gains never reach the limit.
+#[test]
+fn a_command_at_the_drives_limit_counts_as_saturated() {
+    for plan in ["p2p-lumped", "lumped-only"] {
+        let high = scenario(&format!(
+            "duration = \"1s\"\n[ring]\nplan = \"{plan}\"\n[control]\nkp = 1e9\n"
+        ));
+        let r = run(&high, RunOptions::default()).expect("run");
+        let cycles = r.cycles as u64;
+        for (i, a) in r.summary.axes.iter().enumerate() {
+            assert_eq!(a.peak_u, 10.0, "{plan}, axis {i}");
+            assert!(
+                a.saturations > cycles * 9 / 10,
+                "{plan}, axis {i}: {} of {cycles} cycles",
+                a.saturations
+            );
+        }
+        let reference = scenario(&format!("duration = \"1s\"\n[ring]\nplan = \"{plan}\"\n"));
+        let r = run(&reference, RunOptions::default()).expect("run");
+        for a in &r.summary.axes {
+            assert!(a.peak_u < 10.0 && a.saturations == 0, "{plan}: {a:?}");
+        }
+    }
+}
