@@ -139,7 +139,7 @@ def sweep_cases(
 def run_cases(cases: list[str], jobs: int = 1) -> list[dict[str, Any]]:
     """Runs cases given as JSON text (from :func:`sweep_cases`): one result dict per case
     (``track_rmse``, ``sync_rmse`` [rad], counters, ``clock_error_max_ns`` [ns],
-    ``group_stop_s`` [s], ``group_stop_reason``)."""
+    ``group_stop_s`` [s], ``group_stop_reason``, ``peak_u`` [V], ``saturated_cycles``)."""
 
 def sweep_collect(
     text: str,

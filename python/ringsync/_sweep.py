@@ -28,6 +28,8 @@ ROW_COLUMNS: dict[str, str] = {
     "retries": "commands",
     "commands_lost": "commands",
     "clock_error_max_ns": "ns",
+    "peak_u": "V",
+    "saturated_cycles": "cycles",
 }
 
 
@@ -38,7 +40,9 @@ class Sweep:
     Each row holds the grid's keys with the values given, then ``seed``, ``track_rmse``
     and ``sync_rmse`` (eq. 26-27) [rad], ``group_stop_s`` [s] and ``group_stop_reason``
     (None without a group stop; else e.g. ``"following-error"``, as summary.json names
-    it), ``lumped_lost``, ``retries``, ``commands_lost``, and ``clock_error_max_ns`` [ns].
+    it), ``lumped_lost``, ``retries``, ``commands_lost``, ``clock_error_max_ns`` [ns],
+    ``peak_u`` [V] (the largest command over the axes) and ``saturated_cycles`` (the most
+    cycles any axis's drive was held at its limit ±u_max).
     Rows come in the grid's order (the first key outermost), seeds innermost; a row has the
     same numbers as ``simulate(scenario, seed=row["seed"], **values)``.
 
@@ -95,7 +99,7 @@ class Sweep:
     def to_pandas(self) -> pandas.DataFrame:
         """The rows as a DataFrame, one row per run: the grid's keys, ``seed``,
         ``track_rmse``, ``sync_rmse``, ``group_stop_s``, ``group_stop_reason``, the
-        counters. Needs pandas.
+        counters, ``peak_u`` and ``saturated_cycles``. Needs pandas.
 
         Example::
 

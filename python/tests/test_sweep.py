@@ -113,3 +113,15 @@ def test_progress_line_in_process(capsys: pytest.CaptureFixture[str]) -> None:
     assert err.endswith("\rringsync sweep: 6/6 runs\n"), repr(err)
     ringsync.sweep("paper-2015", {"control.alpha": [0.3]}, seeds=2, duration="0.2s")
     assert capsys.readouterr().err == ""
+
+
+def test_saturated_cycles_show_where_gains_drive_the_axes_bang_bang() -> None:
+    sw = ringsync.sweep("paper-2015", {"control.kp": [340.0, 1e8]}, seeds=1, duration="0.5s")
+    low, high = sw.rows
+    for row in sw.rows:
+        one = ringsync.simulate("paper-2015", seed=row["seed"], duration="0.5s",
+                                **{"control.kp": row["control.kp"]})
+        assert row["saturated_cycles"] == max(one.metrics["saturations"])
+        assert row["peak_u"] == max(one.metrics["peak_u"])
+    assert low["saturated_cycles"] == 0 and low["peak_u"] < 10.0
+    assert high["saturated_cycles"] > 400 and high["peak_u"] == 10.0

@@ -326,6 +326,49 @@ fn sweep_writes_rows_means_and_a_figure() {
     assert_eq!(String::from_utf8_lossy(&o.stderr).lines().count(), 1);
 }
 
+/// sweep.csv's last columns: the largest command and the most cycles an axis's drive was
+/// held at its limit, 0 at the reference gains and most of the run at gains far too high.
+#[test]
+fn sweep_rows_count_the_cycles_at_the_drives_limit() {
+    let d = dir("sweep-saturated");
+    let sc = short_scenario();
+    let o = ringsync(&[
+        "sweep",
+        sc.to_str().expect("p"),
+        "--set",
+        "control.kp=340,1e8",
+        "--out",
+        d.to_str().expect("p"),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let rows = std::fs::read_to_string(d.join("sweep.csv")).expect("sweep.csv");
+    let mut lines = rows.lines();
+    assert!(
+        lines
+            .next()
+            .is_some_and(|h| h.ends_with(",group_stop_s,peak_u_v,saturated_cycles")),
+        "{rows}"
+    );
+    let last = |line: &str| -> (f64, u64) {
+        let f: Vec<&str> = line.split(',').collect();
+        let n = f.len();
+        (
+            f[n - 2].parse().expect("peak_u_v"),
+            f[n - 1].parse().expect("saturated_cycles"),
+        )
+    };
+    let (low, high): (Vec<_>, Vec<_>) = lines.partition(|l| l.starts_with("340,"));
+    assert!(!low.is_empty() && !high.is_empty(), "{rows}");
+    for l in low {
+        let (peak, sat) = last(l);
+        assert!(peak < 10.0 && sat == 0, "{l}");
+    }
+    for l in high {
+        let (peak, sat) = last(l);
+        assert!(peak == 10.0 && sat > 100, "{l}");
+    }
+}
+
 /// A sweep with no key runs the scenario alone over its seeds: no key columns, one row of
 /// means over them, each seed's Sync-RMSE what `sim --seed` gives, and a figure per seed.
 #[test]

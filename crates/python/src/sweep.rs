@@ -70,7 +70,8 @@ fn sweep_axes(grid: &[(String, Vec<Bound<'_, PyAny>>)]) -> PyResult<Vec<SweepAxi
 }
 
 /// A case's result as a dict: `track_rmse`, `sync_rmse` [rad], the counters,
-/// `clock_error_max_ns` [ns], `group_stop_s` [s], `group_stop_reason` and `peak_u` [V].
+/// `clock_error_max_ns` [ns], `group_stop_s` [s], `group_stop_reason`, `peak_u` [V] and
+/// `saturated_cycles`.
 fn result_dict<'py>(py: Python<'py>, r: &CaseResult) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
     d.set_item("track_rmse", r.track_rmse)?;
@@ -82,6 +83,7 @@ fn result_dict<'py>(py: Python<'py>, r: &CaseResult) -> PyResult<Bound<'py, PyDi
     d.set_item("group_stop_s", r.group_stop_s)?;
     d.set_item("group_stop_reason", r.group_stop_reason.clone())?;
     d.set_item("peak_u", r.peak_u)?;
+    d.set_item("saturated_cycles", r.saturated_cycles)?;
     Ok(d)
 }
 
@@ -106,6 +108,7 @@ fn result_of(d: &Bound<'_, PyDict>) -> PyResult<CaseResult> {
         group_stop_s: field(d, "group_stop_s")?,
         group_stop_reason: field(d, "group_stop_reason")?,
         peak_u: field(d, "peak_u")?,
+        saturated_cycles: field(d, "saturated_cycles")?,
     })
 }
 

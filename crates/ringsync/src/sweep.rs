@@ -284,6 +284,10 @@ pub struct CaseResult {
     /// Largest |command| over the run and the axes \[V\] (the effort a law spends).
     #[serde(default)]
     pub peak_u: f64,
+    /// The most cycles any axis's drive was held at its limit ±u_max (summary.json's
+    /// per-axis `saturations`): gains that drive the axes bang-bang show here.
+    #[serde(default)]
+    pub saturated_cycles: u64,
 }
 
 /// The name of a group stop's reason in outputs, as `summary.json` writes it
@@ -433,6 +437,13 @@ pub fn run_case_until(case: &Case, stop: Option<&Stop>) -> Result<CaseResult> {
         group_stop_s: r.group_stop.map(|(t, _)| t),
         group_stop_reason: r.group_stop.map(|(_, why)| stop_reason(&why)),
         peak_u: r.summary.axes.iter().map(|a| a.peak_u).fold(0.0, f64::max),
+        saturated_cycles: r
+            .summary
+            .axes
+            .iter()
+            .map(|a| a.saturations)
+            .max()
+            .unwrap_or(0),
     })
 }
 
@@ -672,12 +683,12 @@ fn key_fields(labels: &[(String, String)]) -> String {
 pub fn write_sweep(dir: &OutDir, sw: &Sweep) -> Result<()> {
     let keys: String = sw.keys.iter().map(|k| format!("{k},")).collect();
     let mut csv = format!(
-        "{keys}seed,track_rmse,sync_rmse,lumped_lost,retries,commands_lost,clock_error_max_ns,group_stop_s,peak_u_v\n"
+        "{keys}seed,track_rmse,sync_rmse,lumped_lost,retries,commands_lost,clock_error_max_ns,group_stop_s,peak_u_v,saturated_cycles\n"
     );
     for (c, r) in sw.cases.iter().zip(&sw.results) {
         let _ = writeln!(
             csv,
-            "{}{},{:.9},{:.9},{},{},{},{:.0},{},{:.6}",
+            "{}{},{:.9},{:.9},{},{},{},{:.0},{},{:.6},{}",
             key_fields(&c.labels),
             c.seed,
             r.track_rmse,
@@ -687,7 +698,8 @@ pub fn write_sweep(dir: &OutDir, sw: &Sweep) -> Result<()> {
             r.commands_lost,
             r.clock_error_max_ns,
             r.group_stop_s.map_or(String::new(), |t| format!("{t:.4}")),
-            r.peak_u
+            r.peak_u,
+            r.saturated_cycles
         );
     }
     dir.write("sweep.csv", &csv)?;
@@ -978,6 +990,7 @@ mod tests {
             clock_error_max_ns: 0.0,
             group_stop_s: None,
             peak_u: 0.0,
+            saturated_cycles: 0,
             group_stop_reason: None,
         };
         let m = aggregate(
