@@ -586,6 +586,7 @@ pub fn rt_text(r: &RtResult, prediction: Option<RtPrediction>) -> String {
     }
     text += &crate::simulate::monitor_text(&r.scenario, &r.run);
     text += &crate::simulate::ring_text(&r.run);
+    text += &crate::simulate::saturation_text(&r.run);
     text
 }
 
