@@ -79,11 +79,16 @@ pub(crate) fn check(
     if ok {
         Ok(value)
     } else {
-        Err(ControlError::InvalidParameter {
-            name: name.to_string(),
-            value,
-            expected: expected.into(),
-        })
+        Err(invalid(name, value, expected))
+    }
+}
+
+/// `name = value` refused: `expected` says what is allowed.
+fn invalid(name: &str, value: f64, expected: &'static str) -> ControlError {
+    ControlError::InvalidParameter {
+        name: name.to_string(),
+        value,
+        expected: expected.into(),
     }
 }
 
@@ -102,11 +107,7 @@ pub(crate) fn check_gain(
 ) -> Result<f64, ControlError> {
     let v = check(name, value, min, strict, expected)?;
     if v.abs() > MAX_GAIN {
-        return Err(ControlError::InvalidParameter {
-            name: name.to_string(),
-            value,
-            expected: expected.into(),
-        });
+        return Err(invalid(name, value, expected));
     }
     Ok(v)
 }

@@ -288,7 +288,7 @@ impl Devices {
 
     /// The true time of slave `i`'s (0-based) next encoder latch \[ns\].
     pub fn latch_at(&self, i: usize) -> i64 {
-        self.osc[i].true_at(self.slaves[i].poll_timeout())
+        self.latch_deadline(i).1
     }
 
     /// The local time of slave `i`'s (0-based) next encoder latch, and its true time \[ns\]
