@@ -25,7 +25,7 @@ use ringsync_model::result::{Captured, LinkCounters};
 use ringsync_model::rng::Rng;
 use ringsync_model::scenario::LinkBreak;
 use ringsync_proto::node::{Port, WireFrame};
-use ringsync_wire::{Frame, Route};
+use ringsync_wire::{Frame, Pdu, Route};
 
 /// The bytes of `frame`: its own, or (decoded) `record`, its emitted bytes (empty without).
 fn bytes_of<'a>(frame: &'a WireFrame, record: &'a Option<Vec<u8>>) -> &'a [u8] {
@@ -275,14 +275,33 @@ impl Link {
     /// On an unbroken ring, the node (0 = master) that processes a frame going `route` from
     /// node `from` next, and the hops to it (at least 1).
     fn next_stop(&self, from: usize, route: Option<Route>) -> (usize, i64) {
+        let target = match route {
+            Some(Route::Command { target }) => Some(usize::from(target)),
+            _ => None,
+        };
+        self.stop_of(from, target, slots_of(route))
+    }
+
+    /// [`Link::next_stop`] of a frame that is a command to `target` or carries `slots`
+    /// (first, count), or neither.
+    #[inline]
+    fn stop_of(
+        &self,
+        from: usize,
+        target: Option<usize>,
+        slots: Option<(usize, usize)>,
+    ) -> (usize, i64) {
         let ring = self.n + 1;
-        let stop = match (route, slots_of(route)) {
-            (Some(Route::Command { target }), _) if from == 0 => usize::from(target).min(self.n),
+        // (No `%`: every value reduced here is below 3·ring, and a division by the ring's
+        // length is the slowest step of a frame's hop.)
+        let wrap = |x: usize| if x >= ring { x - ring } else { x };
+        let stop = match (target, slots) {
+            (Some(target), _) if from == 0 => target.min(self.n),
             (_, Some((first, count))) => {
                 // Slots f..f+m belong to slaves f+1..=f+m.
                 let next = from + 1;
                 if next <= first {
-                    (first + 1).min(ring) % ring
+                    wrap((first + 1).min(ring))
                 } else if next <= first + count && next <= self.n {
                     next
                 } else {
@@ -292,8 +311,9 @@ impl Link {
             _ => 0,
         };
         let stop = if stop == 0 && from == 0 { ring } else { stop };
-        let hops = ((stop + ring - from) % ring).max(1) as i64;
-        (stop % ring, hops)
+        // from ≤ ring (the master's port B), stop ≤ ring.
+        let hops = wrap(wrap(stop + ring - from)).max(1) as i64;
+        (wrap(stop), hops)
     }
 
     /// Where and when a frame sent as [`Link::send`] takes it arrives, on a plain ring
@@ -311,12 +331,41 @@ impl Link {
         if !self.plain || from > self.n {
             return None;
         }
-        let Some((_, route)) = cycle_route(frame) else {
-            return Some(None);
+        // A decoded frame's way straight from its PDU, as `next_stop` and `wire_ns` read it
+        // from its route (without building the route).
+        let count = |n: usize| n.min(usize::from(u16::MAX));
+        let (stop, hops, wire) = match frame {
+            WireFrame::Pdu(Pdu::Lumped(r)) => {
+                let (stop, hops) = self.stop_of(
+                    from,
+                    None,
+                    Some((usize::from(r.first_slot), count(r.slots.len()))),
+                );
+                (stop, hops, self.frame_ns[0])
+            }
+            WireFrame::Pdu(Pdu::Command(r)) => {
+                let (stop, hops) = self.stop_of(from, Some(usize::from(r.target)), None);
+                (stop, hops, self.frame_ns[1])
+            }
+            WireFrame::Pdu(Pdu::Response(_)) => {
+                let (stop, hops) = self.stop_of(from, None, None);
+                (stop, hops, self.frame_ns[2])
+            }
+            WireFrame::Pdu(p) => {
+                let route = Some(p.route());
+                let (stop, hops) = self.next_stop(from, route);
+                (stop, hops, self.wire_ns(route))
+            }
+            WireFrame::Bytes(_) => {
+                let Some((_, route)) = cycle_route(frame) else {
+                    return Some(None);
+                };
+                let (stop, hops) = self.next_stop(from, route);
+                (stop, hops, self.wire_ns(route))
+            }
         };
-        let (stop, hops) = self.next_stop(from, route);
         let rx = t_tx + hops * self.hop + (hops - 1) * self.residence;
-        Some(Some((stop, rx, rx + self.wire_ns(route))))
+        Some(Some((stop, rx, rx + wire)))
     }
 
     /// Sends `frame` from node `from` (0 = master, n + 1 = the master's port B), first bit
@@ -556,6 +605,68 @@ impl Link {
                 node: (from + d as usize) % ring,
                 bytes: relayed.to_vec(),
             });
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `next_stop` (no division) against the same rule written with `%`, for every sender
+    /// (the master's port B too) and every route on rings of 2 to 9 slaves.
+    #[test]
+    fn next_stop_is_the_modular_rule() {
+        let reference = |n: usize, from: usize, route: Option<Route>| {
+            let ring = n + 1;
+            let stop = match (route, slots_of(route)) {
+                (Some(Route::Command { target }), _) if from == 0 => usize::from(target).min(n),
+                (_, Some((first, count))) => {
+                    let next = from + 1;
+                    if next <= first {
+                        (first + 1).min(ring) % ring
+                    } else if next <= first + count && next <= n {
+                        next
+                    } else {
+                        0
+                    }
+                }
+                _ => 0,
+            };
+            let stop = if stop == 0 && from == 0 { ring } else { stop };
+            let hops = ((stop + ring - from) % ring).max(1) as i64;
+            (stop % ring, hops)
+        };
+        for n in 2..=9u16 {
+            let mut s = ringsync_model::Scenario::default();
+            s.ring.slaves = u32::from(n);
+            let spec = s.build().expect("a valid ring");
+            let link = Link::new(&spec, 1_000_000, false);
+            let mut routes = vec![None];
+            for a in 0..=n + 2 {
+                routes.push(Some(Route::Command { target: a }));
+                routes.push(Some(Route::Response { source: a }));
+                for m in 0..=n + 2 {
+                    routes.push(Some(Route::Lumped {
+                        first_slot: a,
+                        slot_count: m,
+                    }));
+                    routes.push(Some(Route::Delay {
+                        first_slot: a,
+                        slot_count: m,
+                    }));
+                }
+            }
+            let n = usize::from(n);
+            for from in 0..=n + 1 {
+                for &r in &routes {
+                    assert_eq!(
+                        link.next_stop(from, r),
+                        reference(n, from, r),
+                        "n = {n}, from {from}, {r:?}"
+                    );
+                }
+            }
         }
     }
 }

@@ -120,21 +120,29 @@ enum Ev {
         node: usize,
         port: Port,
         rx_start: i64,
-        frame: WireFrame,
+        frame: Boxed,
     },
     /// Slave i's response leaves (first bit).
-    SlaveSend { slave: usize, frame: WireFrame },
+    SlaveSend { slave: usize, frame: Boxed },
     /// Cycle start: read the true plant states.
     Probe { k: i64 },
     /// The link of the master's port `port` goes down or comes up (a broken link).
     PortLink { port: Port, up: bool },
 }
 
-/// The wire side of the simulation: the queue, the links, and the buffers a lost frame
-/// hands back to its sender. The devices' `send` closure borrows this alone.
+/// A frame in flight, boxed: its event in the queue, and the node that handles it, move a
+/// pointer rather than the frame, and a node forwards it where it lies. The boxes are kept
+/// for the next frames sent ([`Net::boxed`], [`Net::unbox`]).
+type Boxed = Box<WireFrame>;
+
+/// The wire side of the simulation: the queue, the links, the boxes of frames in flight and
+/// the buffers a lost frame hands back to its sender. The devices' `send` closure borrows
+/// this alone.
 struct Net {
     q: Queue<Ev>,
     link: Link,
+    /// Empty boxes for the next frames sent.
+    boxes: Vec<Boxed>,
     /// Lost frames, to hand back to (node, frame) once the devices are free.
     spare: Vec<(usize, WireFrame)>,
     /// The node index of the master's port B (n + 1).
@@ -146,6 +154,7 @@ impl Net {
     /// sends at the instant it handles its timeout); a slave's response leaves at its own
     /// time, an event.
     fn send(&mut self, from: usize, at: i64, frame: WireFrame) {
+        let frame = self.boxed(frame);
         if from == 0 || from == self.port_b {
             self.transmit(from, at, frame);
         } else {
@@ -159,11 +168,30 @@ impl Net {
         }
     }
 
-    fn transmit(&mut self, from: usize, at: i64, frame: WireFrame) {
-        // On a plain ring the frame moves once, into its event.
+    /// `frame` in a box (a kept one when there is one).
+    fn boxed(&mut self, frame: WireFrame) -> Boxed {
+        match self.boxes.pop() {
+            Some(mut b) => {
+                *b = frame;
+                b
+            }
+            None => Box::new(frame),
+        }
+    }
+
+    /// The frame out of its box, the box kept.
+    fn unbox(&mut self, mut b: Boxed) -> WireFrame {
+        let frame = std::mem::replace(&mut *b, WireFrame::Bytes(Vec::new()));
+        self.boxes.push(b);
+        frame
+    }
+
+    /// Sends `frame` from node `from`, first bit at `at`.
+    fn transmit(&mut self, from: usize, at: i64, frame: Boxed) {
+        // On a plain ring the frame stays in its box, into its arrival.
         if let Some(path) = self.link.plain_path(from, at, &frame) {
-            if let Some((node, rx_start, arrive)) = path {
-                self.q.push(
+            match path {
+                Some((node, rx_start, arrive)) => self.q.push(
                     arrive,
                     Ev::Arrive {
                         node,
@@ -171,10 +199,12 @@ impl Net {
                         rx_start,
                         frame,
                     },
-                );
+                ),
+                None => drop(self.unbox(frame)),
             }
             return;
         }
+        let frame = self.unbox(frame);
         match self.link.send(from, at, frame) {
             Delivery::Arrive {
                 node,
@@ -182,15 +212,18 @@ impl Net {
                 rx_start,
                 at,
                 frame,
-            } => self.q.push(
-                at,
-                Ev::Arrive {
-                    node,
-                    port,
-                    rx_start,
-                    frame,
-                },
-            ),
+            } => {
+                let frame = self.boxed(frame);
+                self.q.push(
+                    at,
+                    Ev::Arrive {
+                        node,
+                        port,
+                        rx_start,
+                        frame,
+                    },
+                )
+            }
             Delivery::Lost(frame) => self.spare.push((from % self.port_b, frame)),
             Delivery::Gone => {}
         }
@@ -300,6 +333,7 @@ impl Sim {
             net: Net {
                 q: Queue::new(n),
                 link: Link::new(spec, end, opts.capture),
+                boxes: Vec::new(),
                 spare: Vec::new(),
                 port_b: n + 1,
             },
@@ -443,11 +477,12 @@ impl Sim {
                     if node == 0 {
                         let net = &mut self.net;
                         let send = &mut |from, at, f| net.send(from, at, f);
-                        match (&frame, port) {
+                        match (&*frame, port) {
                             (WireFrame::Bytes(b), Port::B) => self.dev.master_frame(t, b, send),
                             (WireFrame::Pdu(p), Port::B) => self.dev.master_pdu(t, p, send),
                             (f, Port::A) => self.dev.master_frame_on(Port::A, t, f, send),
                         };
+                        let frame = self.net.unbox(frame);
                         self.dev.recycle_frame(0, frame);
                         self.recycle();
                         self.schedule_master();
@@ -480,12 +515,12 @@ impl Sim {
         }
     }
 
-    fn on_slave_frame(&mut self, i: usize, rx_start: i64, rx_end: i64, mut frame: WireFrame) {
+    fn on_slave_frame(&mut self, i: usize, rx_start: i64, rx_end: i64, mut frame: Boxed) {
         let before = self.deadline[i];
         debug_assert_eq!(before, self.dev.slaves[i].poll_timeout());
         let net = &mut self.net;
         let send = &mut |from, at, f| net.send(from, at, f);
-        let outcome = match &mut frame {
+        let outcome = match &mut *frame {
             WireFrame::Bytes(b) => self.dev.slave_frame(i, rx_start, rx_end, b, send),
             WireFrame::Pdu(p) => self.dev.slave_pdu(i, rx_start, rx_end, p, send),
         };
@@ -494,7 +529,10 @@ impl Sim {
                 let at = rx_start + self.net.link.residence();
                 self.net.transmit(i + 1, at, frame);
             }
-            FrameOutcome::Consumed | FrameOutcome::Dropped => self.dev.recycle_frame(i + 1, frame),
+            FrameOutcome::Consumed | FrameOutcome::Dropped => {
+                let frame = self.net.unbox(frame);
+                self.dev.recycle_frame(i + 1, frame)
+            }
         }
         self.recycle();
         if self.dev.slaves[i].poll_timeout() != before {
