@@ -375,6 +375,11 @@ impl Sim {
     /// does.
     fn schedule_latch(&mut self, i: usize) {
         let (l, t) = self.dev.latch_deadline(i);
+        self.schedule_latch_at(i, l, t);
+    }
+
+    /// [`Sim::schedule_latch`] with slave i's deadline `l` (local) and `t` (true) known.
+    fn schedule_latch_at(&mut self, i: usize, l: Instant, t: i64) {
         self.deadline[i] = l;
         if self.sample_at[i] == Some(t) {
             return;
@@ -535,8 +540,10 @@ impl Sim {
             }
         }
         self.recycle();
-        if self.dev.slaves[i].poll_timeout() != before {
-            self.schedule_latch(i);
+        let l = self.dev.slaves[i].poll_timeout();
+        if l != before {
+            let t = self.dev.osc[i].true_at(l);
+            self.schedule_latch_at(i, l, t);
         }
     }
 
