@@ -147,12 +147,15 @@ pub(crate) struct Outbox {
 
 impl Outbox {
     /// Queues `pdu` to leave at `at`; false (and nothing queued) if it cannot be emitted.
+    #[inline]
     pub(crate) fn push(&mut self, at: Instant, pdu: Pdu) -> bool {
         self.push_on(at, Port::A, pdu)
     }
 
     /// Queues `pdu` to leave at `at` on `port`; false (and nothing queued) if it cannot be
-    /// emitted.
+    /// emitted. (Inlined where the PDU is built, so that it is written into the queue
+    /// rather than copied from where its fields were just stored.)
+    #[inline]
     pub(crate) fn push_on(&mut self, at: Instant, port: Port, pdu: Pdu) -> bool {
         if pdu.validate().is_err() {
             return false;
