@@ -92,63 +92,6 @@ pub trait Axes: Send {
     fn set_command(&mut self, i: usize, u: f64);
 }
 
-/// A ring's axes as [`Spec::plant`](crate::Spec::plant) makes them: independent servo axes
-/// or the coupled arm. An enum rather than a trait object, so that the drivers' calls (an
-/// axis advanced to every event that concerns it, about four times per axis and cycle) are
-/// direct and can be inlined.
-#[derive(Debug, Clone)]
-pub enum RingAxes {
-    /// Mechanically independent servo axes.
-    Servo(ServoAxes),
-    /// The two-link arm.
-    Arm(ArmAxes),
-}
-
-/// Calls `$call` on whichever axes `$self` holds.
-macro_rules! each_kind {
-    ($self:expr, $a:ident => $call:expr) => {
-        match $self {
-            RingAxes::Servo($a) => $call,
-            RingAxes::Arm($a) => $call,
-        }
-    };
-}
-
-impl Axes for RingAxes {
-    #[inline]
-    fn len(&self) -> usize {
-        each_kind!(self, a => a.len())
-    }
-    #[inline]
-    fn advance(&mut self, i: usize, t: i64) {
-        each_kind!(self, a => a.advance(i, t))
-    }
-    #[inline]
-    fn position(&self, i: usize) -> f64 {
-        each_kind!(self, a => a.position(i))
-    }
-    #[inline]
-    fn velocity(&self, i: usize) -> f64 {
-        each_kind!(self, a => a.velocity(i))
-    }
-    #[inline]
-    fn time(&self, i: usize) -> i64 {
-        each_kind!(self, a => a.time(i))
-    }
-    #[inline]
-    fn counts(&self, i: usize) -> i64 {
-        each_kind!(self, a => a.counts(i))
-    }
-    #[inline]
-    fn command(&self, i: usize) -> f64 {
-        each_kind!(self, a => a.command(i))
-    }
-    #[inline]
-    fn set_command(&mut self, i: usize, u: f64) {
-        each_kind!(self, a => a.set_command(i, u))
-    }
-}
-
 /// Mechanically independent servo axes (the paper's experiment).
 #[derive(Debug, Clone)]
 pub struct ServoAxes(pub Vec<ServoAxis>);

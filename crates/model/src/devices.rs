@@ -29,7 +29,7 @@ use ringsync_proto::node::{
 };
 use ringsync_wire::{Pdu, Status};
 
-use crate::axes::{Axes, RingAxes};
+use crate::axes::Axes;
 use crate::locate::locate_break_of;
 use crate::monitor::MonitorEvent;
 use crate::observer::Observer;
@@ -57,7 +57,7 @@ pub struct Devices {
     /// Slave i's oscillator at index i − 1.
     pub osc: Vec<Oscillator>,
     /// The axes, advanced by true time.
-    pub axes: RingAxes,
+    pub axes: Box<dyn Axes>,
     rec: Recorder,
     observers: Vec<Box<dyn Observer>>,
     safe: Vec<SafeState>,

@@ -7,7 +7,7 @@ use ringsync_plant::Encoder;
 use ringsync_proto::node::{Master, MasterConfig, Slave, SlaveConfig};
 use ringsync_proto::{CyclePlan, Duration, PlanKind};
 
-use crate::axes::{ArmAxes, RingAxes, ServoAxes};
+use crate::axes::{ArmAxes, Axes, ServoAxes};
 use crate::motion::{ControlMotion, SlaveControl, StopSettings};
 use crate::scenario::{Scenario, ScenarioError};
 
@@ -129,11 +129,11 @@ impl Spec {
     /// The axes of the scenario's plant at rest at position 0, true time 0, 0 V: the
     /// independent servo axes of its `[[axis]]` tables, or the coupled two-link arm
     /// (`[plant] kind = "two-link-arm"`). The one place a driver's axes are made.
-    pub fn plant(&self) -> Result<RingAxes, ScenarioError> {
+    pub fn plant(&self) -> Result<Box<dyn Axes>, ScenarioError> {
         let s = &self.scenario;
         let Some(params) = s.arm_params() else {
             let axes = ServoAxes::for_scenario(s).map_err(|e| scenario_err("axis", e))?;
-            return Ok(RingAxes::Servo(axes));
+            return Ok(Box::new(axes));
         };
         let encoders = encoders(s)?;
         let [e1, e2] = encoders[..] else {
@@ -143,7 +143,7 @@ impl Spec {
             ));
         };
         let arm = ArmAxes::new(params, [e1, e2]).map_err(|e| scenario_err("plant", e))?;
-        Ok(RingAxes::Arm(arm))
+        Ok(Box::new(arm))
     }
 
     /// The master and the slaves of the plan (the law in the master, or in every slave with
