@@ -35,5 +35,5 @@ pub use law::{
 };
 pub use metrics::{Metrics, Summary};
 pub use trajectory::{
-    AxisTrajectory, Cosine, GroupTrajectories, Sequence, State, Trajectory, Trapezoid,
+    AxisTrajectory, Cosine, GroupTrajectories, PathAxis, Sequence, State, Trajectory, Trapezoid,
 };

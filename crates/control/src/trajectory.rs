@@ -246,6 +246,43 @@ impl Trajectory for Sequence {
     }
 }
 
+/// One drive's share of a planned part program (docs/programs.md): the path's machine
+/// coordinate `coord` (0 = X, 1 = Y, 2 = Z) through the drive's transmission, x^d =
+/// p_coord(t)·`rad_per_mm`.
+#[derive(Debug, Clone)]
+pub struct PathAxis {
+    /// The planned path, shared by every drive of the machine.
+    pub path: std::sync::Arc<ringsync_path::PlannedPath>,
+    /// Which machine coordinate the drive moves.
+    pub coord: usize,
+    /// Transmission [rad/mm]: 2π over the lead, negative for a reversed drive.
+    pub rad_per_mm: f64,
+}
+
+impl PartialEq for PathAxis {
+    /// The same plan (not merely an equal one), coordinate and transmission.
+    fn eq(&self, o: &Self) -> bool {
+        std::sync::Arc::ptr_eq(&self.path, &o.path)
+            && self.coord == o.coord
+            && self.rad_per_mm.to_bits() == o.rad_per_mm.to_bits()
+    }
+}
+
+impl Trajectory for PathAxis {
+    fn at(&self, t: f64) -> State {
+        let p = self.path.at(t);
+        let k = self.rad_per_mm;
+        State {
+            x: p.p[self.coord] * k,
+            v: p.v[self.coord] * k,
+            a: p.a[self.coord] * k,
+        }
+    }
+    fn end_time(&self) -> f64 {
+        self.path.duration()
+    }
+}
+
 /// Any of the built-in trajectories.
 #[derive(Debug, Clone, PartialEq)]
 pub enum AxisTrajectory {
@@ -255,6 +292,8 @@ pub enum AxisTrajectory {
     Trapezoid(Trapezoid),
     /// A sequence of moves.
     Sequence(Sequence),
+    /// A drive's share of a part program.
+    Path(PathAxis),
 }
 
 impl Trajectory for AxisTrajectory {
@@ -263,6 +302,7 @@ impl Trajectory for AxisTrajectory {
             AxisTrajectory::Cosine(c) => c.at(t),
             AxisTrajectory::Trapezoid(c) => c.at(t),
             AxisTrajectory::Sequence(c) => c.at(t),
+            AxisTrajectory::Path(c) => c.at(t),
         }
     }
     fn end_time(&self) -> f64 {
@@ -270,6 +310,7 @@ impl Trajectory for AxisTrajectory {
             AxisTrajectory::Cosine(c) => c.end_time(),
             AxisTrajectory::Trapezoid(c) => c.end_time(),
             AxisTrajectory::Sequence(c) => c.end_time(),
+            AxisTrajectory::Path(c) => c.end_time(),
         }
     }
 }

@@ -84,13 +84,17 @@ impl Devices {
         let axes = spec.plant()?;
         let n = slaves.len();
         let zero = AxisProbe::AT_REST;
+        let mut rec = Recorder::new(n, cycles, s.ring.cycle.secs(), trace);
+        if let (Some(map), Some(path)) = (s.machine_map()?, s.planned_path()?) {
+            rec = rec.with_contour(map, path);
+        }
         Ok(Devices {
             master,
             safe: slaves.iter().map(|s| s.config().safe_state).collect(),
             slaves,
             osc: Oscillator::for_scenario(s),
             axes,
-            rec: Recorder::new(n, cycles, s.ring.cycle.secs(), trace),
+            rec,
             observers: Vec::new(),
             probe: vec![zero; n],
             decoded: false,

@@ -16,6 +16,7 @@
 pub mod axes;
 pub mod bounded;
 pub mod check;
+pub mod contour;
 pub mod devices;
 pub mod locate;
 pub mod monitor;

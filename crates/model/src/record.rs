@@ -159,6 +159,8 @@ pub struct Recorder {
     monitor: Vec<crate::monitor::MonitorEvent>,
     /// Where complete rows go instead of the trace ([`Recorder::stream_trace`]).
     sink: Option<Box<dyn TraceSink>>,
+    /// A part program's contour error and path table ([`Recorder::with_contour`]).
+    contour: Option<crate::contour::ContourRecorder>,
 }
 
 impl Recorder {
@@ -202,7 +204,23 @@ impl Recorder {
             counting: None,
             monitor: Vec::new(),
             sink: None,
+            contour: None,
         }
+    }
+
+    /// Records a part program's run too: the contour error every cycle, the path table
+    /// (when the recorder keeps the trace) and the circular tests.
+    pub fn with_contour(
+        mut self,
+        map: crate::scenario::MachineMap,
+        path: std::sync::Arc<ringsync_path::PlannedPath>,
+    ) -> Self {
+        self.contour = Some(crate::contour::ContourRecorder::new(
+            map,
+            path,
+            self.trace_on && self.sink.is_none(),
+        ));
+        self
     }
 
     /// Streams the trace to `sink` instead of keeping it (whether or not the recorder was
@@ -283,6 +301,7 @@ impl Recorder {
             passages,
             captured,
             start_up: None,
+            path: self.contour.map(|c| c.finish()),
         }
     }
 }
@@ -290,7 +309,7 @@ impl Recorder {
 impl Observer for Recorder {
     /// Cycle k starts: each axis's state. Clock errors count over the second half of the
     /// run.
-    fn cycle(&mut self, k: i64, _t: f64, axes: &[AxisProbe]) {
+    fn cycle(&mut self, k: i64, t: f64, axes: &[AxisProbe]) {
         self.flush_trace();
         // Both are written whole below: the last cycle's become the previous ones.
         self.prev.0 = self.probe_k;
@@ -315,6 +334,9 @@ impl Observer for Recorder {
         }
         if let Some(c) = &self.coupling {
             let _ = c.sync_errors(&self.e, &mut self.eps);
+        }
+        if let Some(c) = &mut self.contour {
+            c.cycle(t, &self.probe, self.group_stop.is_none());
         }
     }
 

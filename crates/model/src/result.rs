@@ -301,4 +301,7 @@ pub struct RunResult {
     pub captured: Vec<Captured>,
     /// The nodes' start-up phase, when the path delays were measured.
     pub start_up: Option<StartUp>,
+    /// A part program's run: the path table, contour error and circular tests
+    /// (docs/programs.md).
+    pub path: Option<crate::contour::PathResult>,
 }

@@ -411,6 +411,39 @@ impl Curve {
         }
     }
 
+    /// A box holding the curve: (lowest, highest) of each coordinate \[mm\] (a blend's
+    /// from 33 samples, a hair wider).
+    pub fn extent(&self) -> (Vec3, Vec3) {
+        match self {
+            Curve::Line(l) => {
+                let (a, b) = (l.p0, l.point(l.len));
+                (a.min(b), a.max(b))
+            }
+            Curve::Arc(h) => {
+                let (a, b) = (h.frame(0.0).p, h.frame(h.len).p);
+                let n = h.normal();
+                let r = (h.e1.abs() + h.e2.abs()) * h.r;
+                let c0 = h.c;
+                let c1 = h.c + n * h.rise;
+                (
+                    a.min(b).min(c0 - r).min(c1 - r),
+                    a.max(b).max(c0 + r).max(c1 + r),
+                )
+            }
+            Curve::Blend(q) => {
+                let mut lo = q.c[0];
+                let mut hi = q.c[0];
+                for i in 1..=32 {
+                    let p = Quintic::point_of(&q.c, f64::from(i) / 32.0);
+                    lo = lo.min(p);
+                    hi = hi.max(p);
+                }
+                let pad = Vec3::new(1e-3, 1e-3, 1e-3) * (1.0 + q.len);
+                (lo - pad, hi + pad)
+            }
+        }
+    }
+
     /// The part from arc length `a` to `b` (lines and arcs only; a blend is whole).
     pub fn sub(&self, a: f64, b: f64) -> Curve {
         match self {

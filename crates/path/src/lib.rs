@@ -15,6 +15,7 @@
 
 pub mod blend;
 pub mod check;
+pub mod circular;
 pub mod corpus;
 pub mod geometry;
 pub mod plan;

@@ -5,6 +5,7 @@ pub mod check;
 pub mod columnar;
 pub mod fixed;
 pub mod identify;
+pub mod path;
 pub mod pcap;
 pub mod plan;
 pub mod plot;

@@ -241,6 +241,16 @@ pub fn summary_json(s: &Scenario, hash: u64, r: &RunResult) -> Value {
     if let (Some(m), Value::Object(o)) = (start_up_json(r), &mut v) {
         o.insert("start_up".into(), m);
     }
+    if let (
+        Some(p),
+        Value::Object(o),
+        ringsync_model::scenario::TrajectorySpec::Program { program },
+    ) = (&r.path, &mut v, &s.trajectory)
+    {
+        for (k, val) in crate::path::path_json(program, p) {
+            o.insert(k.into(), val);
+        }
+    }
     v
 }
 
@@ -503,9 +513,9 @@ pub(crate) fn axis_series(
 
 /// The figures of one run (made with a trace): position errors, sync errors, commands and
 /// clock errors per axis, and the cycle's timing diagram when given.
-pub fn run_figures(timing: Option<String>, r: &RunResult) -> Vec<(&'static str, String)> {
+pub fn run_figures(timing: Option<String>, r: &RunResult) -> Vec<(String, String)> {
     use crate::plot::line_chart;
-    let mut figs = Vec::new();
+    let mut figs: Vec<(&'static str, String)> = Vec::new();
     if let Some(t) = timing {
         figs.push(("cycle.svg", t));
     }
@@ -540,11 +550,16 @@ pub fn run_figures(timing: Option<String>, r: &RunResult) -> Vec<(&'static str, 
             &per_axis(r, |t, i| t.clock_error_ns[i]),
         ),
     ));
+    let mut figs: Vec<(String, String)> =
+        figs.into_iter().map(|(n, s)| (n.to_string(), s)).collect();
+    if let Some(p) = &r.path {
+        figs.extend(crate::path::path_figures(p));
+    }
     figs
 }
 
 /// One self-contained HTML page for one run.
-pub fn run_html(s: &Scenario, hash: u64, r: &RunResult, figures: &[(&str, String)]) -> String {
+pub fn run_html(s: &Scenario, hash: u64, r: &RunResult, figures: &[(String, String)]) -> String {
     let m = &r.summary;
     let mc = &r.master;
     let mut o = String::new();
@@ -614,6 +629,22 @@ controller <code>{law}</code>, estimator <code>{est}</code>; {cycles} cycles of 
         );
     }
     o.push_str("</table>\n");
+    if let Some(p) = &r.path {
+        let file = match &s.trajectory {
+            ringsync_model::scenario::TrajectorySpec::Program { program } => program.as_str(),
+            _ => "",
+        };
+        let _ = writeln!(
+            o,
+            "<h2>Part program</h2>\n<p>Program <code>{}</code>, {:.3} s as planned. The contour error is the distance from the tool (the encoders through the transmissions) to the programmed path's geometry, at every cycle start before any group stop.</p>\n<ul>",
+            esc(file),
+            p.program_duration
+        );
+        for l in crate::path::path_lines(p) {
+            let _ = writeln!(o, "<li>{}</li>", esc(&l));
+        }
+        o.push_str("</ul>\n");
+    }
     if let Some(lines) = monitor_lines(s, r) {
         o.push_str("<h2>Sync and following-error monitors</h2>\n<ul>\n");
         for l in lines {

@@ -193,6 +193,11 @@ pub fn write_sim(
     if outputs.trace {
         dir.write_with("trace.csv", |w| write_trace_csv(r, w))?;
     }
+    if outputs.trace
+        && let Some(p) = &r.path
+    {
+        dir.write_with("path.csv", |w| ringsync_report::path::write_path_csv(p, w))?;
+    }
     if outputs.parquet {
         dir.write_with("trace.parquet", |w| {
             ringsync_report::columnar::write_trace_parquet(r, w)
@@ -245,6 +250,11 @@ pub fn sim_text(s: &Scenario, r: &RunResult) -> String {
     );
     if let Some(l) = ringsync_report::sim::start_up_line(r) {
         text += &format!("  start-up: {l}\n");
+    }
+    if let Some(p) = &r.path {
+        for l in ringsync_report::path::path_lines(p) {
+            text += &format!("  {l}\n");
+        }
     }
     text += &monitor_text(s, r);
     text += &ring_text(r);

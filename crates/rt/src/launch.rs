@@ -911,6 +911,11 @@ pub fn merge(spec: &Spec, records: &[NodeRecord], trace: bool) -> RunResult {
         .min(cycles - 1);
     let end = (last + 1) * t_cyc;
     let mut rec = Recorder::new(n, cycles, t_cyc as f64 * 1e-9, trace);
+    if let (Ok(Some(map)), Ok(Some(path))) =
+        (spec.scenario.machine_map(), spec.scenario.planned_path())
+    {
+        rec = rec.with_contour(map, path);
+    }
     let mut last_k = -1;
     for (t, _, _, ev) in events {
         if t >= end {

@@ -241,9 +241,11 @@ impl Scenario {
             .collect()
     }
 
-    /// The desired motion of every axis.
+    /// The desired motion of every axis: one for all, or for a part program each drive's
+    /// share of the planned path.
     pub fn trajectories(&self) -> Result<Vec<AxisTrajectory>, ControlError> {
         let one = match &self.trajectory {
+            TrajectorySpec::Program { .. } => return self.program_trajectories(),
             TrajectorySpec::Cosine { peak_speed, period } => {
                 AxisTrajectory::Cosine(Cosine::with_peak_speed(*peak_speed, period.secs())?)
             }
@@ -259,5 +261,39 @@ impl Scenario {
             } => AxisTrajectory::Sequence(Sequence::new(0.0, targets, *v_max, *a_max, 0.0)?),
         };
         Ok(vec![one; self.axes_count()])
+    }
+
+    /// Each ring axis's share of the planned part program.
+    fn program_trajectories(&self) -> Result<Vec<AxisTrajectory>, ControlError> {
+        let refused = |e: ScenarioError| ControlError::InvalidParameter {
+            name: "program".into(),
+            value: f64::NAN,
+            expected: e.to_string().into(),
+        };
+        let path = self.planned_path().map_err(refused)?;
+        let map = self.machine_map().map_err(refused)?;
+        let (Some(path), Some(map)) = (path, map) else {
+            return Err(refused(out_of_range(
+                "trajectory.kind",
+                "\"program\"",
+                "a [machine] table",
+            )));
+        };
+        (0..self.axes_count())
+            .map(|i| {
+                let (coord, rad_per_mm) = map.drive(i).ok_or_else(|| {
+                    refused(out_of_range(
+                        "machine.axes",
+                        format!("ring axis {}", i + 1),
+                        "every ring axis in a machine axis's drives",
+                    ))
+                })?;
+                Ok(AxisTrajectory::Path(ringsync_control::PathAxis {
+                    path: path.clone(),
+                    coord,
+                    rad_per_mm,
+                }))
+            })
+            .collect()
     }
 }

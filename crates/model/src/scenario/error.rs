@@ -45,6 +45,14 @@ pub enum ScenarioError {
     /// A name that is not a built-in scenario or a readable file.
     #[error("unknown scenario '{0}': not a built-in scenario ({1}) and no such file")]
     Unknown(String, String),
+    /// A part program that cannot be read, interpreted or planned.
+    #[error("{file}: {message}")]
+    Program {
+        /// The program file (or built-in name).
+        file: String,
+        /// Where in it (line and column) and what is wrong.
+        message: String,
+    },
     /// The file could not be read.
     #[error("cannot read {path}: {reason}")]
     Io {

@@ -18,6 +18,14 @@ const BUILTIN: &[(&str, &str)] = &[
         "arm-2link",
         include_str!("../../../../scenarios/arm-2link.toml"),
     ),
+    (
+        "circle-xy",
+        include_str!("../../../../scenarios/circle-xy.toml"),
+    ),
+    (
+        "gantry-xyy",
+        include_str!("../../../../scenarios/gantry-xyy.toml"),
+    ),
 ];
 
 /// Names of the built-in scenarios.
@@ -84,6 +92,7 @@ const TABLES: &[&str] = &[
     "trajectory",
     "plant",
     "monitor",
+    "machine",
 ];
 
 /// When `text` is TOML whose sections have the wrong shape (`[[ring]]` for `[ring]`,
@@ -130,6 +139,15 @@ impl Scenario {
                 message,
             }
         })?;
+        let mut s = s;
+        // Relative file names in it (a part program) are the scenario file's neighbours.
+        let file = std::path::Path::new(origin);
+        if file.is_file() {
+            s.dir = Some(match file.parent() {
+                Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+                _ => std::path::PathBuf::from("."),
+            });
+        }
         s.validate()?;
         Ok(s)
     }

@@ -12,12 +12,17 @@
 pub mod build;
 pub mod error;
 pub mod load;
+pub mod machine;
 pub mod plant;
 pub mod schema;
 pub mod validate;
 
 pub use error::{ECHO_CHARS, ScenarioError, clip, clip_middle, toml_message};
 pub use load::{MAX_SCENARIO_BYTES, builtin, builtin_names, fnv1a};
+pub use machine::{
+    MachineAxis, MachineAxisSpec, MachineMap, MachineSpec, ProgramText, builtin_program,
+    builtin_programs,
+};
 pub use plant::{ARM_MAX_STEP, ArmSpec, PlantSpec};
 pub use schema::*;
 pub use validate::{EncoderBits, MIN_ENCODER_BITS, VELOCITY_MARGIN};

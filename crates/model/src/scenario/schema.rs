@@ -587,6 +587,11 @@ pub enum TrajectorySpec {
         /// a_max [rad/s²].
         a_max: f64,
     },
+    /// A part program (G-code) on the scenario's `[machine]` (docs/programs.md).
+    Program {
+        /// The program file, relative to the scenario file (or a built-in program's name).
+        program: String,
+    },
 }
 
 /// `[trajectory]` as written: every key of every kind optional, checked against the kind
@@ -601,6 +606,7 @@ struct RawTrajectory {
     v_max: Option<f64>,
     a_max: Option<f64>,
     targets: Option<Vec<(f64, f64)>>,
+    program: Option<String>,
 }
 
 impl TryFrom<RawTrajectory> for TrajectorySpec {
@@ -614,6 +620,7 @@ impl TryFrom<RawTrajectory> for TrajectorySpec {
             ("v_max", r.v_max.is_some()),
             ("a_max", r.a_max.is_some()),
             ("targets", r.targets.is_some()),
+            ("program", r.program.is_some()),
         ];
         let only = |keys: &[&str]| match given.iter().find(|(k, on)| *on && !keys.contains(k)) {
             Some((k, _)) => Err(format!(
@@ -658,8 +665,17 @@ impl TryFrom<RawTrajectory> for TrajectorySpec {
                     a_max: need("a_max", r.a_max)?,
                 })
             }
+            "program" => {
+                only(&["program"])?;
+                Ok(TrajectorySpec::Program {
+                    program: r.program.ok_or_else(|| {
+                        "missing field `program` (kind = \"program\" needs the part program's file)"
+                            .to_string()
+                    })?,
+                })
+            }
             other => Err(format!(
-                "unknown variant `{other}`, expected one of `cosine`, `trapezoid`, `sequence`"
+                "unknown variant `{other}`, expected one of `cosine`, `trapezoid`, `sequence`, `program`"
             )),
         }
     }
@@ -771,6 +787,12 @@ pub struct Scenario {
     pub plant: super::plant::PlantSpec,
     /// Sync-error and following-error monitors (all off by default).
     pub monitor: MonitorSpec,
+    /// The machine the axes make, for part programs (none by default).
+    pub machine: Option<super::machine::MachineSpec>,
+    /// The directory the scenario's relative file names (its part program) are found in:
+    /// the scenario file's; `None` for a scenario given as text (the working directory).
+    #[serde(skip)]
+    pub dir: Option<std::path::PathBuf>,
 }
 
 impl Default for Scenario {
@@ -794,6 +816,8 @@ impl Default for Scenario {
                 .collect(),
             plant: super::plant::PlantSpec::default(),
             monitor: MonitorSpec::default(),
+            machine: None,
+            dir: None,
         }
     }
 }

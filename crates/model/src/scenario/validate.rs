@@ -359,6 +359,7 @@ impl Scenario {
             }
         }
         self.axis_models().map_err(|(i, e)| plant_error(i, &e))?;
+        self.validate_machine()?;
         self.trajectories()
             .map_err(|e| control_error(&e).prefixed("trajectory"))?;
         let bits = self.encoder_bits_range();
@@ -478,14 +479,40 @@ impl Scenario {
         }
     }
 
+    /// `[machine]` and a part program: the machine's keys, then the program found,
+    /// interpreted and planned (its errors name the file, line and column); a `[machine]`
+    /// table only with a program, which is what it is for.
+    fn validate_machine(&self) -> Result<(), ScenarioError> {
+        let program = matches!(self.trajectory, TrajectorySpec::Program { .. });
+        if self.machine.is_some() && !program {
+            return Err(out_of_range(
+                "machine",
+                "[machine]",
+                "a [machine] table with trajectory.kind = \"program\" (it maps a part program's X, Y, Z to the ring's axes)",
+            ));
+        }
+        self.machine_map()?;
+        self.planned_path()?;
+        Ok(())
+    }
+
     /// The largest |ẋ^d| the trajectory reaches [rad/s]: the cosine's peak speed, the
-    /// profiles' v_max (an upper bound when a move is too short to reach it).
+    /// profiles' v_max (an upper bound when a move is too short to reach it); for a part
+    /// program, the fastest drive's speed at its machine axis's v_max.
     pub fn trajectory_peak_speed(&self) -> f64 {
         match &self.trajectory {
             TrajectorySpec::Cosine { peak_speed, .. } => peak_speed.abs(),
             TrajectorySpec::Trapezoid { v_max, .. } | TrajectorySpec::Sequence { v_max, .. } => {
                 v_max.abs()
             }
+            TrajectorySpec::Program { .. } => match self.machine_map() {
+                Ok(Some(m)) => m
+                    .axes
+                    .iter()
+                    .flat_map(|a| a.drives.iter().map(|(_, k)| a.limits.v_max * k.abs()))
+                    .fold(0.0, f64::max),
+                _ => 0.0,
+            },
         }
     }
 
@@ -498,6 +525,25 @@ impl Scenario {
             TrajectorySpec::Trapezoid { distance, .. } => distance.abs(),
             TrajectorySpec::Sequence { targets, .. } => {
                 targets.iter().fold(0.0, |m, (x, _)| m.max(x.abs()))
+            }
+            TrajectorySpec::Program { .. } => {
+                let (Ok(Some(m)), Ok(Some(path))) = (self.machine_map(), self.planned_path())
+                else {
+                    return 0.0;
+                };
+                // Every piece's end points, and an arc's centre ± radius: a bound on how far
+                // each coordinate goes.
+                let mut reach = [0.0f64; 3];
+                for pc in path.pieces() {
+                    let (lo, hi) = pc.curve.extent();
+                    for c in 0..3 {
+                        reach[c] = reach[c].max(lo[c].abs()).max(hi[c].abs());
+                    }
+                }
+                m.axes
+                    .iter()
+                    .flat_map(|a| a.drives.iter().map(|(_, k)| reach[a.coord] * k.abs()))
+                    .fold(0.0, f64::max)
             }
         }
     }

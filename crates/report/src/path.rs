@@ -1,0 +1,387 @@
+//! A part program's run (docs/programs.md): `path.csv` (the tool's actual and commanded
+//! position of every machine axis and the contour error, per cycle), its keys in
+//! summary.json, its lines in the run's text, and its figures: the path in the plane, the
+//! contour error over time, and the ISO 230-4 circular test as a polar plot with the
+//! deviation magnified.
+
+use std::fmt::Write as _;
+
+use ringsync_model::contour::{CircularTest, PathResult};
+use serde_json::{Value, json};
+
+use crate::svg::{Svg, nice_step};
+
+/// The header of path.csv for machine axes `axes`: `time_s`, then each axis's actual
+/// and commanded position \[mm\], then `contour_error` \[mm\].
+pub fn path_csv_header(axes: &[char]) -> String {
+    let mut h = String::from("time_s");
+    for a in axes {
+        let _ = write!(h, ",{a},{a}_d");
+    }
+    h.push_str(",contour_error\n");
+    h
+}
+
+/// Streams path.csv to `w`: one row per cycle, time and positions to 6 decimals (µs and
+/// nm), the contour error to 9 (pm: it is often below a µm).
+pub fn write_path_csv(p: &PathResult, w: &mut impl std::io::Write) -> std::io::Result<()> {
+    use crate::fixed::push_fixed;
+    let tr = &p.trace;
+    w.write_all(path_csv_header(&tr.axes).as_bytes())?;
+    let m = tr.axes.len();
+    crate::fixed::write_lines(w, 0..tr.len(), |o, i| {
+        push_fixed(o, tr.t[i], 6);
+        for a in 0..m {
+            o.push(b',');
+            push_fixed(o, tr.actual[i * m + a], 6);
+            o.push(b',');
+            push_fixed(o, tr.desired[i * m + a], 6);
+        }
+        o.push(b',');
+        push_fixed(o, tr.contour[i], 9);
+        o.push(b'\n');
+    })
+}
+
+/// One circular test as JSON (lengths in mm, the angle's profile left out).
+pub fn circular_json(c: &CircularTest) -> Value {
+    let letters = ['X', 'Y', 'Z'];
+    json!({
+        "move": c.circle.mv + 1,
+        "plane": format!("{}{}", letters[c.circle.plane[0]], letters[c.circle.plane[1]]),
+        "direction": if c.circle.ccw { "ccw" } else { "cw" },
+        "radius": c.circle.radius,
+        "centre": c.circle.centre,
+        "samples": c.samples,
+        "mean_radius": c.mean_radius,
+        "radius_error": c.mean_radius - c.circle.radius,
+        "radial_deviation_min": c.radial_min,
+        "radial_deviation_max": c.radial_max,
+        "circular_deviation": c.circular_deviation,
+        "lsq_centre": c.lsq_centre,
+        "lsq_radius": c.lsq_radius,
+    })
+}
+
+/// The keys summary.json gains for a part program: `contour_rmse`, `contour_max`,
+/// `contour_mean` (mm) at the top level, and `program` with the rest.
+pub fn path_json(program: &str, p: &PathResult) -> Vec<(&'static str, Value)> {
+    vec![
+        ("contour_rmse", json!(p.rmse)),
+        ("contour_max", json!(p.max)),
+        ("contour_mean", json!(p.mean)),
+        (
+            "program",
+            json!({
+                "file": program,
+                "duration_s": p.program_duration,
+                "complete": p.complete,
+                "contour_cycles": p.cycles,
+                "circular_tests": p.circles.iter().map(circular_json).collect::<Vec<_>>(),
+            }),
+        ),
+    ]
+}
+
+/// Lines for the run's text: the contour metrics, and each circular test.
+pub fn path_lines(p: &PathResult) -> Vec<String> {
+    let um = |mm: f64| mm * 1e3;
+    let mut v = vec![format!(
+        "contour error: RMS {:.2} µm, max {:.2} µm, mean {:.2} µm over {} cycles{}",
+        um(p.rmse),
+        um(p.max),
+        um(p.mean),
+        p.cycles,
+        if p.complete {
+            String::new()
+        } else {
+            format!(
+                " (the run ended before the program did, at {:.2} s)",
+                p.program_duration
+            )
+        }
+    )];
+    for c in &p.circles {
+        v.push(format!(
+            "circle R {} mm {} (ISO 230-4, from feedback): mean radius {:+.2} µm, radial deviation {:+.2} .. {:+.2} µm, circular deviation G {:.2} µm",
+            c.circle.radius,
+            if c.circle.ccw { "ccw" } else { "cw" },
+            um(c.mean_radius - c.circle.radius),
+            um(c.radial_min),
+            um(c.radial_max),
+            um(c.circular_deviation)
+        ));
+    }
+    v
+}
+
+/// The circular test as a polar plot: the programmed circle, and the measured radius with
+/// its deviation magnified so that the largest fills a fifth of the radius; rings every
+/// tick of deviation.
+pub fn circular_svg(c: &CircularTest) -> String {
+    let (w, h) = (520.0, 560.0);
+    let (cx, cy, rp) = (w / 2.0, 310.0, 175.0);
+    let mut s = Svg::new(w, h);
+    let dir = if c.circle.ccw {
+        "counter-clockwise"
+    } else {
+        "clockwise"
+    };
+    s.text(
+        20.0,
+        22.0,
+        &format!("Circular test (ISO 230-4): R {} mm, {dir}", c.circle.radius),
+        "start",
+        r#"font-size="13" font-weight="bold""#,
+    );
+    let dev_max = c
+        .profile
+        .iter()
+        .fold(0.0f64, |m, (_, d)| m.max(d.abs()))
+        .max(1e-9);
+    // Deviation per tick, and how many plot units one mm of deviation takes.
+    let tick = nice_step(dev_max, 2.0);
+    let ticks = (dev_max / tick).ceil().max(1.0);
+    let k = 0.25 * rp / (ticks * tick);
+    s.text(
+        20.0,
+        40.0,
+        &format!(
+            "radius minus R, magnified {:.0}×; rings every {} µm; mean {:+.2} µm, G {:.2} µm",
+            k / (rp / c.circle.radius),
+            tick * 1e3,
+            (c.mean_radius - c.circle.radius) * 1e3,
+            c.circular_deviation * 1e3
+        ),
+        "start",
+        "",
+    );
+    let ring = |r: f64| {
+        (0..=180)
+            .map(|i| {
+                let a = f64::from(i) * std::f64::consts::TAU / 180.0;
+                (cx + r * a.cos(), cy - r * a.sin())
+            })
+            .collect::<Vec<_>>()
+    };
+    for i in -(ticks as i64)..=(ticks as i64) {
+        let r = rp + k * i as f64 * tick;
+        let style = if i == 0 {
+            r##"fill="none" stroke="#555" stroke-width="1""##
+        } else {
+            r##"fill="none" stroke="#ddd""##
+        };
+        s.polyline(&ring(r), style);
+        if i != 0 {
+            // Labelled along the 45° ray, clear of the axes' labels.
+            let d = std::f64::consts::FRAC_1_SQRT_2 * r;
+            s.text(
+                cx + d + 3.0,
+                cy - d - 2.0,
+                &format!("{:+} µm", (i as f64 * tick * 1e3 * 100.0).round() / 100.0),
+                "start",
+                r##"fill="#888" font-size="9""##,
+            );
+        }
+    }
+    for (a, label) in [(0.0, "0°"), (90.0, "90°"), (180.0, "180°"), (270.0, "270°")] {
+        let r = f64::to_radians(a);
+        s.line(
+            cx,
+            cy,
+            cx + (rp * 1.3) * r.cos(),
+            cy - (rp * 1.3) * r.sin(),
+            r##"stroke="#eee""##,
+        );
+        s.text(
+            cx + (rp * 1.35) * r.cos(),
+            cy - (rp * 1.35) * r.sin() + 4.0,
+            label,
+            "middle",
+            r##"fill="#666""##,
+        );
+    }
+    let pts: Vec<(f64, f64)> = c
+        .profile
+        .iter()
+        .map(|(a, d)| {
+            let r = rp + k * d;
+            (cx + r * a.cos(), cy - r * a.sin())
+        })
+        .collect();
+    s.polyline(&pts, r##"fill="none" stroke="#1f77b4" stroke-width="1.3""##);
+    s.finish()
+}
+
+/// The contour error over time.
+pub fn contour_svg(p: &PathResult) -> String {
+    let mut t = crate::plot::Thinning::new(p.trace.len());
+    for (x, e) in p.trace.t.iter().zip(&p.trace.contour) {
+        t.push((*x, e * 1e3));
+    }
+    crate::plot::line_chart(
+        "Contour error: distance from the tool to the programmed path",
+        "t [s]",
+        "contour error [µm]",
+        &[t.finish("contour error".into(), crate::plot::PALETTE[0])],
+    )
+}
+
+/// The path in its first two machine axes: commanded and actual (they differ by the
+/// following error along the path and the contour error across it).
+pub fn xy_svg(p: &PathResult) -> Option<String> {
+    let tr = &p.trace;
+    let m = tr.axes.len();
+    if m < 2 || tr.is_empty() {
+        return None;
+    }
+    let (w, h) = (560.0, 560.0);
+    let (l, r, t, b) = (60.0, 20.0, 50.0, 50.0);
+    let (mut x0, mut x1, mut y0, mut y1) = (
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+    );
+    for i in 0..tr.len() {
+        for v in [&tr.actual, &tr.desired] {
+            let (x, y) = (v[i * m], v[i * m + 1]);
+            if x.is_finite() && y.is_finite() {
+                x0 = x0.min(x);
+                x1 = x1.max(x);
+                y0 = y0.min(y);
+                y1 = y1.max(y);
+            }
+        }
+    }
+    if !x0.is_finite() {
+        return None;
+    }
+    // Equal scales on both axes.
+    let span = (x1 - x0).max(y1 - y0).max(1e-6) * 1.05;
+    let (mx, my) = (0.5 * (x0 + x1), 0.5 * (y0 + y1));
+    let (x0, y1) = (mx - span / 2.0, my + span / 2.0);
+    let pw = w - l - r;
+    let ph = h - t - b;
+    let px = |x: f64| l + (x - x0) / span * pw;
+    let py = |y: f64| t + (y1 - y) / span * ph;
+    let mut s = Svg::new(w, h);
+    s.text(
+        l,
+        22.0,
+        &format!("Path in {}{}: commanded and actual", tr.axes[0], tr.axes[1]),
+        "start",
+        r#"font-size="13" font-weight="bold""#,
+    );
+    let step = nice_step(span, 6.0);
+    let mut g = (x0 / step).ceil() * step;
+    while g <= x0 + span + 1e-12 {
+        s.line(px(g), t, px(g), t + ph, r##"stroke="#eee""##);
+        s.text(px(g), t + ph + 16.0, &format!("{g}"), "middle", "");
+        g += step;
+    }
+    let mut g = ((y1 - span) / step).ceil() * step;
+    while g <= y1 + 1e-12 {
+        s.line(l, py(g), l + pw, py(g), r##"stroke="#eee""##);
+        s.text(l - 6.0, py(g) + 4.0, &format!("{g}"), "end", "");
+        g += step;
+    }
+    s.text(
+        l + pw / 2.0,
+        h - 12.0,
+        &format!("{} [mm]", tr.axes[0]),
+        "middle",
+        "",
+    );
+    s.text(
+        16.0,
+        t + ph / 2.0,
+        &format!("{} [mm]", tr.axes[1]),
+        "middle",
+        &format!(r#"transform="rotate(-90 16 {:.1})""#, t + ph / 2.0),
+    );
+    let every = tr.len().div_ceil(4000).max(1);
+    for (v, colour, width) in [
+        (&tr.desired, "#999999", "2.5"),
+        (&tr.actual, "#d62728", "1"),
+    ] {
+        let pts: Vec<(f64, f64)> = (0..tr.len())
+            .step_by(every)
+            .map(|i| (px(v[i * m]), py(v[i * m + 1])))
+            .collect();
+        s.polyline(
+            &pts,
+            &format!(r#"fill="none" stroke="{colour}" stroke-width="{width}""#),
+        );
+    }
+    s.line(
+        l + pw - 150.0,
+        t + 10.0,
+        l + pw - 130.0,
+        t + 10.0,
+        r##"stroke="#999999" stroke-width="2.5""##,
+    );
+    s.text(l + pw - 125.0, t + 14.0, "commanded", "start", "");
+    s.line(
+        l + pw - 150.0,
+        t + 28.0,
+        l + pw - 130.0,
+        t + 28.0,
+        r##"stroke="#d62728" stroke-width="1""##,
+    );
+    s.text(l + pw - 125.0, t + 32.0, "actual", "start", "");
+    Some(s.finish())
+}
+
+/// The figures of a part program's run: `path-xy.svg` (two or more axes),
+/// `contour-error.svg`, and `circular-test-N.svg` per circle.
+pub fn path_figures(p: &PathResult) -> Vec<(String, String)> {
+    let mut v = Vec::new();
+    if let Some(xy) = xy_svg(p) {
+        v.push(("path-xy.svg".to_string(), xy));
+    }
+    if !p.trace.is_empty() {
+        v.push(("contour-error.svg".to_string(), contour_svg(p)));
+    }
+    for (i, c) in p.circles.iter().enumerate() {
+        v.push((format!("circular-test-{}.svg", i + 1), circular_svg(c)));
+    }
+    v
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use ringsync_model::contour::PathTrace;
+
+    fn result() -> PathResult {
+        PathResult {
+            trace: PathTrace {
+                axes: vec!['X', 'Y'],
+                t: vec![0.0, 0.001],
+                actual: vec![0.0, 0.0, 0.05, 1e-7],
+                desired: vec![0.0, 0.0, 0.05, 0.0],
+                contour: vec![0.0, 1e-7],
+            },
+            rmse: 1e-7 / 2f64.sqrt(),
+            max: 1e-7,
+            mean: 5e-8,
+            cycles: 2,
+            circles: Vec::new(),
+            program_duration: 0.001,
+            complete: true,
+        }
+    }
+
+    /// path.csv names its columns and writes positions to 6 decimals.
+    #[test]
+    fn path_csv_has_its_columns() {
+        let mut o = Vec::new();
+        write_path_csv(&result(), &mut o).expect("written");
+        let text = String::from_utf8(o).expect("utf-8");
+        assert_eq!(
+            text,
+            "time_s,X,X_d,Y,Y_d,contour_error\n0.000000,0.000000,0.000000,0.000000,0.000000,0.000000000\n0.001000,0.050000,0.050000,0.000000,0.000000,0.000000100\n"
+        );
+    }
+}
