@@ -24,6 +24,10 @@ Functions (each returns an object; docs/python.md is the walk-through):
 - ``reproduce(seeds=8)``: the paper's Table 1 over seeds (:class:`Reproduction`).
 - ``rt(scenario)``: the same scenario run in real time over UDP on loopback (a
   :class:`Run` with the timing in its ``summary``).
+- Part programs (``trajectory.kind = "program"`` on a ``[machine]``, e.g. the built-in
+  ``circle-xy``): ``Run.path`` is a :class:`PathRun`, the tool's actual and commanded
+  position [mm], the contour error, its metrics and the ISO 230-4 circular tests;
+  ``plan_program(scenario)`` plans the program without a ring (``ringsync program``).
 
 Optional extras: ``ringsync[pandas]``, ``ringsync[plot]`` (matplotlib),
 ``ringsync[xarray]``, ``ringsync[control]`` (python-control), ``ringsync[dask]``; each is
@@ -48,6 +52,7 @@ Example::
 from __future__ import annotations
 
 from ._ringsync import RunError, ScenarioError, __version__
+from ._path import PathRun, plan_program
 from ._plan import Plan, Reproduction, plan, reproduce
 from ._run import Check, Run, check, rt, simulate
 from ._scenario import Scenario, ScenarioLike, laws, load, scenarios
@@ -60,12 +65,14 @@ __all__ = [
     "simulate",
     "check",
     "plan",
+    "plan_program",
     "sweep",
     "reproduce",
     "rt",
     "Scenario",
     "ScenarioLike",
     "Run",
+    "PathRun",
     "Check",
     "Plan",
     "Sweep",
@@ -75,7 +82,7 @@ __all__ = [
     "__version__",
 ]
 
-for _cls in (Scenario, Run, Check, Plan, Sweep, Reproduction):
+for _cls in (Scenario, Run, PathRun, Check, Plan, Sweep, Reproduction):
     _cls.__module__ = __name__
 del _cls
 

@@ -78,6 +78,11 @@ class SimRun:
     def columns(self) -> dict[str, npt.NDArray[np.float64]]:
         """``time`` (cycles,) [s]; ``x_d``, ``x``, ``e``, ``eps`` [rad], ``u`` [V],
         ``sample_time``, ``apply_time`` [s], ``clock_error_ns`` [ns], cycles × axes."""
+    def path(self) -> dict[str, Any] | None:
+        """A part program's run (None otherwise): ``axes`` (letters), ``time`` (cycles,)
+        [s], ``actual`` and ``desired`` (cycles × machine axes) [mm], ``contour_error``
+        (cycles,) [mm], ``metrics`` and ``circles`` (ISO 230-4 tests, each with its
+        ``angle`` [rad] and ``deviation`` [mm] arrays)."""
     def summary_json(self) -> str:
         """summary.json's text, as ``ringsync sim`` writes it."""
     def summary(self) -> dict[str, Any]:
@@ -89,6 +94,10 @@ class SimRun:
     def save(self, dir: str) -> None:
         """Writes the CLI's files into ``dir`` (replaced as a whole); an empty ``dir`` is a
         ScenarioError."""
+
+def program(text: str, origin: str, points: int = 1000) -> dict[str, Any]:
+    """The scenario's part program planned without a ring: ``ringsync program --json``'s
+    object, with ``feed`` = (time [s], path speed [mm/s]) at ``points`` instants."""
 
 def simulate(text: str, origin: str, seed: int | None = None) -> SimRun:
     """Simulates the scenario (its seed replaced when given: a whole number 0 ..= 2**63 - 1,

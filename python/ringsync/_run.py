@@ -11,6 +11,7 @@ import numpy as np
 
 from . import _ringsync as _rs
 from ._ringsync import ScenarioError
+from ._path import PathRun
 from ._scenario import Scenario, ScenarioLike, load
 
 if TYPE_CHECKING:
@@ -151,6 +152,7 @@ class Run:
         ``clock_error_max_ns`` [ns] and ``clock_error_rms_ns`` [ns] over the second half of
         the run only (the settled clocks), unlike the array :attr:`clock_error_ns`."""
         self._summary: dict[str, Any] | None = None
+        self._path: PathRun | bool | None = None
 
     def __reduce__(self) -> tuple[Any, tuple[Any, ...]]:
         """Pickling (and :func:`copy.deepcopy`) of a simulated run keeps its scenario and
@@ -180,6 +182,17 @@ class Run:
         if self._summary is None:
             self._summary = self._core.summary()
         return self._summary
+
+    @property
+    def path(self) -> PathRun | None:
+        """A part program's run (``trajectory.kind = "program"``): the tool's actual and
+        commanded position per machine axis [mm], the contour error, its metrics and the
+        ISO 230-4 circular tests (a :class:`ringsync.PathRun`); None for other
+        trajectories."""
+        if self._path is None:
+            d = self._core.path()
+            self._path = False if d is None else PathRun(d)
+        return self._path or None
 
     @property
     def axes(self) -> int:

@@ -4,6 +4,7 @@
 mod latency_cmd;
 mod node_cmd;
 mod plan_cmd;
+mod program_cmd;
 mod rt_cmd;
 mod scenario_cmd;
 #[cfg(feature = "scope")]
@@ -97,6 +98,9 @@ enum Command {
     Scenario(scenario_cmd::ScenarioCmd),
     /// Stability analysis of a scenario: discrete-time spectral radius and the paper's conditions.
     Check(scenario_cmd::CheckArgs),
+    /// Plan a scenario's part program without simulating it: duration, each axis's peak
+    /// velocity, acceleration and jerk at the cycle against its limits, what bounds the feed.
+    Program(program_cmd::ProgramArgs),
     /// Simulate a scenario: summary.json and trace.csv.
     Sim(sim_cmd::SimArgs),
     /// Reproduce the paper's Table 1 on the reference scenario (PD, sync, ring-coupled).
@@ -165,6 +169,7 @@ fn main() -> ExitCode {
         Command::Plan(args) => plan_cmd::run(&args),
         Command::Scenario(cmd) => scenario_cmd::run(&cmd),
         Command::Check(args) => scenario_cmd::check(&args),
+        Command::Program(args) => program_cmd::run(&args),
         Command::Sim(args) => sim_cmd::sim(&args),
         Command::Reproduce(args) => sim_cmd::reproduce(&args),
         Command::Sweep(args) => sim_cmd::sweep(&args),

@@ -209,6 +209,48 @@ impl SimRun {
         Ok(d)
     }
 
+    /// A part program's run (`None` for other trajectories): `axes` (the machine axes'
+    /// letters), `time` (cycles,) [s], `actual` and `desired` (cycles × machine axes) [mm],
+    /// `contour_error` (cycles,) [mm], `metrics` (contour_rmse, contour_max, contour_mean
+    /// [mm], cycles, program_duration_s, complete) and `circles` (one dict per ISO 230-4
+    /// circular test, as summary.json's, with its `angle` [rad] and `deviation` [mm]
+    /// profile as arrays).
+    fn path<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
+        let Some(p) = &self.result.path else {
+            return Ok(None);
+        };
+        let tr = &p.trace;
+        let m = tr.axes.len().max(1);
+        let d = PyDict::new(py);
+        d.set_item(
+            "axes",
+            tr.axes.iter().map(|c| c.to_string()).collect::<Vec<_>>(),
+        )?;
+        d.set_item("time", PyArray1::from_slice(py, &tr.t))?;
+        d.set_item("actual", grid(py, &tr.actual, m)?)?;
+        d.set_item("desired", grid(py, &tr.desired, m)?)?;
+        d.set_item("contour_error", PyArray1::from_slice(py, &tr.contour))?;
+        let metrics = PyDict::new(py);
+        metrics.set_item("contour_rmse", p.rmse)?;
+        metrics.set_item("contour_max", p.max)?;
+        metrics.set_item("contour_mean", p.mean)?;
+        metrics.set_item("cycles", p.cycles)?;
+        metrics.set_item("program_duration_s", p.program_duration)?;
+        metrics.set_item("complete", p.complete)?;
+        d.set_item("metrics", metrics)?;
+        let circles = pyo3::types::PyList::empty(py);
+        for c in &p.circles {
+            let v = ringsync::layers::report::path::circular_json(c);
+            let cd = json_to_py(py, &v)?;
+            let (angle, dev): (Vec<f64>, Vec<f64>) = c.profile.iter().copied().unzip();
+            cd.set_item("angle", PyArray1::from_slice(py, &angle))?;
+            cd.set_item("deviation", PyArray1::from_slice(py, &dev))?;
+            circles.append(cd)?;
+        }
+        d.set_item("circles", circles)?;
+        Ok(Some(d))
+    }
+
     /// summary.json's text, exactly as `ringsync sim` (or `ringsync rt`) writes it.
     fn summary_json(&self) -> PyResult<String> {
         let v = self.summary_value();
@@ -406,6 +448,48 @@ fn plan<'py>(
     json_to_py(py, &json)
 }
 
+/// The scenario's part program planned on its machine without a ring, as
+/// `ringsync program --json` prints it: duration [s], length [mm], blends, stops, blocks,
+/// each axis's peak v, a, j at the cycle against its limits, what bounds the feed; and
+/// `feed` = (time [s], path speed [mm/s]) at `points` instants over the program.
+#[pyfunction]
+#[pyo3(signature = (text, origin, points=1000))]
+fn program<'py>(
+    py: Python<'py>,
+    text: String,
+    origin: String,
+    points: usize,
+) -> PyResult<Bound<'py, PyAny>> {
+    let (json, t, v) = guard(py, move || {
+        let s = ringsync::parse(&text, &origin)?.scenario;
+        let p = ringsync::plan_program(&s)?;
+        let view = ringsync::layers::report::path::ProgramView {
+            scenario: &p.scenario,
+            file: &p.file,
+            path: &p.path,
+            axes: p
+                .machine
+                .axes
+                .iter()
+                .map(|a| (a.name, a.coord, a.limits))
+                .collect(),
+            check: &p.check,
+            t_cyc: p.t_cyc,
+        };
+        let n = points.clamp(2, 1_000_000);
+        let dt = p.path.duration() / (n - 1) as f64;
+        let t: Vec<f64> = (0..n).map(|k| k as f64 * dt).collect();
+        let v: Vec<f64> = t.iter().map(|&x| p.path.at(x).speed).collect();
+        Ok((ringsync::layers::report::path::program_json(&view), t, v))
+    })?;
+    let d = json_to_py(py, &json)?;
+    d.set_item(
+        "feed",
+        (PyArray1::from_slice(py, &t), PyArray1::from_slice(py, &v)),
+    )?;
+    Ok(d)
+}
+
 /// The paper's Table 1 reproduced on the scenario `text` over `seeds` seeds (1 ..=
 /// 10 000: the scenario's, +1, …), as `ringsync reproduce --seeds` runs it: one dict per
 /// (seed, plan, controller), seeds outermost, with `seed`, `plan`, `controller`,
@@ -469,6 +553,7 @@ pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(simulate, m)?)?;
     m.add_function(wrap_pyfunction!(check, m)?)?;
     m.add_function(wrap_pyfunction!(plan, m)?)?;
+    m.add_function(wrap_pyfunction!(program, m)?)?;
     m.add_function(wrap_pyfunction!(reproduce, m)?)?;
     m.add_function(wrap_pyfunction!(rt, m)?)?;
     Ok(())

@@ -385,3 +385,175 @@ mod tests {
         );
     }
 }
+
+/// What `ringsync program` reports of a planned program.
+pub struct ProgramView<'a> {
+    /// The scenario's name.
+    pub scenario: &'a str,
+    /// The program as the scenario names it.
+    pub file: &'a str,
+    /// The planned path.
+    pub path: &'a ringsync_path::PlannedPath,
+    /// The machine's axes (letter, coordinate, limits).
+    pub axes: Vec<(char, usize, ringsync_path::Limits)>,
+    /// The setpoints sampled at the cycle.
+    pub check: &'a ringsync_path::check::Check,
+    /// The cycle \[s\].
+    pub t_cyc: f64,
+}
+
+/// Time and length of the path under each kind of binding limit: (label, blocks, mm, s).
+fn bindings(v: &ProgramView<'_>) -> Vec<(String, usize, f64, f64)> {
+    let mut out: Vec<(String, usize, f64, f64)> = Vec::new();
+    for b in v.path.blocks() {
+        // A block that never reaches its V runs under its speed changes, not under V.
+        let label = if b.v_peak < 0.999 * b.v_max {
+            "acceleration and jerk (V not reached)".to_string()
+        } else {
+            b.binding.label()
+        };
+        match out.iter_mut().find(|(l, ..)| *l == label) {
+            Some(e) => {
+                e.1 += 1;
+                e.2 += b.len;
+                e.3 += b.duration;
+            }
+            None => out.push((label, 1, b.len, b.duration)),
+        }
+    }
+    out.sort_by(|a, b| b.3.total_cmp(&a.3));
+    out
+}
+
+/// The plan as text: duration and length, each axis's peaks against its limits, what
+/// bounds the feed and for how long.
+pub fn program_text(v: &ProgramView<'_>) -> String {
+    let p = v.path;
+    let c = v.check;
+    let mut o = format!(
+        "{}: program {} on {} machine axes\n  {:.3} s, {:.3} mm of path; {} moves, {} pieces ({} corner blends, {} stops on the path), {} feed blocks\n",
+        v.scenario,
+        v.file,
+        v.axes.len(),
+        p.duration(),
+        p.length(),
+        p.moves().len(),
+        p.pieces().len(),
+        p.blends(),
+        p.stops(),
+        p.blocks().len()
+    );
+    let _ = writeln!(
+        o,
+        "  setpoints every {:.3} ms (finite differences): largest share of a limit {:.4}, largest distance from the program {:.3} µm (tolerance {} µm)",
+        v.t_cyc * 1e3,
+        c.limit_ratio,
+        c.path_deviation * 1e3,
+        p.tolerance() * 1e3
+    );
+    o.push_str("  axis   v peak / limit [mm/s]   a peak / limit [mm/s²]   j peak / limit [mm/s³]\n");
+    for (name, coord, l) in &v.axes {
+        let [pv, pa, pj] = c.peak[*coord];
+        let _ = writeln!(
+            o,
+            "  {name}      {pv:>8.2} / {:<10.2}    {pa:>9.1} / {:<10.1}    {pj:>10.0} / {:<10.0}",
+            l.v_max, l.a_max, l.j_max
+        );
+    }
+    o.push_str("  what bounds the feed           blocks   length [mm]   time [s]\n");
+    for (label, n, len, t) in bindings(v) {
+        let _ = writeln!(o, "  {label:<30} {n:>6}   {len:>11.3}   {t:>8.3}");
+    }
+    o
+}
+
+/// The plan as JSON (lengths in mm, times in s).
+pub fn program_json(v: &ProgramView<'_>) -> Value {
+    let p = v.path;
+    let c = v.check;
+    json!({
+        "scenario": v.scenario,
+        "program": v.file,
+        "duration_s": p.duration(),
+        "length": p.length(),
+        "moves": p.moves().len(),
+        "pieces": p.pieces().len(),
+        "blends": p.blends(),
+        "stops": p.stops(),
+        "blocks": p.blocks().len(),
+        "t_cyc_s": v.t_cyc,
+        "path_tolerance": p.tolerance(),
+        "limit_ratio": c.limit_ratio,
+        "path_deviation": c.path_deviation,
+        "axes": v.axes.iter().map(|(name, coord, l)| json!({
+            "axis": name.to_string(),
+            "v_max": l.v_max, "a_max": l.a_max, "j_max": l.j_max,
+            "v_peak": c.peak[*coord][0], "a_peak": c.peak[*coord][1], "j_peak": c.peak[*coord][2],
+        })).collect::<Vec<_>>(),
+        "bound_by": bindings(v).into_iter().map(|(label, n, len, t)| json!({
+            "limit": label, "blocks": n, "length": len, "time_s": t,
+        })).collect::<Vec<_>>(),
+    })
+}
+
+/// The header of the blocks' CSV.
+pub const BLOCKS_CSV_HEADER: &str =
+    "block,line,s0_mm,length_mm,t0_s,duration_s,v_limit,a_limit,j_limit,bound_by,v_in,v_out,v_peak\n";
+
+/// Every feed block as CSV: where it starts along the path and in time, its limits
+/// (mm/s, mm/s², mm/s³), what set its speed limit, its entry, exit and peak speeds.
+pub fn write_blocks_csv(p: &ringsync_path::PlannedPath, w: &mut impl std::io::Write) -> std::io::Result<()> {
+    w.write_all(BLOCKS_CSV_HEADER.as_bytes())?;
+    for (i, b) in p.blocks().iter().enumerate() {
+        writeln!(
+            w,
+            "{},{},{:.6},{:.6},{:.6},{:.6},{:.6},{:.3},{:.1},{},{:.6},{:.6},{:.6}",
+            i + 1,
+            b.src.line,
+            b.s0,
+            b.len,
+            b.t0,
+            b.duration,
+            b.v_max,
+            b.a_max,
+            b.j_max,
+            b.binding.label(),
+            b.v_in,
+            b.v_out,
+            b.v_peak
+        )?;
+    }
+    Ok(())
+}
+
+/// The feed along the path: the planned path speed over time, and the speed limit V of
+/// the block it is in.
+pub fn program_svg(v: &ProgramView<'_>) -> String {
+    let p = v.path;
+    let steps = 4000usize;
+    let dt = p.duration().max(1e-9) / steps as f64;
+    let mut speed = crate::plot::Thinning::new(steps + 1);
+    for k in 0..=steps {
+        let t = k as f64 * dt;
+        speed.push((t, p.at(t).speed));
+    }
+    let mut limit = Vec::with_capacity(2 * p.blocks().len());
+    for b in p.blocks() {
+        limit.push((b.t0, b.v_max));
+        limit.push((b.t0 + b.duration, b.v_max));
+    }
+    crate::plot::line_chart(
+        &format!("Feed along the path: {}", v.file),
+        "t [s]",
+        "path speed [mm/s]",
+        &[
+            speed.finish("planned speed".into(), crate::plot::PALETTE[0]),
+            crate::plot::Series {
+                name: "speed limit V of the block".into(),
+                colour: crate::plot::PALETTE[1],
+                points: limit,
+                extent: None,
+            },
+        ],
+    )
+}

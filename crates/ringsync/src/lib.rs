@@ -12,6 +12,7 @@
 //! | load a scenario (name, path or text), set keys | [`load`], [`parse`], [`with_values`] | [`Loaded`] |
 //! | plan the cycle (eq. 1-2) | [`plan`], [`plan_of`] | [`CyclePlan`] |
 //! | check the loop's stability | [`check`] | [`CheckReport`] |
+//! | plan a part program without a ring | [`plan_program`] | [`ProgramPlan`] |
 //! | simulate (deterministic) | [`simulate`], [`simulate_with`] (observers, progress) | [`RunResult`] |
 //! | sweep keys over seeds | [`sweep::cases`], [`run_case`], [`sweep::run_cases`], [`sweep::aggregate`] | [`sweep::Case`], [`sweep::CaseResult`], [`sweep::Mean`] |
 //! | identify the axes of a run (H, C, F) | [`identify::identify_run`], [`identify::identified_toml`] | [`identify::Identification`] |
@@ -41,6 +42,7 @@ pub mod identify;
 mod load;
 pub mod output;
 mod plan;
+pub mod program;
 pub mod reproduce;
 pub mod rt;
 mod simulate;
@@ -52,6 +54,7 @@ pub use error::{Error, Result};
 pub use load::{Loaded, key_value, load, parse, with_values};
 pub use output::OutDir;
 pub use plan::{plan, plan_of};
+pub use program::{ProgramPlan, plan_program};
 pub use reproduce::{ReproOptions, Reproduction, reproduce, reproduce_with, write_reproduction};
 pub use ringsync_sim::Stop;
 pub use rt::{RtPrediction, SimPrediction, predict, predict_rt, run_rt};
@@ -71,6 +74,7 @@ pub use ringsync_rt::{Kill, RtOptions, RtResult, Stamps, TransportKind};
 pub mod layers {
     pub use ringsync_control as control;
     pub use ringsync_model as model;
+    pub use ringsync_path as path;
     pub use ringsync_proto as proto;
     pub use ringsync_report as report;
     pub use ringsync_rt as runtime;

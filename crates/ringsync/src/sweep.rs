@@ -318,6 +318,31 @@ pub(crate) fn set_cases(base: &Loaded, axes: &[SweepAxis]) -> Result<Vec<Case>> 
     make_cases(base, axes, 1, false)
 }
 
+/// A case's scenario is text without a file: a part program named relative to the base
+/// scenario's file (or, set by the case, to the working directory) is named by its
+/// absolute path in it, so that the case finds it wherever it runs on this machine.
+fn anchor_program(t: &mut toml::Table, dir: Option<&std::path::Path>) {
+    let Some(toml::Value::Table(tr)) = t.get_mut("trajectory") else {
+        return;
+    };
+    let Some(toml::Value::String(p)) = tr.get("program") else {
+        return;
+    };
+    let given = std::path::Path::new(p);
+    if given.is_absolute() {
+        return;
+    }
+    let found = dir
+        .map(|d| d.join(given))
+        .into_iter()
+        .chain(std::env::current_dir().ok().map(|c| c.join(given)))
+        .find(|c| c.is_file())
+        .and_then(|c| std::fs::canonicalize(c).ok());
+    if let Some(abs) = found.and_then(|a| a.to_str().map(str::to_string)) {
+        tr.insert("program".into(), toml::Value::String(abs));
+    }
+}
+
 fn make_cases(
     base: &Loaded,
     axes: &[SweepAxis],
@@ -348,6 +373,7 @@ fn make_cases(
         for (k, v) in &labels {
             set(&mut t, k, toml_value(k, v)?)?;
         }
+        anchor_program(&mut t, base.scenario.dir.as_deref());
         let with = || {
             let l: Vec<String> = labels.iter().map(|(k, v)| format!("{k}={v}")).collect();
             clip(&format!("{origin} with {}", l.join(" ")), 2 * ECHO_CHARS).into_owned()
