@@ -69,7 +69,7 @@ pub(crate) fn run(args: &ProgramArgs) -> Result<Outcome, CliError> {
     } else {
         out(&program_text(&view))?;
     }
-    let bad = plan.check.limit_ratio > 1.001
-        || plan.check.path_deviation > plan.path.tolerance() + 1e-9;
+    let bad =
+        plan.check.limit_ratio > 1.001 || plan.check.path_deviation > plan.path.tolerance() + 1e-9;
     Ok(Outcome::flagged_if(bad))
 }

@@ -349,43 +349,6 @@ pub fn path_figures(p: &PathResult) -> Vec<(String, String)> {
     v
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use ringsync_model::contour::PathTrace;
-
-    fn result() -> PathResult {
-        PathResult {
-            trace: PathTrace {
-                axes: vec!['X', 'Y'],
-                t: vec![0.0, 0.001],
-                actual: vec![0.0, 0.0, 0.05, 1e-7],
-                desired: vec![0.0, 0.0, 0.05, 0.0],
-                contour: vec![0.0, 1e-7],
-            },
-            rmse: 1e-7 / 2f64.sqrt(),
-            max: 1e-7,
-            mean: 5e-8,
-            cycles: 2,
-            circles: Vec::new(),
-            program_duration: 0.001,
-            complete: true,
-        }
-    }
-
-    /// path.csv names its columns and writes positions to 6 decimals.
-    #[test]
-    fn path_csv_has_its_columns() {
-        let mut o = Vec::new();
-        write_path_csv(&result(), &mut o).expect("written");
-        let text = String::from_utf8(o).expect("utf-8");
-        assert_eq!(
-            text,
-            "time_s,X,X_d,Y,Y_d,contour_error\n0.000000,0.000000,0.000000,0.000000,0.000000,0.000000000\n0.001000,0.050000,0.050000,0.000000,0.000000,0.000000100\n"
-        );
-    }
-}
-
 /// What `ringsync program` reports of a planned program.
 pub struct ProgramView<'a> {
     /// The scenario's name.
@@ -451,7 +414,9 @@ pub fn program_text(v: &ProgramView<'_>) -> String {
         c.path_deviation * 1e3,
         p.tolerance() * 1e3
     );
-    o.push_str("  axis   v peak / limit [mm/s]   a peak / limit [mm/s²]   j peak / limit [mm/s³]\n");
+    o.push_str(
+        "  axis   v peak / limit [mm/s]   a peak / limit [mm/s²]   j peak / limit [mm/s³]\n",
+    );
     for (name, coord, l) in &v.axes {
         let [pv, pa, pj] = c.peak[*coord];
         let _ = writeln!(
@@ -497,12 +462,14 @@ pub fn program_json(v: &ProgramView<'_>) -> Value {
 }
 
 /// The header of the blocks' CSV.
-pub const BLOCKS_CSV_HEADER: &str =
-    "block,line,s0_mm,length_mm,t0_s,duration_s,v_limit,a_limit,j_limit,bound_by,v_in,v_out,v_peak\n";
+pub const BLOCKS_CSV_HEADER: &str = "block,line,s0_mm,length_mm,t0_s,duration_s,v_limit,a_limit,j_limit,bound_by,v_in,v_out,v_peak\n";
 
 /// Every feed block as CSV: where it starts along the path and in time, its limits
 /// (mm/s, mm/s², mm/s³), what set its speed limit, its entry, exit and peak speeds.
-pub fn write_blocks_csv(p: &ringsync_path::PlannedPath, w: &mut impl std::io::Write) -> std::io::Result<()> {
+pub fn write_blocks_csv(
+    p: &ringsync_path::PlannedPath,
+    w: &mut impl std::io::Write,
+) -> std::io::Result<()> {
     w.write_all(BLOCKS_CSV_HEADER.as_bytes())?;
     for (i, b) in p.blocks().iter().enumerate() {
         writeln!(
@@ -556,4 +523,41 @@ pub fn program_svg(v: &ProgramView<'_>) -> String {
             },
         ],
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use ringsync_model::contour::PathTrace;
+
+    fn result() -> PathResult {
+        PathResult {
+            trace: PathTrace {
+                axes: vec!['X', 'Y'],
+                t: vec![0.0, 0.001],
+                actual: vec![0.0, 0.0, 0.05, 1e-7],
+                desired: vec![0.0, 0.0, 0.05, 0.0],
+                contour: vec![0.0, 1e-7],
+            },
+            rmse: 1e-7 / 2f64.sqrt(),
+            max: 1e-7,
+            mean: 5e-8,
+            cycles: 2,
+            circles: Vec::new(),
+            program_duration: 0.001,
+            complete: true,
+        }
+    }
+
+    /// path.csv names its columns and writes positions to 6 decimals.
+    #[test]
+    fn path_csv_has_its_columns() {
+        let mut o = Vec::new();
+        write_path_csv(&result(), &mut o).expect("written");
+        let text = String::from_utf8(o).expect("utf-8");
+        assert_eq!(
+            text,
+            "time_s,X,X_d,Y,Y_d,contour_error\n0.000000,0.000000,0.000000,0.000000,0.000000,0.000000000\n0.001000,0.050000,0.050000,0.000000,0.000000,0.000000100\n"
+        );
+    }
 }

@@ -88,7 +88,11 @@ fn a_circle_on_proportional_loops_loses_the_closed_form_radius() {
     let (v, radius, kv) = (25.0, 50.0, 10.0);
     let want = v * v / (2.0 * radius * kv * kv);
     let loss = radius - mean;
-    eprintln!("radius loss {:.4} µm, closed form {:.4} µm", loss * 1e3, want * 1e3);
+    eprintln!(
+        "radius loss {:.4} µm, closed form {:.4} µm",
+        loss * 1e3,
+        want * 1e3
+    );
     assert!(
         (loss - want).abs() <= 0.02 * want,
         "radius loss {:.3} µm, closed form {:.3} µm",
@@ -142,7 +146,12 @@ fn the_example_programs_keep_their_limits_at_the_cycle() {
         let l = ringsync::load(s.to_str().expect("utf-8")).expect("valid");
         let p = ringsync::plan_program(&l.scenario)
             .unwrap_or_else(|e| panic!("{}: {e}", file.display()));
-        assert!(p.check.limit_ratio <= 1.001, "{}: {:?}", file.display(), p.check);
+        assert!(
+            p.check.limit_ratio <= 1.001,
+            "{}: {:?}",
+            file.display(),
+            p.check
+        );
         assert!(
             p.check.path_deviation <= p.path.tolerance() + 1e-9,
             "{}: {} mm off",
@@ -189,10 +198,19 @@ fn a_program_is_found_next_to_its_scenario_and_in_a_sweeps_cases() {
 fn bad_programs_name_the_file_line_and_column() {
     let dir = scratch("bad");
     for (program, want) in [
-        ("G1 X1 F100\nG2 X5 Y0 R1\n", "bad.ngc: line 2, column 10: R1: a radius of 1.0000 mm cannot reach"),
+        (
+            "G1 X1 F100\nG2 X5 Y0 R1\n",
+            "bad.ngc: line 2, column 10: R1: a radius of 1.0000 mm cannot reach",
+        ),
         ("G1 X1\n", "bad.ngc: line 1, column 1: G1 needs a feed"),
-        ("G0 X1\nG1 Z3 F100\n", "bad.ngc: line 2, column 4: Z: the machine has no Z axis"),
-        ("G0 X1\nG81 X2\n", "bad.ngc: line 2, column 1: G81: canned cycles are not supported"),
+        (
+            "G0 X1\nG1 Z3 F100\n",
+            "bad.ngc: line 2, column 4: Z: the machine has no Z axis",
+        ),
+        (
+            "G0 X1\nG81 X2\n",
+            "bad.ngc: line 2, column 1: G81: canned cycles are not supported",
+        ),
     ] {
         std::fs::write(dir.join("bad.ngc"), program).expect("program");
         let file = dir.join("bad.toml");
@@ -213,21 +231,40 @@ fn bad_programs_name_the_file_line_and_column() {
         "inline",
     )
     .expect_err("missing");
-    assert!(l.to_string().contains("nowhere.ngc: no such file") && l.to_string().contains("circle-r50.ngc"), "{l}");
+    assert!(
+        l.to_string().contains("nowhere.ngc: no such file")
+            && l.to_string().contains("circle-r50.ngc"),
+        "{l}"
+    );
     // Machine tables that cannot be: unknown axis, a ring axis driven twice or not at all.
     for (machine, want) in [
         ("[machine.axes.A]\ndrives = [1, 2]\n", "machine.axes.A"),
-        ("[machine.axes.X]\ndrives = [1]\n[machine.axes.Y]\ndrives = [1]\n", "ring axis 1 drives X"),
-        ("[machine.axes.X]\ndrives = [1]\n", "ring axis 2 in no machine axis"),
-        ("[machine.axes.X]\ndrives = [1, 2]\nlead = [10.0]\n", "machine.axes.X.lead"),
-        ("[machine.axes.X]\ndrives = [1, 2]\nj_max = -1\n", "machine.axes.X.j_max"),
+        (
+            "[machine.axes.X]\ndrives = [1]\n[machine.axes.Y]\ndrives = [1]\n",
+            "ring axis 1 drives X",
+        ),
+        (
+            "[machine.axes.X]\ndrives = [1]\n",
+            "ring axis 2 in no machine axis",
+        ),
+        (
+            "[machine.axes.X]\ndrives = [1, 2]\nlead = [10.0]\n",
+            "machine.axes.X.lead",
+        ),
+        (
+            "[machine.axes.X]\ndrives = [1, 2]\nj_max = -1\n",
+            "machine.axes.X.j_max",
+        ),
     ] {
         let e = ringsync::parse(
             &format!("[ring]\nslaves = 2\n[trajectory]\nkind = \"program\"\nprogram = \"circle-r50.ngc\"\n[machine]\n{machine}"),
             "inline",
         )
         .expect_err(machine);
-        assert!(e.is_usage() && e.to_string().contains(want), "{machine}: {e}");
+        assert!(
+            e.is_usage() && e.to_string().contains(want),
+            "{machine}: {e}"
+        );
     }
 }
 
