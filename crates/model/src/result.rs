@@ -32,6 +32,13 @@ pub const ARM_ASSUMPTIONS: &[&str] = &[
 /// "measured"`), added to [`ASSUMPTIONS`] in the outputs of such a run.
 pub const MEASURED_DELAY_ASSUMPTION: &str = "clock.path_delays = \"measured\": the slaves' path delays come from the nodes' start-up phase, which takes every link of the ring to have the same delay (a one-directional ring gives the master the sum of its links and the slaves their residences, not each link alone)";
 
+/// Assumptions of a part program's run (`trajectory.kind = "program"`), named after
+/// [`ASSUMPTIONS`] in its outputs (docs/programs.md).
+pub const PROGRAM_ASSUMPTIONS: &[&str] = &[
+    "part program: the machine's axes are rigid (a drive's position through its lead is the tool's; a gantry axis's tool position is the mean of its drives) and the program starts at the origin with every axis at 0",
+    "part program: the contour error is the distance from the tool to the programmed lines and arcs within 2·|q − p_ref| + path_tolerance + 1 mm of programmed length of the reference's move, at each cycle start; rapids (G0) and cycles after a group stop are left out of its metrics",
+];
+
 /// The assumptions behind a run of scenario `s`: [`ASSUMPTIONS`], [`ARM_ASSUMPTIONS`] when
 /// its plant is the two-link arm, and [`MEASURED_DELAY_ASSUMPTION`] when its path delays are
 /// measured.
@@ -42,6 +49,12 @@ pub fn assumptions(s: &crate::Scenario) -> Vec<&'static str> {
     }
     if s.clock.path_delays == crate::scenario::PathDelays::Measured {
         v.push(MEASURED_DELAY_ASSUMPTION);
+    }
+    if matches!(
+        s.trajectory,
+        crate::scenario::TrajectorySpec::Program { .. }
+    ) {
+        v.extend_from_slice(PROGRAM_ASSUMPTIONS);
     }
     v
 }

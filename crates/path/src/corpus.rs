@@ -204,3 +204,20 @@ pub fn small_lines(n: usize, step: f64, feed: f64) -> String {
     text.push_str("M2\n");
     text
 }
+
+#[cfg(test)]
+mod tests {
+    /// examples/programs/spline-10k.ngc is `small_lines(10 000, 0.1, 3000)`, as its docs say.
+    #[test]
+    fn the_spline_example_is_the_generated_curve() {
+        let file = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../examples/programs/spline-10k.ngc"
+        );
+        let text = std::fs::read_to_string(file).expect("examples/programs/spline-10k.ngc");
+        assert!(
+            text == super::small_lines(10_000, 0.1, 3000.0),
+            "regenerate it from corpus::small_lines"
+        );
+    }
+}

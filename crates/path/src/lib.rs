@@ -6,10 +6,12 @@
 //!   curvature and its derivative) that turns path motion into axis motion;
 //! - [`blend`]: corners replaced by quintic blends that meet both neighbours in point,
 //!   tangent and curvature, within the path tolerance;
-//! - [`plan`]: the look-ahead and the jerk-limited feed along the path, under every
-//!   machine axis's velocity, acceleration and jerk limit; the planned path at any instant;
-//! - [`contour`]: the contour error (the distance from a point to the programmed path) and
-//!   the ISO 230-4 circular test.
+//! - [`mod@plan`]: the look-ahead and the jerk-limited feed along the path, under every
+//!   machine axis's velocity, acceleration and jerk limit; the planned path at any instant,
+//!   and the contour error (the distance from a point to the programmed path);
+//! - [`circular`]: the ISO 230-4 circular test;
+//! - [`check`]: the setpoints sampled at a cycle against the limits and the program;
+//! - [`corpus`]: generated programs for tests and benchmarks.
 //!
 //! Units: mm, s. Nothing here knows about rings, drives or time sources.
 
