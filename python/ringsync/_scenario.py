@@ -256,7 +256,7 @@ def scenarios() -> list[str]:
     Example::
 
         >>> ringsync.scenarios()
-        ['paper-2015', 'arm-2link']
+        ['paper-2015', 'arm-2link', 'circle-xy', 'gantry-xyy']
     """
     return list(_rs.scenarios())
 
