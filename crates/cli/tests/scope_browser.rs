@@ -40,8 +40,8 @@ fn counter(dom: &str, name: &str) -> i64 {
         .unwrap_or_else(|e| panic!("data-{name}: {e}"))
 }
 
-#[test]
-fn chromium_sees_a_replay_arrive_and_the_plots_update() {
+/// Fails, saying how to install it, when Debian's chromium is missing.
+fn need_chromium() {
     match Command::new("chromium").arg("--version").output() {
         Ok(o) if o.status.success() => {}
         other => panic!(
@@ -50,24 +50,22 @@ fn chromium_sees_a_replay_arrive_and_the_plots_update() {
              never a browser a tool downloads"
         ),
     }
-    let dir = std::env::temp_dir().join(format!("ringsync-scope-{}", std::process::id()));
+}
+
+/// Runs `ringsync sim SCENARIO ARGS --scope 127.0.0.1:0 --speed 8 --out OUT`, opens its
+/// page in headless chromium (a screenshot to `shot`) and returns the page's DOM once
+/// chromium's virtual time ran out, the run's exit status and its stderr.
+fn replay_in_chromium(
+    dir: &std::path::Path,
+    scenario: &str,
+    args: &[&str],
+    shot: &std::path::Path,
+) -> (String, std::process::ExitStatus, Vec<String>) {
     let out = dir.join("out");
-    // The weak axis 4 (K_P 0.8 V/rad) trips the sync monitor at about 0.58 s.
     let mut sim = Command::new(env!("CARGO_BIN_EXE_ringsync"))
+        .args(["sim", scenario])
+        .args(args)
         .args([
-            "sim",
-            "paper-2015",
-            "--set",
-            "duration=\"2s\"",
-            "--set",
-            "control.kp=[3.182,3.182,3.182,0.8]",
-            "--set",
-            "monitor.sync_warn=0.02",
-            "--set",
-            "monitor.sync_trip=0.03",
-            // Link 2 breaks before the trip: the ring drawing marks it.
-            "--set",
-            "faults.break_link=\"2@300ms\"",
             "--scope",
             "127.0.0.1:0",
             "--speed",
@@ -95,8 +93,7 @@ fn chromium_sees_a_replay_arrive_and_the_plots_update() {
     };
     // The rest of its stderr, so it never blocks on a full pipe.
     let rest = std::thread::spawn(move || lines.map_while(Result::ok).collect::<Vec<_>>());
-    let shot: PathBuf = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("scope-sim.png");
-    let _ = std::fs::remove_file(&shot);
+    let _ = std::fs::remove_file(shot);
     let profile = dir.join("chromium-profile");
     let chromium = Command::new("chromium")
         .args([
@@ -133,6 +130,33 @@ fn chromium_sees_a_replay_arrive_and_the_plots_update() {
     };
     let status = wait(&mut sim, Duration::from_secs(60), "ringsync sim --scope");
     let said = rest.join().expect("stderr");
+    (dom, status, said)
+}
+
+#[test]
+fn chromium_sees_a_replay_arrive_and_the_plots_update() {
+    need_chromium();
+    let dir = std::env::temp_dir().join(format!("ringsync-scope-{}", std::process::id()));
+    let shot: PathBuf = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("scope-sim.png");
+    // The weak axis 4 (K_P 0.8 V/rad) trips the sync monitor at about 0.58 s.
+    let (dom, status, said) = replay_in_chromium(
+        &dir,
+        "paper-2015",
+        &[
+            "--set",
+            "duration=\"2s\"",
+            "--set",
+            "control.kp=[3.182,3.182,3.182,0.8]",
+            "--set",
+            "monitor.sync_warn=0.02",
+            "--set",
+            "monitor.sync_trip=0.03",
+            // Link 2 breaks before the trip: the ring drawing marks it.
+            "--set",
+            "faults.break_link=\"2@300ms\"",
+        ],
+        &shot,
+    );
     assert_eq!(
         status.code(),
         Some(3),
@@ -184,6 +208,36 @@ fn chromium_sees_a_replay_arrive_and_the_plots_update() {
         png.starts_with(b"\x89PNG") && png.len() > 10_000,
         "{} bytes",
         png.len()
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A part program's replay: the page shows the XY panel and draws the path in it (the
+/// paper's scenario has no panel: the hidden section is not drawn).
+#[test]
+fn chromium_draws_a_programs_path_in_the_xy_panel() {
+    need_chromium();
+    let dir = std::env::temp_dir().join(format!("ringsync-scope-xy-{}", std::process::id()));
+    let shot: PathBuf = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("scope-xy.png");
+    let (dom, status, said) =
+        replay_in_chromium(&dir, "circle-xy", &["--set", "duration=\"2s\""], &shot);
+    assert_eq!(status.code(), Some(0), "{said:?}");
+    assert!(dom.contains("Path in XY [mm]"), "the panel's title");
+    assert!(
+        !dom.contains("id=\"s-xy\" style=\"display: none"),
+        "the panel is shown"
+    );
+    let points: i64 = dom
+        .split("id=\"xy\"")
+        .nth(1)
+        .and_then(|r| r.split("data-points=\"").nth(1))
+        .and_then(|r| r.split('"').next())
+        .and_then(|v| v.parse().ok())
+        .expect("the XY canvas's data-points");
+    assert!(points >= 100, "{points} points drawn");
+    assert!(
+        dom.contains("circle-r50.ngc: commanded"),
+        "the panel's note"
     );
     let _ = std::fs::remove_dir_all(&dir);
 }

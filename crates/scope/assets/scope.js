@@ -61,7 +61,68 @@
     const m = hello.monitor, fmt = (l) => l.warn_rad.join("/") + " warn, " + l.trip_rad.join("/") + " trip [rad], filter " + (l.filter_s * 1e3).toFixed(1) + " ms, " + l.reaction;
     $("limits").textContent = "sync ε: " + fmt(m.sync) + " · following e: " + fmt(m.following) + " · hard limit |e| ≤ " + hello.following_error_limit_rad + " rad";
     $("hist-note").textContent = rt ? "" : "The simulator has no loop lateness.";
-    drawRing(); drawTables(); drawHist();
+    const mach = hello.machine;
+    $("s-xy").style.display = mach && mach.axes.length >= 2 ? "" : "none";
+    if (mach && mach.axes.length >= 2) {
+      $("xy-title").textContent = "Path in " + mach.axes[0].name + mach.axes[1].name + " [mm]: commanded (grey), actual (red)";
+    }
+    drawRing(); drawTables(); drawHist(); drawXY(0);
+  }
+
+  // A machine axis's commanded and actual positions [mm] from its drives' x^d and e [rad]
+  // (a gantry pair: their mean), rows from `from` on.
+  function machineAxis(a, from) {
+    const rows = data[0].length - from, cmd = new Array(rows).fill(0), act = new Array(rows).fill(0);
+    for (const [i, k] of a.drives) {
+      const xd = data[col(i, 2)], e = data[col(i, 0)];
+      for (let r = 0; r < rows; r++) {
+        cmd[r] += xd[from + r] / k / a.drives.length;
+        act[r] += (xd[from + r] - e[from + r]) / k / a.drives.length;
+      }
+    }
+    return [cmd, act];
+  }
+
+  // The XY panel: the path over the window shown, equal scales on both axes.
+  function drawXY(from) {
+    const mach = hello && hello.machine;
+    if (!mach || mach.axes.length < 2) return;
+    const c = $("xy"), g = c.getContext("2d"), W = c.width, H = c.height, pad = 34;
+    g.clearRect(0, 0, W, H);
+    if (!data[0] || data[0].length <= from) return;
+    const [xc, xa] = machineAxis(mach.axes[0], from), [yc, ya] = machineAxis(mach.axes[1], from);
+    let x0 = Infinity, x1 = -Infinity, y0 = Infinity, y1 = -Infinity;
+    for (const [xs, ys] of [[xc, yc], [xa, ya]]) {
+      for (let r = 0; r < xs.length; r++) {
+        if (Number.isFinite(xs[r]) && Number.isFinite(ys[r])) {
+          x0 = Math.min(x0, xs[r]); x1 = Math.max(x1, xs[r]); y0 = Math.min(y0, ys[r]); y1 = Math.max(y1, ys[r]);
+        }
+      }
+    }
+    if (!Number.isFinite(x0)) return;
+    const span = Math.max(x1 - x0, y1 - y0, 1e-3) * 1.08, mx = (x0 + x1) / 2, my = (y0 + y1) / 2;
+    const px = (x) => pad + (x - (mx - span / 2)) / span * (W - 2 * pad);
+    const py = (y) => H - pad - (y - (my - span / 2)) / span * (H - 2 * pad);
+    g.strokeStyle = "#ddd"; g.strokeRect(pad, pad, W - 2 * pad, H - 2 * pad);
+    g.fillStyle = "#555"; g.font = "10px sans-serif";
+    g.fillText((mx - span / 2).toPrecision(4), pad, H - pad + 14);
+    g.fillText((mx + span / 2).toPrecision(4), W - pad - 40, H - pad + 14);
+    g.fillText((my + span / 2).toPrecision(4), 2, pad + 4);
+    g.fillText((my - span / 2).toPrecision(4), 2, H - pad);
+    const line = (xs, ys, colour, width) => {
+      g.strokeStyle = colour; g.lineWidth = width; g.beginPath();
+      let started = false;
+      for (let r = 0; r < xs.length; r++) {
+        if (!Number.isFinite(xs[r]) || !Number.isFinite(ys[r])) { started = false; continue; }
+        if (started) g.lineTo(px(xs[r]), py(ys[r])); else { g.moveTo(px(xs[r]), py(ys[r])); started = true; }
+      }
+      g.stroke();
+    };
+    line(xc, yc, "#999", 3); line(xa, ya, "#d62728", 1);
+    const last = xc.length - 1, dev = Math.hypot(xa[last] - xc[last], ya[last] - yc[last]);
+    c.dataset.points = String(xc.length);
+    $("xy-note").textContent = mach.program + ": commanded " + xc[last].toFixed(3) + ", " + yc[last].toFixed(3) +
+      " mm; actual minus commanded " + (dev * 1e3).toFixed(2) + " µm (along and across the path; summary.json has the contour error).";
   }
 
   function onFrame(buf) {
@@ -119,7 +180,7 @@
       if (p.trip) { d.push(tv.map(() => p.trip)); d.push(tv.map(() => -p.trip)); }
       if (follow) p.u.setData(d); else p.u.setData(d, false);
     }
-    drawRing(); drawTables(); drawHist();
+    drawRing(); drawTables(); drawHist(); drawXY(from);
     bump("draws"); counter("drawn", t.length);
   }
 

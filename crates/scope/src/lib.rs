@@ -156,6 +156,33 @@ pub fn hello(s: &Scenario, source: Source, columns: usize) -> Value {
             "watchdog": probe::status::WATCHDOG},
         "monitor": {"sync": limits(&m.sync), "following": limits(&m.following)},
         "max_updates_per_s": MAX_UPDATES_PER_S,
+        "machine": machine_json(s, n),
+    })
+}
+
+/// A part program's machine, for the page's XY panel: each machine axis's letter and its
+/// drives as (0-based axis, transmission [rad/mm]); `null` without a program, or when a
+/// drive is beyond the axes the page is sent.
+fn machine_json(s: &Scenario, shown: usize) -> Value {
+    let Ok(Some(m)) = s.machine_map() else {
+        return Value::Null;
+    };
+    if m.axes
+        .iter()
+        .flat_map(|a| &a.drives)
+        .any(|(i, _)| *i >= shown)
+    {
+        return Value::Null;
+    }
+    json!({
+        "axes": m.axes.iter().map(|a| json!({
+            "name": a.name.to_string(),
+            "drives": a.drives.iter().map(|(i, k)| json!([i, k])).collect::<Vec<_>>(),
+        })).collect::<Vec<_>>(),
+        "program": match &s.trajectory {
+            ringsync::layers::model::scenario::TrajectorySpec::Program { program } => program.clone(),
+            _ => String::new(),
+        },
     })
 }
 
