@@ -30,6 +30,8 @@ ROW_COLUMNS: dict[str, str] = {
     "clock_error_max_ns": "ns",
     "peak_u": "V",
     "saturated_cycles": "cycles",
+    "contour_rmse": "mm",
+    "contour_max": "mm",
 }
 
 
@@ -42,7 +44,8 @@ class Sweep:
     (None without a group stop; else e.g. ``"following-error"``, as summary.json names
     it), ``lumped_lost``, ``retries``, ``commands_lost``, ``clock_error_max_ns`` [ns],
     ``peak_u`` [V] (the largest command over the axes) and ``saturated_cycles`` (the most
-    cycles any axis's drive was held at its limit ±u_max).
+    cycles any axis's drive was held at its limit ±u_max), and for a part program
+    ``contour_rmse`` and ``contour_max`` [mm] (None for other trajectories).
     Rows come in the grid's order (the first key outermost), seeds innermost; a row has the
     same numbers as ``simulate(scenario, seed=row["seed"], **values)``.
 

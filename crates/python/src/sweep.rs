@@ -70,8 +70,9 @@ fn sweep_axes(grid: &[(String, Vec<Bound<'_, PyAny>>)]) -> PyResult<Vec<SweepAxi
 }
 
 /// A case's result as a dict: `track_rmse`, `sync_rmse` [rad], the counters,
-/// `clock_error_max_ns` [ns], `group_stop_s` [s], `group_stop_reason`, `peak_u` [V] and
-/// `saturated_cycles`.
+/// `clock_error_max_ns` [ns], `group_stop_s` [s], `group_stop_reason`, `peak_u` [V],
+/// `saturated_cycles`, and for a part program `contour_rmse` and `contour_max` [mm] (None
+/// otherwise).
 fn result_dict<'py>(py: Python<'py>, r: &CaseResult) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
     d.set_item("track_rmse", r.track_rmse)?;
@@ -84,6 +85,8 @@ fn result_dict<'py>(py: Python<'py>, r: &CaseResult) -> PyResult<Bound<'py, PyDi
     d.set_item("group_stop_reason", r.group_stop_reason.clone())?;
     d.set_item("peak_u", r.peak_u)?;
     d.set_item("saturated_cycles", r.saturated_cycles)?;
+    d.set_item("contour_rmse", r.contour_rmse)?;
+    d.set_item("contour_max", r.contour_max)?;
     Ok(d)
 }
 
@@ -109,6 +112,8 @@ fn result_of(d: &Bound<'_, PyDict>) -> PyResult<CaseResult> {
         group_stop_reason: field(d, "group_stop_reason")?,
         peak_u: field(d, "peak_u")?,
         saturated_cycles: field(d, "saturated_cycles")?,
+        contour_rmse: field(d, "contour_rmse")?,
+        contour_max: field(d, "contour_max")?,
     })
 }
 

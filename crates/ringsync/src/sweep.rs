@@ -288,6 +288,13 @@ pub struct CaseResult {
     /// per-axis `saturations`): gains that drive the axes bang-bang show here.
     #[serde(default)]
     pub saturated_cycles: u64,
+    /// A part program's RMS contour error \[mm\] (docs/programs.md); `None` for other
+    /// trajectories.
+    #[serde(default)]
+    pub contour_rmse: Option<f64>,
+    /// A part program's largest contour error \[mm\].
+    #[serde(default)]
+    pub contour_max: Option<f64>,
 }
 
 /// The name of a group stop's reason in outputs, as `summary.json` writes it
@@ -470,6 +477,8 @@ pub fn run_case_until(case: &Case, stop: Option<&Stop>) -> Result<CaseResult> {
             .map(|a| a.saturations)
             .max()
             .unwrap_or(0),
+        contour_rmse: r.path.as_ref().map(|p| p.rmse),
+        contour_max: r.path.as_ref().map(|p| p.max),
     })
 }
 
@@ -570,15 +579,19 @@ pub struct Mean {
     pub sync_rmse_std: f64,
     /// Mean over the seeds of the peak |command| \[V\].
     pub peak_u: f64,
+    /// Mean RMS contour error of a part program \[mm\] (`None` for other trajectories).
+    pub contour_rmse: Option<f64>,
+    /// Its standard deviation over the seeds (population) \[mm\].
+    pub contour_rmse_std: Option<f64>,
 }
 
 /// Means over the seeds, per combination of values, in the cases' order.
 pub fn aggregate(cases: &[Case], results: &[CaseResult]) -> Vec<Mean> {
-    // Per combination: (Track-RMSE, Sync-RMSE, peak |u|) of each seed.
-    type Seeds = Vec<(f64, f64, f64)>;
+    // Per combination: (Track-RMSE, Sync-RMSE, peak |u|, contour RMSE) of each seed.
+    type Seeds = Vec<(f64, f64, f64, Option<f64>)>;
     let mut groups: Vec<(Labels, Seeds)> = Vec::new();
     for (c, r) in cases.iter().zip(results) {
-        let x = (r.track_rmse, r.sync_rmse, r.peak_u);
+        let x = (r.track_rmse, r.sync_rmse, r.peak_u, r.contour_rmse);
         match groups.last_mut() {
             Some((l, v)) if *l == c.labels => v.push(x),
             _ => groups.push((c.labels.clone(), vec![x])),
@@ -591,7 +604,18 @@ pub fn aggregate(cases: &[Case], results: &[CaseResult]) -> Vec<Mean> {
             let track = v.iter().map(|x| x.0).sum::<f64>() / n;
             let sync = v.iter().map(|x| x.1).sum::<f64>() / n;
             let sd = (v.iter().map(|x| (x.1 - sync).powi(2)).sum::<f64>() / n).sqrt();
+            let contour: Option<Vec<f64>> = v.iter().map(|x| x.3).collect();
+            let (contour_rmse, contour_rmse_std) = match contour {
+                Some(c) if !c.is_empty() => {
+                    let m = c.iter().sum::<f64>() / n;
+                    let sd = (c.iter().map(|x| (x - m).powi(2)).sum::<f64>() / n).sqrt();
+                    (Some(m), Some(sd))
+                }
+                _ => (None, None),
+            };
             Mean {
+                contour_rmse,
+                contour_rmse_std,
                 labels,
                 runs: v.len(),
                 track_rmse: track,
@@ -708,13 +732,21 @@ fn key_fields(labels: &[(String, String)]) -> String {
 /// of the others; with no key, each seed's Sync-RMSE).
 pub fn write_sweep(dir: &OutDir, sw: &Sweep) -> Result<()> {
     let keys: String = sw.keys.iter().map(|k| format!("{k},")).collect();
+    // A part program's sweep gains the contour error's columns [mm].
+    let contour = sw.results.iter().any(|r| r.contour_rmse.is_some());
+    let opt = |v: Option<f64>| v.map_or(String::new(), |x| format!("{x:.9}"));
     let mut csv = format!(
-        "{keys}seed,track_rmse,sync_rmse,lumped_lost,retries,commands_lost,clock_error_max_ns,group_stop_s,peak_u_v,saturated_cycles\n"
+        "{keys}seed,track_rmse,sync_rmse,lumped_lost,retries,commands_lost,clock_error_max_ns,group_stop_s,peak_u_v,saturated_cycles{}\n",
+        if contour {
+            ",contour_rmse_mm,contour_max_mm"
+        } else {
+            ""
+        }
     );
     for (c, r) in sw.cases.iter().zip(&sw.results) {
         let _ = writeln!(
             csv,
-            "{}{},{:.9},{:.9},{},{},{},{:.0},{},{:.6},{}",
+            "{}{},{:.9},{:.9},{},{},{},{:.0},{},{:.6},{}{}",
             key_fields(&c.labels),
             c.seed,
             r.track_rmse,
@@ -725,22 +757,38 @@ pub fn write_sweep(dir: &OutDir, sw: &Sweep) -> Result<()> {
             r.clock_error_max_ns,
             r.group_stop_s.map_or(String::new(), |t| format!("{t:.4}")),
             r.peak_u,
-            r.saturated_cycles
+            r.saturated_cycles,
+            if contour {
+                format!(",{},{}", opt(r.contour_rmse), opt(r.contour_max))
+            } else {
+                String::new()
+            }
         );
     }
     dir.write("sweep.csv", &csv)?;
-    let mut mcsv =
-        format!("{keys}runs,track_rmse_mean,sync_rmse_mean,sync_rmse_std,peak_u_mean_v\n");
+    let mut mcsv = format!(
+        "{keys}runs,track_rmse_mean,sync_rmse_mean,sync_rmse_std,peak_u_mean_v{}\n",
+        if contour {
+            ",contour_rmse_mean_mm,contour_rmse_std_mm"
+        } else {
+            ""
+        }
+    );
     for m in &sw.means {
         let _ = writeln!(
             mcsv,
-            "{}{},{:.9},{:.9},{:.9},{:.6}",
+            "{}{},{:.9},{:.9},{:.9},{:.6}{}",
             key_fields(&m.labels),
             m.runs,
             m.track_rmse,
             m.sync_rmse,
             m.sync_rmse_std,
-            m.peak_u
+            m.peak_u,
+            if contour {
+                format!(",{},{}", opt(m.contour_rmse), opt(m.contour_rmse_std))
+            } else {
+                String::new()
+            }
         );
     }
     dir.write("means.csv", &mcsv)?;
@@ -1018,6 +1066,8 @@ mod tests {
             peak_u: 0.0,
             saturated_cycles: 0,
             group_stop_reason: None,
+            contour_rmse: None,
+            contour_max: None,
         };
         let m = aggregate(
             &[c("a", 1), c("a", 2), c("b", 1)],

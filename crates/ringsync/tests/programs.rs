@@ -193,6 +193,22 @@ fn a_program_is_found_next_to_its_scenario_and_in_a_sweeps_cases() {
     assert!(r.path.is_some());
 }
 
+/// A ring axis that no machine axis lists is another device on the ring: it holds still
+/// at 0 while the others run the program.
+#[test]
+fn a_ring_axis_outside_the_machine_holds_still() {
+    let l = ringsync::parse(
+        "duration = \"2s\"\n[ring]\nslaves = 3\n[trajectory]\nkind = \"program\"\nprogram = \"circle-r50.ngc\"\n[machine]\n[machine.axes.X]\ndrives = [1]\n[machine.axes.Y]\ndrives = [3]\n",
+        "idle",
+    )
+    .expect("valid");
+    let r = ringsync::simulate(&l.scenario, &traced()).expect("runs");
+    let n = r.trace.axes;
+    let idle = (0..r.trace.t.len()).map(|k| r.trace.x_d[k * n + 1]);
+    assert!(idle.clone().all(|x| x == 0.0), "axis 2's command is 0 throughout");
+    assert!((0..r.trace.t.len()).any(|k| r.trace.x_d[k * n] > 1.0), "X moves");
+}
+
 /// What cannot run is one line naming the file, the line and the column, a usage error.
 #[test]
 fn bad_programs_name_the_file_line_and_column() {
@@ -236,7 +252,7 @@ fn bad_programs_name_the_file_line_and_column() {
             && l.to_string().contains("circle-r50.ngc"),
         "{l}"
     );
-    // Machine tables that cannot be: unknown axis, a ring axis driven twice or not at all.
+    // Machine tables that cannot be: unknown axis, a ring axis driven twice or not there.
     for (machine, want) in [
         ("[machine.axes.A]\ndrives = [1, 2]\n", "machine.axes.A"),
         (
@@ -244,8 +260,8 @@ fn bad_programs_name_the_file_line_and_column() {
             "ring axis 1 drives X",
         ),
         (
-            "[machine.axes.X]\ndrives = [1]\n",
-            "ring axis 2 in no machine axis",
+            "[machine.axes.X]\ndrives = [1]\n[machine.axes.Y]\ndrives = [3]\n",
+            "a ring axis 1 ..= 2",
         ),
         (
             "[machine.axes.X]\ndrives = [1, 2]\nlead = [10.0]\n",

@@ -280,19 +280,14 @@ impl Scenario {
             )));
         };
         (0..self.axes_count())
-            .map(|i| {
-                let (coord, rad_per_mm) = map.drive(i).ok_or_else(|| {
-                    refused(out_of_range(
-                        "machine.axes",
-                        format!("ring axis {}", i + 1),
-                        "every ring axis in a machine axis's drives",
-                    ))
-                })?;
-                Ok(AxisTrajectory::Path(ringsync_control::PathAxis {
+            .map(|i| match map.drive(i) {
+                Some((coord, rad_per_mm)) => Ok(AxisTrajectory::Path(ringsync_control::PathAxis {
                     path: path.clone(),
                     coord,
                     rad_per_mm,
-                }))
+                })),
+                // A ring axis no machine axis lists holds still at 0.
+                None => Ok(AxisTrajectory::Sequence(Sequence::new(0.0, &[], 1.0, 1.0, 0.0)?)),
             })
             .collect()
     }

@@ -103,7 +103,9 @@ impl MachineMap {
         }
     }
 
-    /// The coordinate ring axis `i` (0-based) moves and its transmission \[rad/mm\].
+    /// The coordinate ring axis `i` (0-based) moves and its transmission \[rad/mm\];
+    /// `None` for a ring axis no machine axis lists (another device on the ring, holding
+    /// still at 0).
     pub fn drive(&self, i: usize) -> Option<(usize, f64)> {
         self.axes.iter().find_map(|a| {
             a.drives
@@ -292,15 +294,6 @@ impl Scenario {
                     j_max: a.j_max,
                 },
             });
-        }
-        if let Some(i) = owner.iter().position(Option::is_none) {
-            return Err(out_of_range(
-                "machine.axes",
-                format!("ring axis {} in no machine axis's drives", i + 1),
-                format!(
-                    "every ring axis 1 ..= {n} driving one machine axis (list it in a [machine.axes.*] drives, or change ring.slaves)"
-                ),
-            ));
         }
         if self.plant.arm().is_some() {
             return Err(out_of_range(
