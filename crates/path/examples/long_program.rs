@@ -1,6 +1,8 @@
 //! Plans a long program of short lines (CAM output of a curve) and prints how long the
 //! interpreter and the planner took and what they made:
-//! `cargo run --release -p ringsync-path --example long_program -- 150000`.
+//! `cargo run --release -p ringsync-path --example long_program -- 150000`; with a file
+//! name after the count it also writes the program there (for `ringsync sim`,
+//! docs/benchmarks.md, "Part programs").
 
 use ringsync_path::corpus;
 use ringsync_path::interpret;
@@ -12,6 +14,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         None => 150_000,
     };
     let text = corpus::small_lines(n, 0.1, 3000.0);
+    if let Some(file) = std::env::args().nth(2) {
+        std::fs::write(&file, &text)?;
+    }
     let l = Limits {
         v_max: 100.0,
         a_max: 1000.0,

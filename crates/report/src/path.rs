@@ -394,7 +394,7 @@ pub fn program_text(v: &ProgramView<'_>) -> String {
     let p = v.path;
     let c = v.check;
     let mut o = format!(
-        "{}: program {} on {} machine axes\n  {:.3} s, {:.3} mm of path; {} moves, {} pieces ({} corner blends, {} stops on the path), {} feed blocks\n",
+        "{}: program {} on {} machine axes\n  {:.3} s, {:.3} mm of path; {} moves, {} pieces ({} corner blends, {} {} on the path), {} feed blocks\n",
         v.scenario,
         v.file,
         v.axes.len(),
@@ -404,6 +404,7 @@ pub fn program_text(v: &ProgramView<'_>) -> String {
         p.pieces().len(),
         p.blends(),
         p.stops(),
+        if p.stops() == 1 { "stop" } else { "stops" },
         p.blocks().len()
     );
     let _ = writeln!(

@@ -295,6 +295,12 @@ pub fn write_rt(
     if !r.streamed.trace {
         dir.write_with("trace.csv", |w| write_trace_csv(&r.run, w))?;
     }
+    // A part program's path table, when the run kept it (not when the trace was streamed).
+    if let Some(p) = &r.run.path
+        && !p.trace.is_empty()
+    {
+        dir.write_with("path.csv", |w| ringsync_report::path::write_path_csv(p, w))?;
+    }
     if let Some(p) = pcap
         && !r.streamed.capture
     {
@@ -532,6 +538,11 @@ pub fn rt_text(r: &RtResult, prediction: Option<RtPrediction>) -> String {
             String::new()
         }
     );
+    if let Some(p) = &r.run.path {
+        for l in ringsync_report::path::path_lines(p) {
+            text += &format!("\n  {l}");
+        }
+    }
     if let Some(l) = &r.links_in_run {
         let us = |ns: Option<i64>| ns.map_or("-".into(), |v| format!("{:.3}", v as f64 * 1e-3));
         text += &format!(

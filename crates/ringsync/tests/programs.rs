@@ -205,8 +205,14 @@ fn a_ring_axis_outside_the_machine_holds_still() {
     let r = ringsync::simulate(&l.scenario, &traced()).expect("runs");
     let n = r.trace.axes;
     let idle = (0..r.trace.t.len()).map(|k| r.trace.x_d[k * n + 1]);
-    assert!(idle.clone().all(|x| x == 0.0), "axis 2's command is 0 throughout");
-    assert!((0..r.trace.t.len()).any(|k| r.trace.x_d[k * n] > 1.0), "X moves");
+    assert!(
+        idle.clone().all(|x| x == 0.0),
+        "axis 2's command is 0 throughout"
+    );
+    assert!(
+        (0..r.trace.t.len()).any(|k| r.trace.x_d[k * n] > 1.0),
+        "X moves"
+    );
 }
 
 /// What cannot run is one line naming the file, the line and the column, a usage error.

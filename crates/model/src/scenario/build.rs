@@ -287,7 +287,13 @@ impl Scenario {
                     rad_per_mm,
                 })),
                 // A ring axis no machine axis lists holds still at 0.
-                None => Ok(AxisTrajectory::Sequence(Sequence::new(0.0, &[], 1.0, 1.0, 0.0)?)),
+                None => Ok(AxisTrajectory::Sequence(Sequence::new(
+                    0.0,
+                    &[],
+                    1.0,
+                    1.0,
+                    0.0,
+                )?)),
             })
             .collect()
     }
