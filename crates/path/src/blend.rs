@@ -7,7 +7,7 @@
 //! overlap. What cannot be blended stops the path: a tolerance of 0 (exact stop, as G61),
 //! a reversal (tangents more than 179° apart), a dwell.
 
-use crate::geometry::{Curve, Frame, Quintic};
+use crate::geometry::{Curve, Frame, Quintic, golden_max};
 use crate::program::{Move, MoveKind};
 use crate::vec3::Vec3;
 
@@ -236,25 +236,9 @@ fn deviation(c: &[Vec3; 6], a: &Curve, b: &Curve) -> f64 {
             (best, at) = (d, u);
         }
     }
-    // Golden-section search for the largest value between the neighbouring samples.
-    let g = 0.5 * (5f64.sqrt() - 1.0);
-    let (mut lo, mut hi) = ((at - 1.0 / n).max(0.0), (at + 1.0 / n).min(1.0));
-    let (mut x1, mut x2) = (hi - g * (hi - lo), lo + g * (hi - lo));
-    let (mut f1, mut f2) = (dev(x1), dev(x2));
-    for _ in 0..24 {
-        if f1 > f2 {
-            hi = x2;
-            (x2, f2) = (x1, f1);
-            x1 = hi - g * (hi - lo);
-            f1 = dev(x1);
-        } else {
-            lo = x1;
-            (x1, f1) = (x2, f2);
-            x2 = lo + g * (hi - lo);
-            f2 = dev(x2);
-        }
-    }
-    best.max(f1).max(f2)
+    // The largest value between the neighbouring samples.
+    let (lo, hi) = ((at - 1.0 / n).max(0.0), (at + 1.0 / n).min(1.0));
+    best.max(golden_max(dev, lo, hi, 24))
 }
 
 /// The blend of the corner between `prev` (what is left of the move before) and `next`

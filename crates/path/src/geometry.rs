@@ -216,6 +216,29 @@ impl Helix {
     }
 }
 
+/// The largest value of `f` between `lo` and `hi` by a golden-section search of `iters`
+/// steps (for a function with one peak there, as near a sampled maximum).
+pub(crate) fn golden_max(f: impl Fn(f64) -> f64, lo: f64, hi: f64, iters: u32) -> f64 {
+    let g = 0.5 * (5f64.sqrt() - 1.0);
+    let (mut lo, mut hi) = (lo, hi);
+    let (mut x1, mut x2) = (hi - g * (hi - lo), lo + g * (hi - lo));
+    let (mut f1, mut f2) = (f(x1), f(x2));
+    for _ in 0..iters {
+        if f1 > f2 {
+            hi = x2;
+            (x2, f2) = (x1, f1);
+            x1 = hi - g * (hi - lo);
+            f1 = f(x1);
+        } else {
+            lo = x1;
+            (x1, f1) = (x2, f2);
+            x2 = lo + g * (hi - lo);
+            f2 = f(x2);
+        }
+    }
+    f1.max(f2)
+}
+
 /// Gauss-Legendre nodes and weights on \[−1, 1\], 8 points (the positive half).
 const GL_X: [f64; 4] = [
     0.183_434_642_495_649_8,

@@ -29,7 +29,7 @@
 use rsruckig::prelude::*;
 
 use crate::blend::{Blended, Start, blend};
-use crate::geometry::{Curve, Frame, Helix, Quintic};
+use crate::geometry::{Curve, Frame, Helix, Quintic, golden_max};
 use crate::program::{Move, MoveKind, Program, Source};
 use crate::vec3::Vec3;
 
@@ -274,25 +274,9 @@ fn blend_bounds(q: &Quintic) -> Bounds {
                 continue;
             }
             let f = |u: f64| get(&q.frame_at_param(u));
-            let g = 0.5 * (5f64.sqrt() - 1.0);
             let w = 1.0 / n as f64;
-            let (mut lo, mut hi) = ((i as f64 * w - w).max(0.0), (i as f64 * w + w).min(1.0));
-            let (mut x1, mut x2) = (hi - g * (hi - lo), lo + g * (hi - lo));
-            let (mut f1, mut f2) = (f(x1), f(x2));
-            for _ in 0..30 {
-                if f1 > f2 {
-                    hi = x2;
-                    (x2, f2) = (x1, f1);
-                    x1 = hi - g * (hi - lo);
-                    f1 = f(x1);
-                } else {
-                    lo = x1;
-                    (x1, f1) = (x2, f2);
-                    x2 = lo + g * (hi - lo);
-                    f2 = f(x2);
-                }
-            }
-            let best = top.max(f1).max(f2);
+            let (lo, hi) = ((i as f64 * w - w).max(0.0), (i as f64 * w + w).min(1.0));
+            let best = top.max(golden_max(f, lo, hi, 30));
             if which == 0 {
                 b.k[axis] = best;
             } else {
