@@ -114,3 +114,26 @@ def test_bad_programs_are_scenario_errors(tmp_path: Path) -> None:
         ringsync.load("circle-xy").set(**{"trajectory.program": str(prog)})
     with pytest.raises(ringsync.ScenarioError, match="not a part program"):
         ringsync.plan_program("paper-2015")
+
+
+def test_trace_parquet_holds_the_programs_columns(cli, tmp_path: Path) -> None:
+    """A program's trace.parquet adds each axis's position through its lead and the cycle's
+    contour error, equal to Run.path's (exactly) and to path.csv's (to its 9 decimals)."""
+    import pandas as pd
+    import pyarrow.parquet as pq
+
+    out = tmp_path / "run"
+    cli.run("sim", "circle-xy", "--set", 'duration="3s"', "--out", str(out), "--outputs", "all,parquet")
+    df = pd.read_parquet(out / "trace.parquet")
+    assert list(df.columns[-3:]) == ["x_mm", "x_d_mm", "contour_error_mm"]
+    meta = pq.read_metadata(out / "trace.parquet").metadata
+    assert b"axis 1 drives X (10.000000 mm/rev)" in meta[b"ringsync.machine"]
+    r = ringsync.simulate("circle-xy", duration="3s")
+    x = df[df["axis"] == 1]
+    y = df[df["axis"] == 2]
+    n = min(len(x), len(r.path.time))
+    np.testing.assert_array_equal(x["contour_error_mm"].to_numpy()[:n], r.path.contour_error[:n])
+    np.testing.assert_allclose(x["x_mm"].to_numpy()[:n], r.path["X"][:n], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(y["x_d_mm"].to_numpy()[:n], r.path["Y_d"][:n], rtol=0, atol=1e-12)
+    table = np.loadtxt(out / "path.csv", delimiter=",", skiprows=1)
+    np.testing.assert_allclose(x["contour_error_mm"].to_numpy()[:n], table[:n, -1], rtol=0, atol=6e-10)

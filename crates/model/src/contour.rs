@@ -30,6 +30,10 @@ pub struct PathTrace {
     pub contour: Vec<f64>,
 }
 
+/// One ring axis as the machine uses it: the letter of the machine axis it drives and its
+/// transmission \[rad/mm\] (`None`: it drives none and holds still).
+pub type Drive = Option<(char, f64)>;
+
 impl PathTrace {
     /// Rows.
     pub fn len(&self) -> usize {
@@ -62,6 +66,8 @@ pub struct PathResult {
     pub program_duration: f64,
     /// Whether the run lasted to the program's end.
     pub complete: bool,
+    /// What each ring axis drives (index: ring axis − 1).
+    pub drives: Vec<Drive>,
 }
 
 /// The contour part of the recorder.
@@ -164,6 +170,27 @@ impl ContourRecorder {
     /// The result.
     pub fn finish(self) -> PathResult {
         let n = self.cycles.max(1) as f64;
+        let ring_axes = self
+            .map
+            .axes
+            .iter()
+            .flat_map(|a| a.drives.iter().map(|(i, _)| i + 1))
+            .max()
+            .unwrap_or(0)
+            .max(self.x.len());
+        let drives = (0..ring_axes)
+            .map(|i| {
+                self.map.drive(i).map(|(c, k)| {
+                    let name = self
+                        .map
+                        .axes
+                        .iter()
+                        .find(|a| a.coord == c)
+                        .map_or('?', |a| a.name);
+                    (name, k)
+                })
+            })
+            .collect();
         let duration = self.path.duration();
         let circles = self
             .circles
@@ -180,6 +207,7 @@ impl ContourRecorder {
             circles,
             program_duration: duration,
             complete: self.last_t >= duration,
+            drives,
         }
     }
 }

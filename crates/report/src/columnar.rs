@@ -7,7 +7,10 @@
 //! (empty in the CSV). `axis` is a 32-bit integer, every other column a double. Snappy
 //! compression, row groups of at most [`ROW_GROUP_ROWS`] rows (each built from the run's
 //! columns as it is written: the file is never held whole in memory), the column units and
-//! the scenario's name in the file's key-value metadata.
+//! the scenario's name in the file's key-value metadata. A part program's run (docs/programs.md)
+//! adds three columns: `x_mm` and `x_d_mm` (the axis's true and desired position through its
+//! transmission) and `contour_error_mm` (the cycle's, on each of its rows), and
+//! `ringsync.machine` in the metadata says which machine axis each ring axis drives.
 //!
 //! Why Parquet rather than Arrow IPC: pandas, polars, DuckDB and Spark all read it, where
 //! pandas reads Arrow IPC only through pyarrow's own calls; and the `parquet` crate without
@@ -51,9 +54,22 @@ sampling instant of the sample the command used [s]; apply_time_s: when the comm
 effect at the slave [s], NaN if it never arrived; clock_error_ns: slave clock minus true time \
 at the cycle start [ns]";
 
-/// Writes `r`'s trace as Parquet to `w` (see the module docs).
+/// The columns a part program's run adds (docs/programs.md).
+const PATH_SCHEMA: &str = "
+  REQUIRED DOUBLE x_mm;
+  REQUIRED DOUBLE x_d_mm;
+  REQUIRED DOUBLE contour_error_mm;";
+
+/// What the program's columns hold.
+const PATH_COLUMNS: &str = "; x_mm, x_d_mm: the axis's true and desired position through its \
+transmission [mm] (NaN for an axis that drives no machine axis; ringsync.machine says which it \
+drives); contour_error_mm: the cycle's contour error [mm], the same on each of its rows (NaN \
+where the path table has no such cycle)";
+
+/// Writes `r`'s trace as Parquet to `w` (see the module docs); a part program's run adds
+/// `x_mm`, `x_d_mm` and `contour_error_mm`.
 pub fn write_trace_parquet(r: &RunResult, w: impl Write + Send) -> std::io::Result<()> {
-    write(&r.trace, &r.scenario, ROW_GROUP_ROWS, w).map_err(|e| match e {
+    write(&r.trace, r.path.as_ref(), &r.scenario, ROW_GROUP_ROWS, w).map_err(|e| match e {
         ParquetError::External(inner) => match inner.downcast::<std::io::Error>() {
             Ok(io) => *io,
             Err(other) => std::io::Error::other(other),
@@ -62,24 +78,73 @@ pub fn write_trace_parquet(r: &RunResult, w: impl Write + Send) -> std::io::Resu
     })
 }
 
-/// Writes `trace` with row groups of at most `rg_rows` rows (whole cycles, one at least).
+/// Each trace cycle's row in the path table (by time: both hold the cycle starts), or
+/// `None`.
+fn path_rows(trace: &Trace, path: &ringsync_model::contour::PathTrace) -> Vec<Option<usize>> {
+    let mut j = 0;
+    trace
+        .t
+        .iter()
+        .map(|&t| {
+            while j < path.t.len() && path.t[j] < t - 1e-7 {
+                j += 1;
+            }
+            (j < path.t.len() && (path.t[j] - t).abs() <= 1e-7).then_some(j)
+        })
+        .collect()
+}
+
+/// Writes `trace` (and a part program's columns) with row groups of at most `rg_rows`
+/// rows (whole cycles, one at least).
 fn write(
     trace: &Trace,
+    path: Option<&ringsync_model::contour::PathResult>,
     scenario: &str,
     rg_rows: usize,
     w: impl Write + Send,
 ) -> Result<(), ParquetError> {
-    let schema = Arc::new(parse_message_type(SCHEMA)?);
+    let schema_text = match path {
+        Some(_) => format!(
+            "{}{PATH_SCHEMA}\n}}",
+            SCHEMA.trim_end().trim_end_matches('}')
+        ),
+        None => SCHEMA.to_string(),
+    };
+    let schema = Arc::new(parse_message_type(&schema_text)?);
+    let mut meta = vec![
+        KeyValue::new("ringsync.scenario".into(), scenario.to_string()),
+        KeyValue::new(
+            "ringsync.columns".into(),
+            format!(
+                "{COLUMNS}{}",
+                if path.is_some() { PATH_COLUMNS } else { "" }
+            ),
+        ),
+    ];
+    if let Some(p) = path {
+        let m: Vec<String> = p
+            .drives
+            .iter()
+            .enumerate()
+            .map(|(i, d)| match d {
+                Some((name, k)) => format!(
+                    "axis {} drives {name} ({:.6} mm/rev)",
+                    i + 1,
+                    std::f64::consts::TAU / k
+                ),
+                None => format!("axis {} drives no machine axis", i + 1),
+            })
+            .collect();
+        meta.push(KeyValue::new("ringsync.machine".into(), m.join("; ")));
+    }
+    let rows_of = path.map(|p| path_rows(trace, &p.trace));
     let props = WriterProperties::builder()
         .set_compression(Compression::SNAPPY)
         // Doubles of a simulation hardly repeat: plain encoding; the axis column repeats.
         .set_dictionary_enabled(false)
         .set_column_dictionary_enabled("axis".into(), true)
         .set_created_by(format!("ringsync {}", env!("CARGO_PKG_VERSION")))
-        .set_key_value_metadata(Some(vec![
-            KeyValue::new("ringsync.scenario".into(), scenario.to_string()),
-            KeyValue::new("ringsync.columns".into(), COLUMNS.to_string()),
-        ]))
+        .set_key_value_metadata(Some(meta))
         .build();
     let mut file = SerializedFileWriter::new(w, schema, Arc::new(props))?;
     let n = trace.axes.max(1);
@@ -121,7 +186,29 @@ fn write(
                     6 => &trace.u[rows.clone()],
                     7 => &trace.sample_time[rows.clone()],
                     8 => &trace.apply_time[rows.clone()],
-                    _ => &trace.clock_error_ns[rows.clone()],
+                    9 => &trace.clock_error_ns[rows.clone()],
+                    10 | 11 => {
+                        // The axis's position through its transmission [mm].
+                        let col = if c == 10 { &trace.x } else { &trace.x_d };
+                        doubles.clear();
+                        doubles.extend(rows.clone().map(|i| {
+                            match path.and_then(|p| p.drives.get(i % n).copied().flatten()) {
+                                Some((_, k)) => col[i] / k,
+                                None => f64::NAN,
+                            }
+                        }));
+                        &doubles
+                    }
+                    _ => {
+                        doubles.clear();
+                        doubles.extend(rows.clone().map(|i| {
+                            match (path, rows_of.as_ref().and_then(|r| r[i / n])) {
+                                (Some(p), Some(j)) => p.trace.contour[j],
+                                _ => f64::NAN,
+                            }
+                        }));
+                        &doubles
+                    }
                 };
                 col.typed::<DoubleType>().write_batch(values, None, None)?;
             }
@@ -195,7 +282,7 @@ mod tests {
         let tr = trace(3, 2000);
         let mut bytes = Vec::new();
         // 1000 rows a group: 333 whole cycles each, so 7 groups, the last of two cycles.
-        write(&tr, "test", 1000, &mut bytes).expect("written");
+        write(&tr, None, "test", 1000, &mut bytes).expect("written");
         let (rows, groups) = read_back(bytes);
         assert_eq!(groups, 7);
         assert_eq!(rows.len(), tr.len());
@@ -228,6 +315,7 @@ mod tests {
         let mut bytes = Vec::new();
         write(
             &Trace::with_capacity(4, 0),
+            None,
             "empty",
             ROW_GROUP_ROWS,
             &mut bytes,

@@ -547,6 +547,7 @@ mod tests {
             circles: Vec::new(),
             program_duration: 0.001,
             complete: true,
+            drives: vec![Some(('X', 1.0)), Some(('Y', 1.0))],
         }
     }
 
