@@ -67,6 +67,9 @@ pub const CENTRIPETAL_SHARE: f64 = 0.5;
 pub const CURVATURE_JERK_SHARE: f64 = 0.25;
 /// Share of an axis's jerk 3κ·v·a may take at a block's V and A.
 pub const COUPLING_JERK_SHARE: f64 = 0.25;
+/// Longest program planned \[s\]: a day (a slower one is most likely a feed in the wrong
+/// unit, and sampling it at a cycle would not end).
+pub const MAX_PROGRAM_SECONDS: f64 = 86_400.0;
 /// Margin on a blend's sampled bounds.
 const BLEND_MARGIN: f64 = 1.05;
 /// Samples of a blend for its bounds.
@@ -644,6 +647,19 @@ impl<'p> Planner<'p> {
                 v_out,
                 v_peak,
                 src,
+            });
+        }
+        if t + end_dwell > MAX_PROGRAM_SECONDS {
+            let slowest = blocks
+                .iter()
+                .max_by(|a, b| a.duration.total_cmp(&b.duration))
+                .map_or(Source::default(), |b| b.src);
+            return Err(PlanError {
+                at: slowest,
+                message: format!(
+                    "the program takes {:.0} s as planned, more than {MAX_PROGRAM_SECONDS:.0} s (a day); its slowest stretch starts here: is its feed in mm (or inches) per minute?",
+                    t + end_dwell
+                ),
             });
         }
         // At rest at the end (and through a final dwell).

@@ -149,3 +149,41 @@ fn a_thousand_generated_programs_keep_their_limits() {
     }
     eprintln!("worst over the corpus: {worst:?}");
 }
+
+/// A feed far too slow (0.0001 mm/min) would take months: refused, naming its line.
+#[test]
+fn a_program_longer_than_a_day_is_refused() {
+    let m = machine(0.01);
+    let p = interpret("G1 X1 F600\nG1 X10 F0.0001\n", m.present()).expect("valid");
+    let e = plan(&p, &m).expect_err("months");
+    assert_eq!(e.at.line, 2, "{e}");
+    assert!(e.message.contains("more than 86400 s"), "{e}");
+}
+
+proptest::proptest! {
+    #![proptest_config(proptest::prelude::ProptestConfig { cases: 400, ..Default::default() })]
+    /// Whatever the text, interpreting it and planning what interprets end in a program or
+    /// an error, never a panic; a plan's duration and positions are finite.
+    #[test]
+    fn any_text_is_a_program_or_an_error(
+        lines in proptest::collection::vec(
+            proptest::string::string_regex(
+                "(N[0-9]{1,3} )?(G[0-3]|G4|G1[7-9]|G2[01]|G9[01]|G90\\.1|G91\\.1|G94|M2|M30|G[0-9]{1,2}|M[0-9]|T1|S100|#1)?( [XYZIJKRFP]-?[0-9]{0,4}(\\.[0-9]{0,4})?){0,5}( \\(c\\)| ;c)?"
+            ).expect("regex"),
+            0..12,
+        ),
+        tol in 0.0f64..0.5,
+    ) {
+        let text = lines.join("\n");
+        let m = machine(tol);
+        if let Ok(p) = interpret(&text, m.present()) {
+            if let Ok(path) = plan(&p, &m) {
+                proptest::prop_assert!(path.duration().is_finite() && path.duration() >= 0.0);
+                for k in 0..=20 {
+                    let st = path.at(path.duration() * f64::from(k) / 20.0);
+                    proptest::prop_assert!(st.p.is_finite() && st.speed.is_finite(), "{text}");
+                }
+            }
+        }
+    }
+}
