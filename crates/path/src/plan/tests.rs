@@ -176,13 +176,13 @@ proptest::proptest! {
     ) {
         let text = lines.join("\n");
         let m = machine(tol);
-        if let Ok(p) = interpret(&text, m.present()) {
-            if let Ok(path) = plan(&p, &m) {
-                proptest::prop_assert!(path.duration().is_finite() && path.duration() >= 0.0);
-                for k in 0..=20 {
-                    let st = path.at(path.duration() * f64::from(k) / 20.0);
-                    proptest::prop_assert!(st.p.is_finite() && st.speed.is_finite(), "{text}");
-                }
+        if let Ok(p) = interpret(&text, m.present())
+            && let Ok(path) = plan(&p, &m)
+        {
+            proptest::prop_assert!(path.duration().is_finite() && path.duration() >= 0.0);
+            for k in 0..=20 {
+                let st = path.at(path.duration() * f64::from(k) / 20.0);
+                proptest::prop_assert!(st.p.is_finite() && st.speed.is_finite(), "{text}");
             }
         }
     }
