@@ -3,9 +3,7 @@
 use std::path::PathBuf;
 
 use clap::Args;
-use ringsync::layers::report::path::{
-    ProgramView, program_json, program_svg, program_text, write_blocks_csv,
-};
+use ringsync::layers::report::path::{program_json, program_svg, program_text, write_blocks_csv};
 
 use crate::sim_cmd::key_value;
 use crate::{CliError, Outcome, out};
@@ -40,19 +38,7 @@ pub(crate) fn run(args: &ProgramArgs) -> Result<Outcome, CliError> {
     let file = ringsync::load(&args.scenario)?;
     let loaded = ringsync::with_values(&file, &args.set)?;
     let plan = ringsync::plan_program(&loaded.scenario)?;
-    let view = ProgramView {
-        scenario: &plan.scenario,
-        file: &plan.file,
-        path: &plan.path,
-        axes: plan
-            .machine
-            .axes
-            .iter()
-            .map(|a| (a.name, a.coord, a.limits))
-            .collect(),
-        check: &plan.check,
-        t_cyc: plan.t_cyc,
-    };
+    let view = plan.view();
     if let Some(p) = &args.svg {
         ringsync::output::write_file(p, program_svg(&view))?;
     }

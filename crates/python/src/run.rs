@@ -463,19 +463,7 @@ fn program<'py>(
     let (json, t, v) = guard(py, move || {
         let s = ringsync::parse(&text, &origin)?.scenario;
         let p = ringsync::plan_program(&s)?;
-        let view = ringsync::layers::report::path::ProgramView {
-            scenario: &p.scenario,
-            file: &p.file,
-            path: &p.path,
-            axes: p
-                .machine
-                .axes
-                .iter()
-                .map(|a| (a.name, a.coord, a.limits))
-                .collect(),
-            check: &p.check,
-            t_cyc: p.t_cyc,
-        };
+        let view = p.view();
         let n = points.clamp(2, 1_000_000);
         let dt = p.path.duration() / (n - 1) as f64;
         let t: Vec<f64> = (0..n).map(|k| k as f64 * dt).collect();

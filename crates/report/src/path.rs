@@ -245,13 +245,7 @@ pub fn xy_svg(p: &PathResult) -> Option<String> {
     );
     for i in 0..tr.len() {
         for v in [&tr.actual, &tr.desired] {
-            let (x, y) = (v[i * m], v[i * m + 1]);
-            if x.is_finite() && y.is_finite() {
-                x0 = x0.min(x);
-                x1 = x1.max(x);
-                y0 = y0.min(y);
-                y1 = y1.max(y);
-            }
+            crate::plot::widen(&mut x0, &mut x1, &mut y0, &mut y1, v[i * m], v[i * m + 1]);
         }
     }
     if !x0.is_finite() {

@@ -157,6 +157,16 @@ fn fmt_tick(v: f64, step: f64) -> String {
     format!("{v:.digits$}")
 }
 
+/// Widens the extent (x0, x1, y0, y1) to hold (x, y) when both are finite.
+pub(crate) fn widen(x0: &mut f64, x1: &mut f64, y0: &mut f64, y1: &mut f64, x: f64, y: f64) {
+    if x.is_finite() && y.is_finite() {
+        *x0 = x0.min(x);
+        *x1 = x1.max(x);
+        *y0 = y0.min(y);
+        *y1 = y1.max(y);
+    }
+}
+
 /// A line chart: title, axis labels with units, series. Returns the SVG document.
 pub fn line_chart(title: &str, x_label: &str, y_label: &str, series: &[Series<'_>]) -> String {
     let mut s = Svg::new(W, H);
@@ -177,12 +187,7 @@ pub fn line_chart(title: &str, x_label: &str, y_label: &str, series: &[Series<'_
             continue;
         }
         for &(x, y) in &se.points {
-            if x.is_finite() && y.is_finite() {
-                x0 = x0.min(x);
-                x1 = x1.max(x);
-                y0 = y0.min(y);
-                y1 = y1.max(y);
-            }
+            widen(&mut x0, &mut x1, &mut y0, &mut y1, x, y);
         }
     }
     if !x0.is_finite() {

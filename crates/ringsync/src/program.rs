@@ -30,6 +30,25 @@ pub struct ProgramPlan {
     pub t_cyc: f64,
 }
 
+impl ProgramPlan {
+    /// What the report's text, JSON and figure take (`ringsync program`).
+    pub fn view(&self) -> ringsync_report::path::ProgramView<'_> {
+        ringsync_report::path::ProgramView {
+            scenario: &self.scenario,
+            file: &self.file,
+            path: &self.path,
+            axes: self
+                .machine
+                .axes
+                .iter()
+                .map(|a| (a.name, a.coord, a.limits))
+                .collect(),
+            check: &self.check,
+            t_cyc: self.t_cyc,
+        }
+    }
+}
+
 /// Plans the scenario's part program (`trajectory.kind = "program"`) and samples its
 /// setpoints at the scenario's cycle.
 ///
