@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 import ringsync
-from ringsync import _dask, _plan, _run, _scenario, _sweep
+from ringsync import _dask, _path, _plan, _run, _scenario, _sweep
 
 DOC = Path(__file__).resolve().parents[2] / "docs" / "python.md"
 
@@ -35,7 +35,7 @@ def test_docs_python_md_runs(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) ->
             raise AssertionError(f"docs/python.md snippet {i + 1} failed:\n{code}") from e
 
 
-@pytest.mark.parametrize("module", [ringsync, _scenario, _run, _sweep, _plan, _dask], ids=lambda m: m.__name__)
+@pytest.mark.parametrize("module", [ringsync, _scenario, _run, _sweep, _plan, _dask, _path], ids=lambda m: m.__name__)
 def test_docstring_examples(module: object, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.chdir(tmp_path)
     r = doctest.testmod(module, extraglobs={"ringsync": ringsync, "os": os}, optionflags=doctest.ELLIPSIS)  # type: ignore[arg-type]

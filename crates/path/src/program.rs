@@ -133,6 +133,21 @@ const FULL_CIRCLE_MM: f64 = 1e-6;
 /// ```
 pub fn interpret(text: &str, axes: [bool; 3]) -> Result<Program, ProgramError> {
     let mut c = Collector::new(text, axes);
+    if let Some(at) = long_code_number(text) {
+        let word = text
+            .get(at..)
+            .unwrap_or("")
+            .split_whitespace()
+            .next()
+            .unwrap_or("");
+        return Err(ProgramError {
+            at: c.source(at),
+            message: format!(
+                "{}: a G, M or T code's number has at most {MAX_CODE_DIGITS} digits",
+                clip(word)
+            ),
+        });
+    }
     gcode::core::parse(text, &mut c);
     if let Some(e) = c.error.take() {
         return Err(e);
@@ -140,6 +155,44 @@ pub fn interpret(text: &str, axes: [bool; 3]) -> Result<Program, ProgramError> {
     c.state.program.end = c.state.pos;
     c.state.program.lines = c.line_starts.len() as u32;
     Ok(c.state.program)
+}
+
+/// Most digits of a G, M or T code's number before its point.
+pub const MAX_CODE_DIGITS: usize = 8;
+
+/// Where a G, M or T code's number has more than [`MAX_CODE_DIGITS`] digits before its point
+/// (outside comments). The `gcode` parser (0.7) multiplies such a number into a `u32` by 10
+/// without checking: an overflow, a panic in a build with overflow checks. Byte offset of
+/// the letter.
+fn long_code_number(text: &str) -> Option<usize> {
+    let b = text.as_bytes();
+    let (mut i, mut depth) = (0, 0usize);
+    while i < b.len() {
+        match b[i] {
+            b'(' => depth += 1,
+            b')' => depth = depth.saturating_sub(1),
+            b';' if depth == 0 => {
+                while i < b.len() && b[i] != b'\n' {
+                    i += 1;
+                }
+                continue;
+            }
+            b'\n' => depth = 0,
+            c if depth == 0 && matches!(c.to_ascii_uppercase(), b'G' | b'M' | b'T') => {
+                let mut j = i + 1;
+                while j < b.len() && b[j].is_ascii_whitespace() {
+                    j += 1;
+                }
+                let digits = b[j..].iter().take_while(|d| d.is_ascii_digit()).count();
+                if digits > MAX_CODE_DIGITS {
+                    return Some(i);
+                }
+            }
+            _ => {}
+        }
+        i += 1;
+    }
+    None
 }
 
 /// The modal state and the moves made so far.
@@ -255,12 +308,15 @@ impl<'s> Collector<'s> {
             Value::Variable(_) => {
                 return self.fail(
                     span.start,
-                    format!("{letter}{}: parameters (#…) are not supported", text),
+                    format!("{letter}{}: parameters (#…) are not supported", clip(text)),
                 );
             }
         };
         if !value.is_finite() {
-            return self.fail(span.start, format!("{letter}{text}: not a finite number"));
+            return self.fail(
+                span.start,
+                format!("{letter}{}: not a finite number", clip(text)),
+            );
         }
         self.words.push(Word {
             letter,
@@ -786,8 +842,21 @@ impl gcode::core::Diagnostics for Collector<'_> {
     }
 }
 
+/// Program text as a message echoes it: at most 40 characters, control characters (a line
+/// break the parser stopped at) escaped, so that the message stays one line.
 fn clip(s: &str) -> String {
-    let mut out: String = s.chars().take(40).collect();
+    let mut out: String = s
+        .chars()
+        .take(40)
+        .flat_map(|c| {
+            let e: Vec<char> = if c.is_control() {
+                c.escape_default().collect()
+            } else {
+                vec![c]
+            };
+            e
+        })
+        .collect();
     if s.chars().count() > 40 {
         out.push('…');
     }
@@ -1006,6 +1075,17 @@ mod tests {
             (
                 "G1 X1 F100 P2\n",
                 "only G4 (dwell) and G2/G3 (turns) take P",
+            ),
+            // The fuzzer's: a word cut off by the line's end is echoed escaped, on one line;
+            // code numbers the gcode parser would overflow on.
+            ("G1 F100 X\n", "line 1, column"),
+            (
+                "G0 X1\n G1191813220\n",
+                "line 2, column 2: G1191813220: a G, M or T code's number has at most 8 digits",
+            ),
+            (
+                "G\r2000000000\n",
+                "line 1, column 1: G: a G, M or T code's number",
             ),
         ];
         for (text, want) in cases {
