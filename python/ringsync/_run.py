@@ -327,10 +327,11 @@ class Run:
         return fig
 
     def save(self, directory: str | os.PathLike[str]) -> str:
-        """Writes the CLI's files into ``directory`` (``summary.json``, ``trace.csv``, the
-        figures ``*.svg``, ``report.html``), replacing it as a whole as ``ringsync sim
-        --out`` does: it must be new, empty, or hold earlier ringsync results. Returns the
-        directory.
+        """Writes the CLI's files into ``directory`` (``scenario.toml``, the scenario as run,
+        which ``ringsync identify`` reads; ``summary.json``, ``trace.csv``, ``path.csv`` for
+        a part program, the figures ``*.svg``, ``report.html``), replacing it as a whole as
+        ``ringsync sim --out`` does: it must be new, empty, or hold earlier ringsync
+        results. Returns the directory.
 
         Raises :class:`ringsync.ScenarioError` for an empty path, a path that is a file, or a
         directory holding other files; :class:`ringsync.RunError` when writing fails.
@@ -340,8 +341,8 @@ class Run:
             >>> import tempfile, os
             >>> d = os.path.join(tempfile.mkdtemp(), "run")
             >>> _ = ringsync.simulate("paper-2015", duration="0.2s").save(d)
-            >>> sorted(f for f in os.listdir(d) if f.endswith((".json", ".csv")))
-            ['summary.json', 'trace.csv']
+            >>> sorted(f for f in os.listdir(d) if f.endswith((".json", ".csv", ".toml")))
+            ['scenario.toml', 'summary.json', 'trace.csv']
         """
         path = os.fspath(directory)
         self._core.save(path)

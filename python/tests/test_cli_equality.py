@@ -33,8 +33,12 @@ def test_saved_files_equal_the_clis_byte_for_byte(cli, tmp_path: Path) -> None:
     cli.run("sim", "paper-2015", "--out", str(tmp_path / "cli"), "--seed", "2")
     r = ringsync.simulate("paper-2015", seed=2)
     r.save(tmp_path / "py")
-    for name in ("summary.json", "trace.csv", "report.html"):
+    for name in ("scenario.toml", "summary.json", "trace.csv", "report.html"):
         assert (tmp_path / "py" / name).read_bytes() == (tmp_path / "cli" / name).read_bytes(), name
+    # What Run.save() writes is a run `ringsync identify` reads (issue 41: it wrote no
+    # scenario.toml, so identify could not).
+    cli.run("identify", str(tmp_path / "py"), "--out", str(tmp_path / "id.toml"))
+    assert "kh" in (tmp_path / "id.toml").read_text()
 
 
 def test_a_changed_scenario_runs_the_same_from_its_text(cli, tmp_path: Path) -> None:

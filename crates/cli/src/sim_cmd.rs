@@ -143,11 +143,19 @@ pub(crate) fn sim(args: &SimArgs) -> Result<Outcome, CliError> {
         ));
     }
     dir.commit()?;
+    // Every file the run wrote: the outputs asked for, a program's path table, the capture.
+    let mut files = args.outputs.files();
+    if args.outputs.trace && r.path.is_some() {
+        files += ", path.csv";
+    }
+    if let Some(p) = &args.pcap {
+        files += &format!("; the capture {}", p.display());
+    }
     out(&format!(
         "{}  wrote {}: {} in {:.1} ms\n",
         ringsync::sim_text(&s, &r),
         args.out.display(),
-        args.outputs.files(),
+        files,
         elapsed.as_secs_f64() * 1e3
     ))?;
     Ok(Outcome::flagged_if(r.group_stop.is_some()))

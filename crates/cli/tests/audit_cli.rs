@@ -104,7 +104,7 @@ fn what_would_hang_or_exhaust_memory_is_refused() {
     std::fs::write(&huge, "[control]\nkp = 1.5e308\n").expect("write");
     refused(
         &["check", p(&huge)],
-        "control.kp (axis 0) = 1.5e308 is out of range: allowed > 0 ..= 1e12 V/rad",
+        "control.kp (axis 1) = 1.5e308 is out of range: allowed > 0 ..= 1e12 V/rad",
     );
     refused(
         &[

@@ -134,6 +134,40 @@ fn sim_writes_path_csv_and_the_contour_error() {
         text(&o.stdout)
     );
     assert_eq!(s["program"]["complete"], false);
+    // The line that lists what was written names path.csv (and a capture, issue 41).
+    let stdout = text(&o.stdout);
+    let wrote = stdout
+        .lines()
+        .find(|l| l.contains("wrote"))
+        .expect("a wrote line");
+    assert!(wrote.contains("path.csv"), "{wrote}");
+    let pcap = dir.join("run.pcapng");
+    let o = ringsync(&[
+        "sim",
+        "circle-xy",
+        "--set",
+        "duration=\"0.1s\"",
+        "--outputs",
+        "summary",
+        "--pcap",
+        pcap.to_str().expect("utf-8"),
+        "--out",
+        dir.join("run2").to_str().expect("utf-8"),
+    ]);
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
+    let stdout = text(&o.stdout);
+    let wrote = stdout
+        .lines()
+        .find(|l| l.contains("wrote"))
+        .expect("a wrote line");
+    assert!(
+        wrote.contains("the capture") && wrote.contains("run.pcapng"),
+        "{wrote}"
+    );
+    assert!(
+        !wrote.contains("path.csv"),
+        "no trace, no path table: {wrote}"
+    );
     assert!(
         s["assumptions"]
             .as_array()

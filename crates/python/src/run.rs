@@ -43,6 +43,8 @@ pub struct SimRun {
     /// For a real-time run: its summary.json (the simulator's fields plus the timing) and
     /// the lines `ringsync rt` prints.
     rt: Option<(serde_json::Value, String)>,
+    /// The scenario as loaded (its text and origin), for the run's scenario.toml.
+    loaded: ringsync::Loaded,
 }
 
 /// Simulates the scenario `text` (from `origin`), with `seed` (0 ..= 2^63 - 1) instead of
@@ -60,7 +62,7 @@ fn simulate(
         .transpose()?;
     crate::interruptible(py, move |stop| {
         let loaded = ringsync::parse(&text, &origin)?;
-        let mut scenario = loaded.scenario;
+        let mut scenario = loaded.scenario.clone();
         if let Some(seed) = seed {
             scenario.seed = seed;
         }
@@ -75,6 +77,7 @@ fn simulate(
             hash: loaded.hash,
             result,
             rt: None,
+            loaded,
         })
     })
 }
@@ -151,6 +154,7 @@ fn rt(
                     hash: loaded.hash,
                     result: r.run,
                     rt: Some((summary, text)),
+                    loaded,
                 })
             }))
         })
@@ -323,9 +327,9 @@ impl SimRun {
     }
 
     /// Writes the CLI's files into `dir` (replaced as a whole, as `ringsync sim --out`
-    /// replaces it): summary.json, trace.csv, the figures, report.html; for a real-time run
-    /// what `ringsync rt --out` writes: summary.json and trace.csv. An empty path is a
-    /// `ScenarioError`.
+    /// replaces it): scenario.toml, summary.json, trace.csv (path.csv for a part program),
+    /// the figures, report.html; for a real-time run what `ringsync rt --out` writes:
+    /// scenario.toml, summary.json and trace.csv. An empty path is a `ScenarioError`.
     fn save(&self, py: Python<'_>, dir: PathBuf) -> PyResult<()> {
         if dir.as_os_str().is_empty() {
             return Err(ScenarioError::new_err(
@@ -336,6 +340,8 @@ impl SimRun {
             // Named so that the library's messages read "the save directory DIR is not
             // empty …: the run replaces the save directory as a whole …".
             let mut out = OutDir::create("the save directory", &dir)?;
+            // The scenario as run, as `ringsync sim --out` keeps it (`identify` reads it).
+            ringsync::identify::write_scenario(&out, &self.loaded, Some(self.scenario.seed))?;
             if let Some((summary, _)) = &self.rt {
                 out.write(
                     "summary.json",

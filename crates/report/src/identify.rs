@@ -8,6 +8,17 @@ use ringsync_control::identify::AxisIdentification;
 /// One axis for [`identify_text`]: (axis, 1-based; the estimates; the scenario's (H, C, F)).
 pub type AxisRow = (usize, AxisIdentification, (f64, f64, f64));
 
+/// The estimate `e`'s error against the scenario's `t` in per cent, to 2 decimals with its
+/// sign; one that rounds to zero is `+0.00 %`, never `-0.00 %`; `–` when `t` is 0.
+fn pct_error(e: f64, t: f64) -> String {
+    if t == 0.0 {
+        return "–".to_string();
+    }
+    let pct = (e / t - 1.0) * 100.0;
+    let pct = if pct.abs() < 0.005 { 0.0 } else { pct };
+    format!("{pct:+.2} %")
+}
+
 /// A table of the estimates beside the scenario's values, with each estimate's error
 /// against them; then what the fit used.
 pub fn identify_text(rows: &[AxisRow]) -> String {
@@ -17,13 +28,7 @@ pub fn identify_text(rows: &[AxisRow]) -> String {
         "| axis | H = J/K_a [V·s²/rad] | scenario | error | C = b/K_a [V·s/rad] | scenario | error | F = T_c/K_a [V] | scenario | error |"
     );
     let _ = writeln!(o, "|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
-    let err = |e: f64, t: f64| {
-        if t == 0.0 {
-            "–".to_string()
-        } else {
-            format!("{:+.2} %", (e / t - 1.0) * 100.0)
-        }
-    };
+    let err = pct_error;
     for (axis, id, (h, c, f)) in rows {
         let _ = writeln!(
             o,
@@ -50,4 +55,18 @@ pub fn identify_text(rows: &[AxisRow]) -> String {
         );
     }
     o
+}
+
+#[cfg(test)]
+mod tests {
+    use super::pct_error;
+
+    /// An estimate a hair below its value reads +0.00 %, not -0.00 % (issue 41).
+    #[test]
+    fn errors_that_round_to_zero_have_no_minus_sign() {
+        assert_eq!(pct_error(0.999_99, 1.0), "+0.00 %");
+        assert_eq!(pct_error(1.000_01, 1.0), "+0.00 %");
+        assert_eq!(pct_error(0.98, 1.0), "-2.00 %");
+        assert_eq!(pct_error(1.0, 0.0), "–");
+    }
 }

@@ -174,7 +174,7 @@ impl Scenario {
             if let Some((i, v)) = values.iter().enumerate().find(|(_, v)| !spec.allows(**v)) {
                 let at = match value {
                     PerAxis::One(_) => at,
-                    PerAxis::Each(_) => format!("{at} (axis {i})"),
+                    PerAxis::Each(_) => format!("{at} (axis {})", i + 1),
                 };
                 return Err(out_of_range(at, v, spec.allowed()));
             }

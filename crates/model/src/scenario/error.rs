@@ -159,12 +159,19 @@ pub(crate) fn control_error(e: &ControlError) -> ScenarioError {
             value,
             expected,
         } => {
-            // Gains are reported as kp[2]: in the scenario that is control.kp (axis 2); a
-            // drive's limit u_max[2] comes from the axis's table. The trajectory's names
-            // are the library's: its keys are the scenario's.
+            // Gains are reported as kp[2] (an index from 0): in the scenario that is
+            // control.kp (axis 3), axes numbered from 1 as everywhere else; a drive's limit
+            // u_max[2] comes from the axis's table (axis[2], the table's index). The
+            // trajectory's names are the library's: its keys are the scenario's.
             let key = match name.split_once('[') {
                 Some(("u_max", rest)) => format!("axis[{}].u_max", rest.trim_end_matches(']')),
-                Some((g, rest)) => format!("control.{g} (axis {})", rest.trim_end_matches(']')),
+                Some((g, rest)) => {
+                    let i = rest.trim_end_matches(']');
+                    match i.parse::<usize>() {
+                        Ok(i) => format!("control.{g} (axis {})", i + 1),
+                        Err(_) => format!("control.{g} (axis {i})"),
+                    }
+                }
                 None if *name == "v_peak" => "control.peak_speed".to_string(),
                 None => format!("control.{name}"),
             };

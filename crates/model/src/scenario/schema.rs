@@ -31,11 +31,36 @@ impl fmt::Display for Dur {
 }
 
 impl<'de> Deserialize<'de> for Dur {
+    /// A string with a unit; a bare number is an error that says a unit is needed (not
+    /// serde's "expected a string").
     fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
-        let s = String::deserialize(d)?;
-        Duration::from_str(&s)
-            .map(Dur)
-            .map_err(serde::de::Error::custom)
+        struct Visit;
+        impl serde::de::Visitor<'_> for Visit {
+            type Value = Dur;
+            fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+                f.write_str("a duration with a unit, e.g. \"4s\", \"1ms\", \"125us\"")
+            }
+            fn visit_str<E: serde::de::Error>(self, s: &str) -> Result<Dur, E> {
+                Duration::from_str(s).map(Dur).map_err(E::custom)
+            }
+            fn visit_i64<E: serde::de::Error>(self, v: i64) -> Result<Dur, E> {
+                Err(E::custom(format!(
+                    "{v} has no unit: a duration is a string with its unit, e.g. \"{v}s\" or \"{v}ms\" (units s, ms, us, ns)"
+                )))
+            }
+            fn visit_u64<E: serde::de::Error>(self, v: u64) -> Result<Dur, E> {
+                Err(E::custom(format!(
+                    "{v} has no unit: a duration is a string with its unit, e.g. \"{v}s\" or \"{v}ms\" (units s, ms, us, ns)"
+                )))
+            }
+            fn visit_f64<E: serde::de::Error>(self, v: f64) -> Result<Dur, E> {
+                let v = super::error::short_number(v);
+                Err(E::custom(format!(
+                    "{v} has no unit: a duration is a string with its unit, e.g. \"{v}s\" or \"{v}ms\" (units s, ms, us, ns)"
+                )))
+            }
+        }
+        d.deserialize_any(Visit)
     }
 }
 

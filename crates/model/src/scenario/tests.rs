@@ -203,16 +203,16 @@ fn out_of_range_values_name_key_value_and_range() {
     // trace of NaN, no stop) and stopped the proposed plan for "no response".
     assert_eq!(
         err("[control]\nke = 1e308\n"),
-        "control.ke (axis 0) = 1e308 is out of range: allowed >= 0 ..= 1e12 V·s/rad"
+        "control.ke (axis 1) = 1e308 is out of range: allowed >= 0 ..= 1e12 V·s/rad"
     );
     assert_eq!(
         err("[control]\nalpha = 1e308\n"),
         "control.alpha = 1e308 is out of range: allowed >= 0 ..= 1e12 (dimensionless)"
     );
     assert!(Scenario::from_toml("[control]\nkp = 1e12\nalpha = 1e12\n", "t").is_ok());
-    // The same where the TOML parser quotes a value of the wrong type.
+    // The same where a duration is given as a number: short, and saying a unit is needed.
     let e = err("[trajectory]\nperiod = 1e300\n");
-    assert!(e.contains("`1e300`") && e.len() < 200, "{e}");
+    assert!(e.contains("1e300 has no unit") && e.len() < 200, "{e}");
     assert_eq!(
         err("[ring]\nslaves = 0\n"),
         "ring.slaves = 0 is out of range: allowed 1..=65535"
@@ -223,7 +223,7 @@ fn out_of_range_values_name_key_value_and_range() {
     );
     assert_eq!(
         err("[control]\nkd = [1.0, -2.0]\n"),
-        "control.kd (axis 1) = -2 is out of range: allowed > 0 ..= 1e12 V·s/rad"
+        "control.kd (axis 2) = -2 is out of range: allowed > 0 ..= 1e12 V·s/rad"
     );
     let e = err("[[axis]]\nviscous = -1e-5\n");
     assert_eq!(
@@ -242,7 +242,7 @@ fn out_of_range_values_name_key_value_and_range() {
     );
     assert_eq!(
         err("[control]\ndob_bandwidth = 20.0\n"),
-        "control.kh (axis 0) = 0 is out of range: allowed > 0 V·s²/rad: the disturbance observer inverts the nominal model K_H"
+        "control.kh (axis 1) = 0 is out of range: allowed > 0 V·s²/rad: the disturbance observer inverts the nominal model K_H"
     );
     let e = err("[control]\nkh = 0.016\nkf = 0.2\ndob_bandwidth = 20.0\n");
     assert!(
@@ -253,7 +253,18 @@ fn out_of_range_values_name_key_value_and_range() {
     assert!(e.starts_with("control.dob_bandwidth = 900"), "{e}");
     assert_eq!(
         err("[control]\nkf = [0.2, -0.1]\n"),
-        "control.kf (axis 1) = -0.1 is out of range: allowed >= 0 ..= 1e12 V"
+        "control.kf (axis 2) = -0.1 is out of range: allowed >= 0 ..= 1e12 V"
+    );
+    // A duration without its unit says so (issue 41: it said "expected a string").
+    let e = err("duration = 4\n");
+    assert!(e.contains("4 has no unit") && e.contains("\"4s\""), "{e}");
+    let e = err("[ring]\ncycle = 0.001\n");
+    assert!(e.contains("0.001 has no unit"), "{e}");
+    // Axes are numbered from 1 in every message, as in the outputs: the third gain is
+    // axis 3's (issue 41: messages numbered axes from 0).
+    assert_eq!(
+        err("[control]\nkp = [3.0, 3.0, -1.0, 3.0]\n"),
+        "control.kp (axis 3) = -1 is out of range: allowed > 0 ..= 1e12 V/rad"
     );
 }
 
@@ -466,7 +477,7 @@ fn laws_and_their_parameters_come_from_the_registry() {
         ),
         (
             format!("{adj}kxd = [1, 2, -3, 4]\n"),
-            "control.params.kxd (axis 2) = -3 is out of range: allowed >= 0 V·s/rad",
+            "control.params.kxd (axis 3) = -3 is out of range: allowed >= 0 V·s/rad",
         ),
         (
             format!("{adj}kx = [1, 2]\n"),
