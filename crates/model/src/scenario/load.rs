@@ -148,7 +148,26 @@ impl Scenario {
                 _ => std::path::PathBuf::from("."),
             });
         }
-        s.validate()?;
+        s.validate().map_err(|e| match e {
+            // A value out of range in a file: where in it (issue 41: "faults.loss = 1.5"
+            // named neither file nor line).
+            ScenarioError::OutOfRange {
+                key,
+                value,
+                allowed,
+            } if file.is_file() => {
+                let allowed = match key_line(text, &key) {
+                    Some(l) => format!("{allowed} ({origin}, line {l})"),
+                    None => allowed,
+                };
+                ScenarioError::OutOfRange {
+                    key,
+                    value,
+                    allowed,
+                }
+            }
+            other => other,
+        })?;
         Ok(s)
     }
 
@@ -198,6 +217,37 @@ impl Scenario {
             ))
         })
     }
+}
+
+/// The line (1-based) of `text` that sets the dotted `key` of an error (`faults.loss`,
+/// `axis[2].u_max` for the third `[[axis]]` table, `control.kp (axis 3)`,
+/// `machine.axes.X.drives`): the line `leaf = …` under the table the rest names; `None`
+/// when the text does not set it (a default, or a key set by its table's parent).
+pub fn key_line(text: &str, key: &str) -> Option<usize> {
+    let key = key.split(" (").next().unwrap_or(key);
+    let (table, leaf) = match key.rsplit_once('.') {
+        Some((t, l)) => (t.to_string(), l),
+        None => (String::new(), key),
+    };
+    let mut current = String::new();
+    let mut counts: std::collections::BTreeMap<String, usize> = Default::default();
+    for (i, line) in text.lines().enumerate() {
+        let t = line.trim();
+        if let Some(name) = t.strip_prefix("[[").and_then(|r| r.split_once("]]")) {
+            let name = name.0.trim().to_string();
+            let k = counts.entry(name.clone()).or_insert(0);
+            current = format!("{name}[{k}]");
+            *k += 1;
+        } else if let Some(name) = t.strip_prefix('[').and_then(|r| r.split_once(']')) {
+            current = name.0.trim().to_string();
+        } else if current == table
+            && let Some((k, _)) = t.split_once('=')
+            && k.trim().trim_matches('"') == leaf
+        {
+            return Some(i + 1);
+        }
+    }
+    None
 }
 
 /// FNV-1a, 64 bits.
