@@ -48,6 +48,17 @@ pub fn write_scenario(dir: &crate::OutDir, run: &Loaded, seed: Option<u64>) -> R
         }
         _ => run.text.clone(),
     };
+    // A scenario file that named nothing ran under its file's name: the copy says so (a
+    // top-level key, before any table).
+    let named = toml::from_str::<toml::Table>(&text).is_ok_and(|t| t.contains_key("name"));
+    let text = if named {
+        text
+    } else {
+        format!(
+            "name = \"{}\"  # the scenario file's name\n{text}",
+            run.scenario.name.escape_default()
+        )
+    };
     dir.write(
         SCENARIO_FILE,
         format!("{SCENARIO_HEADER}{}.\n{text}", run.origin.escape_default()),

@@ -381,6 +381,13 @@ fn make_cases(
             set(&mut t, k, toml_value(k, v)?)?;
         }
         anchor_program(&mut t, base.scenario.dir.as_deref());
+        // A file that named nothing ran under its own name: its cases keep it.
+        if !t.contains_key("name") && base.scenario.dir.is_some() {
+            t.insert(
+                "name".into(),
+                toml::Value::String(base.scenario.name.clone()),
+            );
+        }
         let with = || {
             let l: Vec<String> = labels.iter().map(|(k, v)| format!("{k}={v}")).collect();
             clip(&format!("{origin} with {}", l.join(" ")), 2 * ECHO_CHARS).into_owned()

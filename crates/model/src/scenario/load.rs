@@ -147,6 +147,12 @@ impl Scenario {
                 Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
                 _ => std::path::PathBuf::from("."),
             });
+            // A file that names nothing is run and reported under its own name, not the
+            // reference scenario's (issue 41).
+            let named = toml::from_str::<toml::Table>(text).is_ok_and(|t| t.contains_key("name"));
+            if !named && let Some(stem) = file.file_stem().and_then(|n| n.to_str()) {
+                s.name = stem.to_string();
+            }
         }
         s.validate().map_err(|e| match e {
             // A value out of range in a file: where in it (issue 41: "faults.loss = 1.5"

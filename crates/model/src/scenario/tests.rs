@@ -536,3 +536,30 @@ fn out_of_range_values_in_a_file_name_its_line() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A scenario file without `name` runs under its file's name, not the reference
+/// scenario's (issue 41); one given as text keeps the default.
+#[test]
+fn a_file_without_a_name_is_named_after_the_file() {
+    let dir = std::env::temp_dir().join(format!("ringsync-named-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("scratch");
+    let f = dir.join("my-ring.toml");
+    std::fs::write(&f, "[ring]\nslaves = 2\n").expect("file");
+    let s = Scenario::from_toml("[ring]\nslaves = 2\n", f.to_str().expect("utf-8")).expect("valid");
+    assert_eq!(s.name, "my-ring");
+    let named = "name = \"kept\"\n[ring]\nslaves = 2\n";
+    std::fs::write(&f, named).expect("file");
+    assert_eq!(
+        Scenario::from_toml(named, f.to_str().expect("utf-8"))
+            .expect("valid")
+            .name,
+        "kept"
+    );
+    assert_eq!(
+        Scenario::from_toml("[ring]\nslaves = 2\n", "text")
+            .expect("valid")
+            .name,
+        "paper-2015"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
