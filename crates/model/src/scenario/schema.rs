@@ -828,7 +828,7 @@ impl Default for Scenario {
         let b = ringsync_plant::reference::VISCOUS;
         Scenario {
             name: "paper-2015".into(),
-            description: "4 servo axes on a 100 Mbit/s ring, 1 ms cycle, cosine command, PD vs sync controller".into(),
+            description: "4 servo axes on a 100 Mbit/s ring, 1 ms cycle, cosine command: the paper's test bench".into(),
             duration: Dur(Duration::from_ms(4000)),
             seed: 1,
             ring: Ring::default(),
