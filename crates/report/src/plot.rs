@@ -107,9 +107,11 @@ impl Thinning {
     }
 }
 
-/// Colours for up to 8 axes.
+/// Colours for up to 8 axes: matplotlib's default cycle (tab10), which the Python
+/// package's plots use and the live scope's page starts with, so that an axis has one
+/// colour everywhere.
 pub const PALETTE: [&str; 8] = [
-    "#4e79a7", "#f28e2b", "#59a14f", "#e15759", "#76b7b2", "#edc948", "#b07aa1", "#9c755f",
+    "#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f",
 ];
 
 const W: f64 = 760.0;

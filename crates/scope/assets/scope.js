@@ -3,7 +3,8 @@
 (function () {
   const MAGIC = 0x50435352, HEADER = 32, NODE_FIELDS = 5;
   const CAP = 120000;                       // rows held (2 min of a 1 ms ring)
-  const COLORS = ["#1f77b4", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f",
+  // matplotlib's tab10 first, as the reports and the Python package colour the axes.
+  const COLORS = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f",
     "#bcbd22", "#17becf", "#393b79", "#637939", "#8c6d31", "#843c39", "#7b4173", "#3182bd"];
   const STATE_COLORS = ["#2a2", "#e90", "#f60", "#999", "#d22", "#800"];
   const HIST_EDGES = [0, 1, 2, 5, 10, 20, 50, 100, 200, 500, 1000, 2000, 5000, Infinity];

@@ -301,3 +301,22 @@ impl Drop for Scope {
         self.stop();
     }
 }
+
+#[cfg(test)]
+mod palette_tests {
+    /// The page colours axis i as the reports do (issue 41: axes 2 and 4 swapped colours
+    /// between the scope and the reports).
+    #[test]
+    fn the_page_colours_the_axes_as_the_reports_do() {
+        let js = include_str!("../assets/scope.js");
+        let start = js.find("const COLORS = [").expect("the page's palette") + 16;
+        let end = start + js[start..].find(']').expect("its end");
+        let page: Vec<&str> = js[start..end]
+            .split(',')
+            .map(|c| c.trim().trim_matches('"'))
+            .filter(|c| !c.is_empty())
+            .collect();
+        let report = ringsync::layers::report::plot::PALETTE;
+        assert_eq!(&page[..report.len()], &report[..]);
+    }
+}

@@ -563,3 +563,11 @@ fn a_file_without_a_name_is_named_after_the_file() {
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// The reference scenario's description names no law: a run of one law is not "PD vs sync"
+/// (issue 41).
+#[test]
+fn the_reference_description_names_no_law() {
+    let d = Scenario::default().description;
+    assert!(!d.contains("PD") && !d.contains("sync"), "{d}");
+}
