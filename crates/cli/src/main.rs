@@ -78,7 +78,7 @@ impl From<ringsync::Error> for CliError {
 #[derive(Parser)]
 #[command(
     name = "ringsync",
-    version,
+    version = concat!(env!("CARGO_PKG_VERSION"), " (", env!("RINGSYNC_GIT_HASH"), ")"),
     about = "Plan, simulate and run a networked CNC ring with position synchronisation (Huang et al. 2015)",
     long_about = None,
     propagate_version = true,

@@ -73,7 +73,17 @@ fn help_and_version_exit_0_and_help_names_the_exit_statuses() {
     }
     let o = ringsync(&["--version"]);
     assert_eq!(o.status.code(), Some(0));
-    assert!(String::from_utf8_lossy(&o.stdout).starts_with("ringsync "));
+    let version = String::from_utf8_lossy(&o.stdout).to_string();
+    assert!(version.starts_with("ringsync "));
+    // The commit it was built from (issue 41): the checkout's HEAD, as git names it.
+    let head = std::process::Command::new("git")
+        .args(["rev-parse", "--short=12", "HEAD"])
+        .output()
+        .ok()
+        .filter(|o| o.status.success())
+        .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string())
+        .unwrap_or_else(|| "unknown".into());
+    assert!(version.contains(&format!("({head})")), "{version}");
     assert_eq!(ringsync(&["sim", "--help"]).status.code(), Some(0));
 }
 
