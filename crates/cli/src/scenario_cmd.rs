@@ -59,6 +59,10 @@ pub(crate) fn run(cmd: &ScenarioCmd) -> Result<Outcome, CliError> {
 pub struct CheckArgs {
     /// Scenario file or built-in name (see `ringsync scenario list`).
     scenario: String,
+    /// Set a scenario key before the check, as `sim --set` does (e.g.
+    /// `--set control.kd=20`).
+    #[arg(long = "set", value_name = "KEY=VALUE", value_parser = crate::sim_cmd::key_value)]
+    set: Vec<(String, String)>,
     /// Points of the trajectory at which the paper's conditions are evaluated.
     #[arg(long, default_value_t = 4001, value_parser = clap::value_parser!(u32).range(1..=1_000_000))]
     points: u32,
@@ -72,7 +76,8 @@ const LONG_CHECK_AXES: usize = 64;
 
 /// Runs `ringsync check`: exit status 3 unless the verdict is stable.
 pub(crate) fn check(args: &CheckArgs) -> Result<Outcome, CliError> {
-    let s = ringsync::load(&args.scenario)?.scenario;
+    let file = ringsync::load(&args.scenario)?;
+    let s = ringsync::with_values(&file, &args.set)?.scenario;
     let n = s.axes_count();
     if n >= LONG_CHECK_AXES {
         // The eigenvalues of the loop (about 9 states per axis) cost the cube of its size.

@@ -274,3 +274,17 @@ fn scenario_laws_lists_the_registry_with_parameters() {
         "{text}"
     );
 }
+
+/// `check --set` checks the scenario with the key set, as `sim --set` runs it (issue 41:
+/// `check` took no `--set`): too much damping for the sampled loop is unstable, exit 3.
+#[test]
+fn check_takes_set_as_sim_does() {
+    let o = ringsync(&["check", "paper-2015"]);
+    assert_eq!(o.status.code(), Some(0));
+    let o = ringsync(&["check", "paper-2015", "--set", "control.kd=30"]);
+    assert_eq!(o.status.code(), Some(3));
+    assert!(String::from_utf8_lossy(&o.stdout).contains("UNSTABLE"));
+    let o = ringsync(&["check", "paper-2015", "--set", "control.alpha=-1"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("control.alpha"));
+}
