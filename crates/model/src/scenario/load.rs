@@ -63,19 +63,11 @@ fn echo_line(text: &str, l: usize) -> String {
         return src.to_string();
     }
     // The last table header above the line, and for an array of tables its index.
-    let mut path = String::new();
-    let mut counts: std::collections::BTreeMap<String, usize> = Default::default();
+    let mut tables = Tables::default();
     for line in lines.iter().take(l.saturating_sub(1)) {
-        let t = line.trim();
-        if let Some(name) = t.strip_prefix("[[").and_then(|r| r.split_once("]]")) {
-            let name = name.0.trim().to_string();
-            let k = counts.entry(name.clone()).or_insert(0);
-            path = format!("{name}[{k}]");
-            *k += 1;
-        } else if let Some(name) = t.strip_prefix('[').and_then(|r| r.split_once(']')) {
-            path = name.0.trim().to_string();
-        }
+        tables.see(line);
     }
+    let path = tables.current;
     if path.is_empty() {
         src.to_string()
     } else {
@@ -225,6 +217,33 @@ impl Scenario {
     }
 }
 
+/// The table a line of TOML text is in, as a dotted key names it: `faults`, or `axis[1]`
+/// for the second `[[axis]]` table.
+#[derive(Default)]
+struct Tables {
+    current: String,
+    counts: std::collections::BTreeMap<String, usize>,
+}
+
+impl Tables {
+    /// Takes in the next line; whether it is a table header.
+    fn see(&mut self, line: &str) -> bool {
+        let t = line.trim();
+        if let Some(name) = t.strip_prefix("[[").and_then(|r| r.split_once("]]")) {
+            let name = name.0.trim().to_string();
+            let k = self.counts.entry(name.clone()).or_insert(0);
+            self.current = format!("{name}[{k}]");
+            *k += 1;
+            true
+        } else if let Some(name) = t.strip_prefix('[').and_then(|r| r.split_once(']')) {
+            self.current = name.0.trim().to_string();
+            true
+        } else {
+            false
+        }
+    }
+}
+
 /// The line (1-based) of `text` that sets the dotted `key` of an error (`faults.loss`,
 /// `axis[2].u_max` for the third `[[axis]]` table, `control.kp (axis 3)`,
 /// `machine.axes.X.drives`): the line `leaf = …` under the table the rest names; `None`
@@ -235,18 +254,13 @@ pub fn key_line(text: &str, key: &str) -> Option<usize> {
         Some((t, l)) => (t.to_string(), l),
         None => (String::new(), key),
     };
-    let mut current = String::new();
-    let mut counts: std::collections::BTreeMap<String, usize> = Default::default();
+    let mut tables = Tables::default();
     for (i, line) in text.lines().enumerate() {
         let t = line.trim();
-        if let Some(name) = t.strip_prefix("[[").and_then(|r| r.split_once("]]")) {
-            let name = name.0.trim().to_string();
-            let k = counts.entry(name.clone()).or_insert(0);
-            current = format!("{name}[{k}]");
-            *k += 1;
-        } else if let Some(name) = t.strip_prefix('[').and_then(|r| r.split_once(']')) {
-            current = name.0.trim().to_string();
-        } else if current == table
+        if tables.see(line) {
+            continue;
+        }
+        if tables.current == table
             && let Some((k, _)) = t.split_once('=')
             && k.trim().trim_matches('"') == leaf
         {
