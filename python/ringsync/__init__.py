@@ -10,17 +10,22 @@ the last bit, as the ``ringsync`` command.
 Functions (each returns an object; docs/python.md is the walk-through):
 
 - ``scenarios()``: the built-in scenario names; ``load(x)``: a :class:`Scenario` from a
-  name, a path, TOML text or a dict; ``laws()``: the control laws and their parameters.
+  name, a path, TOML text or a dict; ``laws()``: the control laws and their parameters
+  (:class:`Law` records, each with its :class:`LawParam` list; ``laws_text()`` as
+  ``ringsync scenario laws`` prints them).
 - ``simulate(scenario, *, seed=None, **overrides)``: a :class:`Run` with numpy arrays
   (``time`` [s]; ``x``, ``x_d``, ``e``, ``eps`` [rad]; ``u`` [V]; cycles × axes),
-  ``metrics``, ``summary``, ``plot()``, ``to_pandas()``, ``to_xarray()``, ``save(dir)``.
+  ``metrics``, ``summary``, ``plot()`` (a matplotlib ``Figure``), ``to_pandas()`` (long,
+  or ``wide=True``: one row per cycle), ``to_timeresponse()`` (python-control's
+  ``TimeResponseData``), ``to_xarray()``, ``save(dir)``.
 - ``check(scenario)``: a :class:`Check` (spectral radius, verdict, the paper's conditions,
-  the loop ``matrix``, ``statespace()`` for python-control).
+  the loop ``matrix``, ``statespace()``: a python-control ``StateSpace``).
 - ``plan(scenario=None)``: a :class:`Plan`, every term of eq. 1-2 in ns; ``plot()`` draws
   the cycle.
 - ``sweep(scenario, grid, *, seeds=8, executor=None)``: a :class:`Sweep` of every
   combination of the grid's values and seeds, run in parallel in Rust, or on Dask
-  (``executor=`` a Client or a scheduler address); ``to_pandas()``, ``means()``, ``plot()``.
+  (``executor=`` a Client or a scheduler address); ``to_pandas()``, ``means()`` (means
+  and the sample standard deviation (n − 1) over the seeds), ``plot()``.
 - ``reproduce(seeds=8)``: the paper's Table 1 over seeds (:class:`Reproduction`).
 - ``rt(scenario)``: the same scenario run in real time over UDP on loopback (a
   :class:`Run` with the timing in its ``summary``).
@@ -55,13 +60,14 @@ from ._ringsync import RunError, ScenarioError, __version__
 from ._path import PathRun, plan_program
 from ._plan import Plan, Reproduction, plan, reproduce
 from ._run import Check, Run, check, rt, simulate
-from ._scenario import Scenario, ScenarioLike, laws, load, scenarios
+from ._scenario import Law, LawParam, Scenario, ScenarioLike, laws, laws_text, load, scenarios
 from ._sweep import Sweep, sweep
 
 __all__ = [
     "scenarios",
     "load",
     "laws",
+    "laws_text",
     "simulate",
     "check",
     "plan",
@@ -77,12 +83,14 @@ __all__ = [
     "Plan",
     "Sweep",
     "Reproduction",
+    "Law",
+    "LawParam",
     "ScenarioError",
     "RunError",
     "__version__",
 ]
 
-for _cls in (Scenario, Run, PathRun, Check, Plan, Sweep, Reproduction):
+for _cls in (Scenario, Run, PathRun, Check, Plan, Sweep, Reproduction, Law, LawParam):
     _cls.__module__ = __name__
 del _cls
 

@@ -11,6 +11,7 @@ import numpy as np
 
 if TYPE_CHECKING:
     import pandas
+    from matplotlib.axes import Axes
 
 __all__ = ["PathRun", "plan_program"]
 
@@ -101,9 +102,19 @@ class PathRun:
         pd = _pandas("PathRun.to_pandas()")
         return pd.DataFrame({c: self[c] for c in self.columns})
 
-    def plot(self, *, ax: Any = None) -> Any:
+    def plot(self, *, ax: Axes | None = None) -> Axes:
         """The path in its first two machine axes, commanded and actual [mm], equal
-        scales. Needs matplotlib; draws into ``ax`` when given; returns the Axes."""
+        scales. Needs matplotlib (``pip install 'ringsync[plot]'``); draws into ``ax`` (a
+        matplotlib ``Axes``) when given; returns the ``matplotlib.axes.Axes`` drawn into.
+        ValueError for a path of one machine axis.
+
+        Example::
+
+            >>> import matplotlib; matplotlib.use("Agg")
+            >>> ax = ringsync.simulate("circle-xy", duration="2s").path.plot()
+            >>> ax.get_xlabel(), ax.get_ylabel()
+            ('X [mm]', 'Y [mm]')
+        """
         from ._run import _check_axes, _pyplot
 
         plt = _pyplot("PathRun.plot()")
@@ -120,12 +131,13 @@ class PathRun:
         ax.legend(fontsize="small")
         return ax
 
-    def plot_circular(self, index: int = 0, *, ax: Any = None) -> Any:
+    def plot_circular(self, index: int = 0, *, ax: Axes | None = None) -> Axes:
         """Circular test ``index`` as a polar plot: the measured radius minus the
         programmed one [µm] against the angle about the programmed centre (the deviation
-        on its own scale, as a ballbar plot magnifies it). Needs matplotlib; draws into
-        ``ax`` (a polar Axes) when given; returns the Axes. IndexError when there is no
-        such circle.
+        on its own scale, as a ballbar plot magnifies it). Needs matplotlib (``pip install
+        'ringsync[plot]'``); draws into ``ax`` (a polar Axes) when given; returns the
+        (polar) ``matplotlib.axes.Axes`` drawn into. IndexError when there is no such
+        circle.
 
         Example::
 

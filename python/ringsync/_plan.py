@@ -8,11 +8,13 @@ from collections.abc import Iterator, Mapping
 from typing import TYPE_CHECKING, Any
 
 from . import _ringsync as _rs
-from ._run import _check_axes, _pandas, _pyplot
+from ._run import _check_axes, _pandas, _pyplot, _root_figure
 from ._scenario import Scenario, ScenarioLike, load
 
 if TYPE_CHECKING:
     import pandas
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
 
 __all__ = ["Plan", "plan", "Reproduction", "reproduce"]
 
@@ -132,13 +134,13 @@ class Plan(Mapping[str, Any]):
         add("idle", "idle", d["t_idle_ns"])
         return out
 
-    def plot(self, *, ax: Any = None, zoom: bool = False) -> Any:
+    def plot(self, *, ax: Axes | None = None, zoom: bool = False) -> Figure:
         """Draws the cycle as a timeline [µs]: the lumped phase (the lumped frame T_lmf, its
         way to the last slave D_ms and back D_snm), T_rest, the point-to-point slices (one
         per slave), the reserve slices and the idle rest. ``zoom=True`` shows only the used
         part (up to the shortest cycle). Needs matplotlib (``pip install
         'ringsync[plot]'``); draws into ``ax`` (a matplotlib ``Axes``, else TypeError) when
-        given. Returns the figure.
+        given. Returns the ``matplotlib.figure.Figure`` (``ax``'s figure when given).
 
         Example::
 
@@ -152,7 +154,7 @@ class Plan(Mapping[str, Any]):
         if ax is None:
             fig, ax = plt.subplots(figsize=(9.0, 2.6))
         else:
-            fig = ax.figure
+            fig = _root_figure(ax)
         colors = {
             "lumped": "#1f77b4",
             "rest": "#aec7e8",
@@ -234,6 +236,10 @@ class Reproduction:
 
     ``rows``: one dict per (seed, plan, controller): ``seed``, ``plan``, ``controller``,
     ``track_rmse``, ``sync_rmse`` [rad], ``group_stop`` (whether the run stopped).
+    ``summary``: the same object as ``ringsync reproduce``'s summary.json
+    (docs/schemas/reproduce-summary.json): the paper's claims with ours and a verdict each,
+    the cases (means, the sample standard deviation (n − 1) of each, ranges), the reductions and the
+    bench experiment.
 
     Example::
 
@@ -242,12 +248,27 @@ class Reproduction:
         (6, ['pd', 'ring-coupled', 'sync'])
     """
 
-    def __init__(self, scenario: Scenario, rows: list[dict[str, Any]]) -> None:
+    def __init__(self, scenario: Scenario, rows: list[dict[str, Any]], summary: dict[str, Any]) -> None:
         """Made by :func:`reproduce`; not called directly."""
         self.scenario: Scenario = scenario
         """The base scenario."""
         self.rows: list[dict[str, Any]] = rows
         """One dict per (seed, plan, controller)."""
+        self.summary: dict[str, Any] = summary
+        """``ringsync reproduce``'s summary.json as a dict."""
+
+    @property
+    def verdicts(self) -> dict[str, str]:
+        """The verdict on each of the paper's claims by ``"claim metric"``:
+        ``"reproduced"``, ``"direction-only"`` or ``"not-reproduced"``.
+
+        Example::
+
+            >>> r = ringsync.reproduce(seeds=2, duration="0.5s")
+            >>> sorted(r.verdicts)
+            ['controller Sync-RMSE', 'controller Track-RMSE', 'plan Sync-RMSE']
+        """
+        return {f"{c['claim']} {c['metric']}": str(c["verdict"]) for c in self.summary["claims"]}
 
     def to_pandas(self) -> pandas.DataFrame:
         """The rows as a DataFrame: ``seed``, ``plan``, ``controller``, ``track_rmse``,
@@ -290,4 +311,5 @@ def reproduce(scenario: ScenarioLike | None = None, *, seeds: int = 8, **overrid
     s = load("paper-2015" if scenario is None else scenario)
     if overrides:
         s = s.set(**overrides)
-    return Reproduction(s, list(_rs.reproduce(s.to_toml(), s.origin, seeds)))
+    rows, summary = _rs.reproduce(s.to_toml(), s.origin, seeds)
+    return Reproduction(s, list(rows), summary)

@@ -64,6 +64,13 @@ def builtin_text(name: str) -> str | None:
 def laws() -> str:
     """The control laws and their parameters, as ``ringsync scenario laws`` prints them."""
 
+def law_registry() -> list[dict[str, Any]]:
+    """The control laws of the registry as data, in registry order (``ringsync.laws()``
+    makes ``Law`` records of them): one dict per law with ``name`` (str), ``description``
+    (str), ``min_axes`` (int) and ``params``, a list of dicts of its own parameters
+    (``[control.params]``) with ``key``, ``doc``, ``unit`` (str), ``default``, ``min`` and
+    ``max`` (float, in ``unit``; ``max`` is ``inf`` for no upper bound)."""
+
 class SimRun:
     """A finished simulation (``ringsync.Run`` wraps it)."""
 
@@ -121,10 +128,10 @@ def plan(text: str, origin: str, events: bool = False) -> dict[str, Any]:
     """``ringsync plan --json``'s object for the scenario's ring (integer ns); with
     ``events`` the frame-by-frame ``timeline`` too."""
 
-def reproduce(text: str, origin: str, seeds: int) -> list[dict[str, Any]]:
+def reproduce(text: str, origin: str, seeds: int) -> tuple[list[dict[str, Any]], dict[str, Any]]:
     """The paper's Table 1 on the scenario over ``seeds`` seeds (1 ..= 10 000): one dict per (seed, plan,
     controller) with ``seed``, ``plan``, ``controller``, ``track_rmse``, ``sync_rmse``
-    [rad], ``group_stop``."""
+    [rad], ``group_stop``; and reproduce's summary.json as a dict."""
 
 def sweep(
     text: str,

@@ -5,7 +5,7 @@ matrix, a python-control ``StateSpace``)."""
 from __future__ import annotations
 
 import os
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeVar, overload
 
 import numpy as np
 
@@ -15,8 +15,14 @@ from ._path import PathRun
 from ._scenario import Scenario, ScenarioLike, load
 
 if TYPE_CHECKING:
+    import control
     import pandas
     import xarray
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure, FigureBase
+
+#: A matplotlib figure or subfigure that :meth:`Run.plot` draws into and returns.
+_Fig = TypeVar("_Fig", bound="FigureBase")
 
 __all__ = ["Run", "simulate", "rt", "Check", "check"]
 
@@ -52,6 +58,23 @@ def _pyplot(what: str) -> Any:
             f"{what} needs matplotlib: pip install 'ringsync[plot]' (or pip install matplotlib)"
         ) from e
     return plt
+
+
+def _control(what: str) -> Any:
+    """python-control, imported on first use."""
+    try:
+        import control
+    except ImportError as e:  # pragma: no cover - depends on the environment
+        raise ImportError(
+            f"{what} needs python-control: pip install 'ringsync[control]' (or pip install control)"
+        ) from e
+    return control
+
+
+def _root_figure(ax: Axes) -> Figure:
+    """The figure ``ax`` is drawn on (the top-level one when ``ax`` is in a subfigure)."""
+    fig: Figure = ax.figure.figure  # a Figure's .figure is itself, a SubFigure's its root
+    return fig
 
 
 def _check_axes(what: str, ax: Any) -> None:
@@ -192,7 +215,7 @@ class Run:
         if self._path is None:
             d = self._core.path()
             self._path = False if d is None else PathRun(d)
-        return self._path or None
+        return self._path if isinstance(self._path, PathRun) else None
 
     @property
     def axes(self) -> int:
@@ -220,19 +243,44 @@ class Run:
         """
         return str(self._core.text())
 
-    def to_pandas(self) -> pandas.DataFrame:
-        """The trace in long format, one row per cycle and axis, as ``trace.csv``: columns
-        ``time`` [s], ``axis`` (1-based), then ``x_d``, ``x``, ``e``, ``eps`` [rad], ``u``
-        [V], ``sample_time``, ``apply_time`` [s], ``clock_error_ns`` [ns]. Needs pandas.
+    def to_pandas(self, *, wide: bool = False) -> pandas.DataFrame:
+        """The trace as a DataFrame. Needs pandas (``pip install 'ringsync[pandas]'``).
+
+        - ``wide=False`` (default): long format, one row per cycle and axis, as
+          ``trace.csv``: columns ``time`` [s], ``axis`` (1-based), then ``x_d``, ``x``,
+          ``e``, ``eps`` [rad], ``u`` [V], ``sample_time``, ``apply_time`` [s],
+          ``clock_error_ns`` [ns].
+        - ``wide=True``: one row per cycle, indexed by the cycle start ``time`` [s], and
+          one column per signal and axis, named ``SIGNAL[AXIS]`` (axis 1-based), signal by
+          signal: ``x_d[1]`` … ``x_d[n]``, ``x[1]`` …, ``e[1]`` …, ``eps[1]`` … [rad],
+          ``u[1]`` … [V], ``sample_time[1]`` …, ``apply_time[1]`` … [s],
+          ``clock_error_ns[1]`` … [ns]: the long frame's signals, the same values
+          (``wide.loc[t, "e[2]"]`` is the long row with that ``time`` and ``axis`` 2), and
+          the labels :meth:`to_timeresponse` gives its signals.
 
         Example::
 
-            >>> df = ringsync.simulate("paper-2015", duration="0.2s").to_pandas()
+            >>> r = ringsync.simulate("paper-2015", duration="0.2s")
+            >>> df = r.to_pandas()
             >>> list(df.columns[:4]), len(df)
             (['time', 'axis', 'x_d', 'x'], 800)
+            >>> wide = r.to_pandas(wide=True)
+            >>> wide.shape, wide.index.name, list(wide.columns[:5])
+            ((200, 32), 'time', ['x_d[1]', 'x_d[2]', 'x_d[3]', 'x_d[4]', 'x[1]'])
+            >>> float(wide["e[2]"].iloc[-1]) == float(df[df["axis"] == 2]["e"].iloc[-1])
+            True
         """
+        if not isinstance(wide, bool):
+            raise TypeError(f"Run.to_pandas(): wide must be True or False, not {type(wide).__name__}")
         pd = _pandas("Run.to_pandas()")
         cycles, n = self.x.shape
+        if wide:
+            columns: dict[str, Any] = {}
+            for name in COLUMNS:
+                values = getattr(self, name)
+                for i in range(n):
+                    columns[f"{name}[{i + 1}]"] = values[:, i]
+            return pd.DataFrame(columns, index=pd.Index(self.time, name="time"))
         data: dict[str, Any] = {
             "time": np.repeat(self.time, n),
             "axis": np.tile(np.arange(1, n + 1), cycles),
@@ -240,6 +288,48 @@ class Run:
         for name in COLUMNS:
             data[name] = getattr(self, name).reshape(-1)
         return pd.DataFrame(data)
+
+    def to_timeresponse(self) -> control.TimeResponseData:
+        """The run as python-control's time response (``control.TimeResponseData``, what
+        ``control.input_output_response`` returns), the ring's axes as one MIMO system:
+
+        - ``time``: the cycle starts [s] (:attr:`time`);
+        - ``outputs``: each axis's true position x [rad] (:attr:`x`), labelled ``x[1]`` …
+          ``x[n]``;
+        - ``inputs``: each axis's command u [V] (:attr:`u`), labelled ``u[1]`` … ``u[n]``;
+        - no states (``states`` is an empty (0, cycles) array, ``nstates`` 0: the plant's
+          states stay inside the simulator); ``title`` ``"ringsync SCENARIO seed SEED"``,
+          ``sysname`` the scenario's name.
+
+        The arrays are indexed (signal, time), python-control's convention:
+        ``resp.outputs[i]`` is ``r.x[:, i]`` (copies). A one-axis run is SISO, so
+        ``outputs`` and ``inputs`` are squeezed to (cycles,) as python-control does
+        (``resp.y`` and ``resp.u`` keep (1, cycles)). ``resp.to_pandas()`` and
+        ``resp.plot()`` (``control.time_response_plot``) work on it as on any response.
+        Needs python-control (``pip install 'ringsync[control]'``).
+
+        Example::
+
+            >>> r = ringsync.simulate("paper-2015", duration="0.2s")
+            >>> resp = r.to_timeresponse()
+            >>> resp.output_labels, resp.input_labels[0], resp.outputs.shape
+            (['x[1]', 'x[2]', 'x[3]', 'x[4]'], 'u[1]', (4, 200))
+            >>> bool((resp.outputs[2] == r.x[:, 2]).all()), resp.title
+            (True, 'ringsync paper-2015 seed 1')
+        """
+        ct = _control("Run.to_timeresponse()")
+        cycles, n = self.x.shape
+        return ct.TimeResponseData(
+            np.array(self.time, dtype=float),
+            np.array(self.x.T, dtype=float),
+            # Empty rather than None: python-control 0.10's `states` fails on None.
+            states=np.empty((0, cycles)),
+            inputs=np.array(self.u.T, dtype=float),
+            output_labels=[f"x[{i + 1}]" for i in range(n)],
+            input_labels=[f"u[{i + 1}]" for i in range(n)],
+            title=f"ringsync {self.scenario.name} seed {self.seed}",
+            sysname=self.scenario.name,
+        )
 
     def to_xarray(self) -> xarray.Dataset:
         """The trace as an ``xarray.Dataset`` with dims ``time`` (cycle starts [s]) ×
@@ -283,12 +373,17 @@ class Run:
             attrs=attrs,
         )
 
-    def plot(self, *, fig: Any = None) -> Any:
+    @overload
+    def plot(self, *, fig: None = None) -> Figure: ...
+    @overload
+    def plot(self, *, fig: _Fig) -> _Fig: ...
+    def plot(self, *, fig: FigureBase | None = None) -> FigureBase:
         """Draws the run in three panels over time [s], one line per axis: tracking errors
         e [rad], synchronisation errors ε [rad], commands u [V]. Needs matplotlib
-        (``pip install 'ringsync[plot]'``); draws into ``fig`` (a matplotlib ``Figure``,
-        else TypeError) when given. Returns the figure (``fig.savefig("run.png")``; in
-        Jupyter it shows itself).
+        (``pip install 'ringsync[plot]'``); draws into ``fig`` (a matplotlib ``Figure`` or
+        ``SubFigure``, else TypeError) when given. Returns the figure drawn into: a new
+        ``matplotlib.figure.Figure``, or ``fig`` (``fig.savefig("run.png")``; in Jupyter it
+        shows itself).
 
         Example::
 
@@ -520,7 +615,7 @@ class Check:
         c = self.report.get("conditions")
         return None if c is None else dict(c)
 
-    def statespace(self) -> Any:
+    def statespace(self) -> control.StateSpace:
         """The linearised sampled loop as a python-control discrete-time system,
         ``control.StateSpace(A, B, C, D, dt=T_cyc)``:
 
@@ -547,13 +642,7 @@ class Check:
             >>> bool(np.isclose(max(abs(sys.poles())), c.spectral_radius, rtol=1e-9))
             True
         """
-        try:
-            import control
-        except ImportError as e:  # pragma: no cover - depends on the environment
-            raise ImportError(
-                "Check.statespace() needs python-control: pip install 'ringsync[control]' "
-                "(or pip install control)"
-            ) from e
+        ct = _control("Check.statespace()")
         if self.matrix is None:
             raise ValueError(
                 f"the check does not model the loop of {self.report['scenario']!r} "
@@ -573,7 +662,7 @@ class Check:
         per_axis = list(self.report["discrete"]["state_names"])
         assert len(per_axis) == per, (per_axis, per)
         states = [f"{name}[{i + 1}]" for i in range(n) for name in per_axis]
-        return control.StateSpace(
+        return ct.StateSpace(
             a,
             b,
             c,

@@ -3,15 +3,17 @@ dotted key, change them into a new validated scenario."""
 
 from __future__ import annotations
 
+import math
 import os
 import re
 from collections.abc import Iterator, Mapping
+from dataclasses import dataclass
 from typing import Any, Union
 
 from . import _ringsync as _rs
 from ._ringsync import ScenarioError
 
-__all__ = ["Scenario", "ScenarioLike", "load", "scenarios", "laws"]
+__all__ = ["Scenario", "ScenarioLike", "load", "scenarios", "laws", "laws_text", "Law", "LawParam"]
 
 #: What the functions of ringsync take as a scenario: a :class:`Scenario`, a built-in name,
 #: a path, TOML text, or a dict of scenario keys.
@@ -261,14 +263,125 @@ def scenarios() -> list[str]:
     return list(_rs.scenarios())
 
 
-def laws() -> str:
-    """The control laws (``control.law``) with their own ``[control.params]``, as
-    ``ringsync scenario laws`` prints them.
+@dataclass(frozen=True)
+class LawParam:
+    """One parameter a control law declares for itself (the registry's ``ParamSpec``): a
+    value per axis, set in a scenario's ``[control.params]`` table (one number for every
+    axis, or a list of one per axis).
+
+    - ``name``: its key in ``[control.params]``, e.g. ``"kx"``
+    - ``default``: the value when a scenario does not set it, in ``unit``
+    - ``unit``: its unit, e.g. ``"V/rad"`` (``"1"`` for a pure number)
+    - ``doc``: one line, what it is, with its symbol
+    - ``min``, ``max``: the allowed range, inclusive, in ``unit`` (``max`` is ``math.inf``
+      for no upper bound)
 
     Example::
 
-        >>> "sync" in ringsync.laws()
+        >>> kx = next(law for law in ringsync.laws() if law.name == "adjacent").param("kx")
+        >>> kx.name, kx.default, kx.unit, kx.min, kx.max
+        ('kx', 1.591, 'V/rad', 0.0, inf)
+    """
+
+    name: str
+    default: float
+    unit: str
+    doc: str
+    min: float = 0.0
+    max: float = math.inf
+
+    def allows(self, value: float) -> bool:
+        """Whether ``value`` (in :attr:`unit`) is finite and within [min, max], as a
+        scenario's ``[control.params]`` is checked."""
+        return math.isfinite(value) and self.min <= value <= self.max
+
+
+@dataclass(frozen=True)
+class Law:
+    """A control law of the registry (``control.law`` in a scenario), as ``ringsync scenario
+    laws`` lists it:
+
+    - ``name``: the name scenarios use, e.g. ``"sync"``
+    - ``description``: one line, what the law is and where it comes from
+    - ``params``: its own parameters in ``[control.params]`` (a tuple of :class:`LawParam`,
+      empty for most laws; the common gains are ``[control]`` keys)
+    - ``min_axes``: the fewest axes it runs on (2 for a coupling)
+
+    Example::
+
+        >>> sync = next(law for law in ringsync.laws() if law.name == "sync")
+        >>> sync.params, sync.min_axes
+        ((), 2)
+        >>> ringsync.load("paper-2015")["control.law"] == sync.name
         True
+    """
+
+    name: str
+    description: str
+    params: tuple[LawParam, ...] = ()
+    min_axes: int = 1
+
+    def param(self, name: str) -> LawParam:
+        """The parameter whose key is ``name``; KeyError naming the law's parameters
+        otherwise."""
+        for p in self.params:
+            if p.name == name:
+                return p
+        known = ", ".join(p.name for p in self.params) or "none"
+        raise KeyError(f"law {self.name!r} has no parameter {name!r}: its [control.params] are {known}")
+
+    @property
+    def defaults(self) -> dict[str, float]:
+        """Each parameter's default, by key: what ``[control.params]`` holds when a scenario
+        sets none."""
+        return {p.name: p.default for p in self.params}
+
+
+def laws() -> list[Law]:
+    """The control laws (``control.law``) with their own ``[control.params]``, in the
+    registry's order, as typed records (:class:`Law`, its parameters :class:`LawParam`
+    with default, unit, meaning and allowed range). :func:`laws_text` is the same as the
+    text ``ringsync scenario laws`` prints.
+
+    Example::
+
+        >>> [law.name for law in ringsync.laws()]
+        ['pd', 'sync', 'ring-coupled', 'adjacent']
+        >>> adjacent = ringsync.laws()[-1]
+        >>> [(p.name, p.default, p.unit) for p in adjacent.params]
+        [('kx', 1.591, 'V/rad'), ('kxd', 0.7955, 'V·s/rad')]
+    """
+    return [
+        Law(
+            name=str(e["name"]),
+            description=str(e["description"]),
+            params=tuple(
+                LawParam(
+                    name=str(p["key"]),
+                    default=float(p["default"]),
+                    unit=str(p["unit"]),
+                    doc=str(p["doc"]),
+                    min=float(p["min"]),
+                    max=float(p["max"]),
+                )
+                for p in e["params"]
+            ),
+            min_axes=int(e["min_axes"]),
+        )
+        for e in _rs.law_registry()
+    ]
+
+
+def laws_text() -> str:
+    """The control laws and their ``[control.params]`` as the text ``ringsync scenario
+    laws`` prints (one law per line, its parameters indented below it); :func:`laws` has the
+    same as records.
+
+    Example::
+
+        >>> print(ringsync.laws_text())  # doctest: +ELLIPSIS
+        pd             standard PD, the paper's baseline: ...
+        sync           the paper's position-synchronisation controller ...
     """
     return str(_rs.laws())
 

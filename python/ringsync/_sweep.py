@@ -4,16 +4,19 @@ parallel inside Rust (the GIL released), as ``ringsync sweep`` runs them, or on 
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable, Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
 from . import _ringsync as _rs
 from ._ringsync import ScenarioError
-from ._run import _check_axes, _pandas, _pyplot
+from ._run import _check_axes, _pandas, _pyplot, _root_figure
 from ._scenario import Scenario, ScenarioLike, load
 
 if TYPE_CHECKING:
     import pandas
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
 
 __all__ = ["Sweep", "sweep"]
 
@@ -81,8 +84,8 @@ class Sweep:
         """One dict per run (see the class docstring)."""
         self.mean_rows: list[dict[str, Any]] = mean_rows
         """One dict per combination: the grid's keys, ``runs``, ``track_rmse``,
-        ``sync_rmse`` (means over the seeds) and ``sync_rmse_std`` (population standard
-        deviation over the seeds) [rad]."""
+        ``sync_rmse`` (means over the seeds) and ``sync_rmse_std`` (the sample standard
+        deviation (n − 1) of ``sync_rmse`` over the seeds; 0 for a single seed) [rad]."""
         self.jobs: int = jobs
         """Threads the runs were spread over (in-process; 1 per task on Dask)."""
         self.tasks: list[int] | None = tasks
@@ -116,27 +119,35 @@ class Sweep:
 
     def means(self) -> pandas.DataFrame:
         """Means over the seeds, one row per combination of the grid's values: the keys,
-        ``runs``, ``track_rmse``, ``sync_rmse`` [rad] (means) and ``sync_rmse_std`` [rad].
-        Needs pandas (:attr:`mean_rows` has the same as dicts).
+        ``runs``, ``track_rmse``, ``sync_rmse`` [rad] (means) and ``sync_rmse_std`` [rad],
+        the sample standard deviation (n − 1) of ``sync_rmse`` over the seeds (0 for a
+        single seed), as ``df.groupby(keys)["sync_rmse"].std()`` (pandas' ``ddof=1``) gives
+        it. Needs pandas (:attr:`mean_rows` has the same as dicts).
 
         Example::
 
-            >>> m = ringsync.sweep("paper-2015", {"control.law": ["pd", "sync"]}, seeds=2,
-            ...                    duration="0.5s").means()
+            >>> sw = ringsync.sweep("paper-2015", {"control.law": ["pd", "sync"]}, seeds=3,
+            ...                     duration="0.5s")
+            >>> m = sw.means()
             >>> m.set_index("control.law")["sync_rmse"].idxmin()
             'sync'
+            >>> import numpy as np
+            >>> pd_seeds = [r["sync_rmse"] for r in sw.rows if r["control.law"] == "pd"]
+            >>> bool(np.isclose(m["sync_rmse_std"][0], np.std(pd_seeds, ddof=1), rtol=1e-12))
+            True
         """
         pd = _pandas("Sweep.means()")
         cols = [*self.grid, "runs", "track_rmse", "sync_rmse", "sync_rmse_std"]
         return pd.DataFrame(self.mean_rows, columns=cols)
 
-    def plot(self, metric: str = "sync_rmse", *, ax: Any = None) -> Any:
+    def plot(self, metric: str = "sync_rmse", *, ax: Axes | None = None) -> Figure:
         """Draws ``metric`` (a row column: ``sync_rmse``, ``track_rmse`` [rad], …) against
-        the grid's first key: the mean over the seeds with ± one (population) standard
-        deviation as error bars, one line per combination of the other keys. With an
-        empty grid (the scenario alone over its seeds) it draws each seed's value and
-        their mean. Needs matplotlib (``pip install 'ringsync[plot]'``); draws into ``ax``
-        (a matplotlib ``Axes``, else TypeError) when given. Returns the figure.
+        the grid's first key: the mean over the seeds with ± one sample standard deviation
+        (n − 1) over the seeds as error bars (none for a single seed), one line per
+        combination of the other keys. With an empty grid (the scenario alone over its
+        seeds) it draws each seed's value and their mean. Needs matplotlib (``pip install
+        'ringsync[plot]'``); draws into ``ax`` (a matplotlib ``Axes``, else TypeError) when
+        given. Returns the ``matplotlib.figure.Figure`` (``ax``'s figure when given).
 
         Raises ValueError naming ``metric`` when the rows have no such column or it is not
         a number (``group_stop_reason``).
@@ -181,32 +192,30 @@ class Sweep:
         if ax is None:
             fig, ax = plt.subplots(figsize=(6.4, 4.0))
         else:
-            fig = ax.figure
-        import numpy as np
-
+            fig = _root_figure(ax)
         for label, by_x in lines.items():
             keys = [repr(v) for v in xs if repr(v) in by_x]
             x = [pos[k] for k in keys]
-            mean = [float(np.mean(by_x[k])) for k in keys]
-            sd = [float(np.std(by_x[k])) for k in keys]
+            mean = [sum(by_x[k]) / len(by_x[k]) for k in keys]
+            sd = [sample_sd(by_x[k], m) for k, m in zip(keys, mean)]
             ax.errorbar(x, mean, yerr=sd, marker="o", capsize=3, label=", ".join(label) or None)
         if not numeric:
             ax.set_xticks([pos[repr(v)] for v in xs], [str(v) for v in xs])
         ax.set_xlabel(first)
         ax.set_ylabel(f"{metric} [{unit}]" if unit else metric)
-        ax.set_title(f"{self.scenario.name}: mean ± sd over {self.seeds} seed(s)")
+        ax.set_title(f"{self.scenario.name}: mean ± sample sd (n − 1) over {self.seeds} seed(s)")
         if others:
             ax.legend(fontsize="small")
         ax.grid(True, alpha=0.3)
         return fig
 
-    def _plot_seeds(self, plt: Any, metric: str, unit: str, ax: Any) -> Any:
+    def _plot_seeds(self, plt: Any, metric: str, unit: str, ax: Axes | None) -> Figure:
         """:meth:`plot` for an empty grid: ``metric`` of each seed, and the mean over them."""
         pts = [(r["seed"], float(r[metric])) for r in self.rows if r[metric] is not None]
         if ax is None:
             fig, ax = plt.subplots(figsize=(6.4, 4.0))
         else:
-            fig = ax.figure
+            fig = _root_figure(ax)
         ax.plot([p[0] for p in pts], [p[1] for p in pts], marker="o", label=metric)
         if pts:
             mean = sum(p[1] for p in pts) / len(pts)
@@ -240,7 +249,7 @@ def sweep(
 ) -> Sweep:
     """Runs every combination of ``grid``'s values (``{"faults.loss": [0, 0.01, 0.02],
     "control.law": ["pd", "sync"]}``: a dict of scenario key → list of values), ``seeds``
-    seeds each (the scenario's seed, +1, …; a whole number 1 ..= 1 000 000, numpy
+    seeds each (the scenario's seed, +1, …; a whole number 1 ..= 10 000, numpy
     integers too), as ``ringsync sweep SCENARIO --set KEY=V1,V2 … --seeds SEEDS``.
     ``overrides`` set keys of the base scenario first, as for :func:`ringsync.simulate`. A
     single value in the grid counts as a list of one; an empty grid runs the scenario alone
@@ -339,6 +348,22 @@ def sweep(
     rows = [named(r) for r in out["rows"]]
     means = [named(m) for m in out["means"]]
     return Sweep(s, g, int(out["seeds"]), rows, means, int(out["jobs"]), tasks)
+
+
+def sample_sd(values: Sequence[float], mean: float) -> float:
+    """The sample standard deviation (n − 1) of ``values`` about their ``mean``:
+    √(Σ (v − mean)² / (n − 1)); 0 for a single value (and for none).
+
+    Example::
+
+        >>> from ringsync._sweep import sample_sd
+        >>> sample_sd([1.0, 2.0, 3.0], 2.0), sample_sd([5.0], 5.0)
+        (1.0, 0.0)
+    """
+    n = len(values)
+    if n < 2:
+        return 0.0
+    return math.sqrt(sum((v - mean) * (v - mean) for v in values) / (n - 1))
 
 
 def _seconds(v: Any) -> float:

@@ -28,14 +28,30 @@ def test_statespace_poles_give_the_spectral_radius(overrides: dict[str, object])
     assert c.matrix is not None and c.spectral_radius is not None
     n = ringsync.load("paper-2015").set(**overrides).axes
     assert c.matrix.shape == (9 * n, 9 * n)
+    # numpy's eigenvalues against the Rust check's own solver.
     rho = max(abs(np.linalg.eigvals(c.matrix)))
     assert rho == pytest.approx(c.spectral_radius, rel=1e-9)
+    # And against what the state-space system does when stepped: power iteration on
+    # python-control's A from a random state grows (or decays) per cycle by ρ.
     sys = c.statespace()
     assert sys.dt == c.t_cyc == 1e-3
     assert (sys.ninputs, sys.noutputs, sys.nstates) == (n, n, 9 * n)
-    assert max(abs(sys.poles())) == pytest.approx(c.spectral_radius, rel=1e-9)
-    assert (max(abs(sys.poles())) < 1) == c.stable
-    assert np.array_equal(sys.A, c.matrix) and not sys.B.any() and not sys.D.any()
+    assert per_cycle_growth(np.asarray(sys.A)) == pytest.approx(c.spectral_radius, abs=3e-3)
+    assert (per_cycle_growth(np.asarray(sys.A)) < 1) == c.stable
+    assert not sys.B.any() and not sys.D.any()  # regulation to a fixed final position
+
+
+def per_cycle_growth(a: np.ndarray, steps: int = 6000) -> float:
+    """The mean growth of ‖Aᵏ·x₀‖ per step over the last third of ``steps`` steps from a
+    random x₀: the spectral radius, found without an eigenvalue solver."""
+    x = np.random.default_rng(1).standard_normal(a.shape[0])
+    logs = []
+    for _ in range(steps):
+        x = a @ x
+        s = float(np.linalg.norm(x))
+        logs.append(np.log(s))
+        x /= s
+    return float(np.exp(np.mean(logs[-steps // 3 :])))
 
 
 def test_statespace_decays_like_the_spectral_radius() -> None:
@@ -45,10 +61,12 @@ def test_statespace_decays_like_the_spectral_radius() -> None:
     sys = c.statespace()
     x0 = np.zeros(sys.nstates)
     x0[0::9] = 0.05  # every axis 0.05 rad off
-    r = control.initial_response(sys, T=np.arange(0, 3.0, c.t_cyc), X0=x0)
-    y = np.abs(np.asarray(r.outputs))
-    assert y[:, -1].max() < 0.05 * 0.5  # it decays ...
-    assert y[:, -1].max() > 0.05 * c.spectral_radius ** 3000 * 1e-3  # ... no faster than ρ allows
+    r = control.initial_response(sys, T=np.arange(0, 4.0, c.t_cyc), X0=x0, return_x=True)
+    states = np.asarray(r.states)
+    # From 2 s on the slowest mode (the common mode every axis starts in) dominates: the
+    # state shrinks by ρ per cycle, ρ^1999 over the last 1999 cycles.
+    ratio = np.linalg.norm(states[:, -1]) / np.linalg.norm(states[:, 2000])
+    assert ratio == pytest.approx(c.spectral_radius ** 1999, rel=0.02)
 
 
 def test_a_loop_the_check_does_not_model_has_no_matrix() -> None:
@@ -65,7 +83,7 @@ def test_the_lumped_only_loop_has_its_own_states() -> None:
     assert sys.nstates == 4 * 11
     assert sys.state_labels[:11] == ["x[1]", "v[1]", "u_prev[1]", "e1[1]", "e2[1]", "e3[1]",
                                      "e4[1]", "de1[1]", "de2[1]", "de3[1]", "de4[1]"]
-    assert max(abs(sys.poles())) == pytest.approx(c.spectral_radius, rel=1e-9)
+    assert per_cycle_growth(np.asarray(sys.A)) == pytest.approx(c.spectral_radius, abs=3e-3)
     # The same gains and law on the proposed plan give another loop.
     assert c.spectral_radius != ringsync.check("paper-2015").spectral_radius
 
@@ -91,8 +109,11 @@ def test_plan_error_names_the_problem() -> None:
 
 def test_reproduce_equals_the_cli(cli: Cli, tmp_path: Path) -> None:
     cli.run("reproduce", "--seeds", "2", "--out", str(tmp_path / "r"))
-    theirs = json.loads((tmp_path / "r" / "summary.json").read_text())
+    summary = json.loads((tmp_path / "r" / "summary.json").read_text())
+    theirs = summary["cases"]
     r = ringsync.reproduce(seeds=2)
+    assert r.summary == summary, "the same object as the CLI's summary.json"
+    assert r.verdicts["plan Sync-RMSE"] == summary["claims"][2]["verdict"]
     assert len(theirs) == 6
     for row in theirs:  # the CLI's rows: every seed's values beside the means
         mine = [x for x in r.rows if (x["plan"], x["controller"]) == (row["plan"], row["controller"])]

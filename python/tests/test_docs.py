@@ -27,7 +27,8 @@ def test_docs_python_md_runs(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) ->
     import matplotlib
 
     matplotlib.use("Agg")  # no display here: figures are drawn and saved, not shown
-    namespace: dict[str, object] = {"__name__": "__docs__"}
+    # Run as a script runs them: the Dask snippet's `if __name__ == "__main__":` block too.
+    namespace: dict[str, object] = {"__name__": "__main__"}
     for i, code in enumerate(blocks):
         try:
             exec(compile(code, f"{DOC.name}, snippet {i + 1}", "exec"), namespace)

@@ -235,7 +235,8 @@ def test_scenario_and_plan_are_read_only_mappings() -> None:
     p = ringsync.plan()
     assert isinstance(p, Mapping)
     keys = list(p)
-    assert keys[:3] == ["plan", "n", "t_cyc_ns"] and len(p) == len(keys) == len(p.to_dict())
+    assert keys[:2] == ["ringsync_version", "schema_version"], "as plan --json"
+    assert keys[2:5] == ["plan", "n", "t_cyc_ns"] and len(p) == len(keys) == len(p.to_dict())
     assert dict(p) == p.to_dict() and list(p.keys()) == keys
     assert p.get("n") == 4 and p.get("nope", 0) == 0 and p.get(1) is None  # type: ignore[call-overload]
     assert dict(p.items())["t_cyc_ns"] == 1_000_000 and "t_syn_ns" in p and "nope" not in p

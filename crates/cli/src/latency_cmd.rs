@@ -1,7 +1,5 @@
 //! `ringsync latency`: what this host gives a real-time loop, without the ring.
 
-use std::path::PathBuf;
-
 use clap::Args;
 use ringsync::Duration;
 use ringsync::layers::runtime::host::HostOptions;
@@ -24,9 +22,10 @@ pub struct LatencyArgs {
     busy: Duration,
     #[command(flatten)]
     realtime: RealtimeArgs,
-    /// Also write the figures as JSON to this file.
-    #[arg(long, value_name = "FILE")]
-    json: Option<PathBuf>,
+    /// Print the figures as one JSON object instead of the text, as `plan --json` and
+    /// `check --json` do (redirect it to keep it: `> latency.json`).
+    #[arg(long)]
+    json: bool,
 }
 
 pub(crate) fn latency(args: &LatencyArgs) -> Result<Outcome, CliError> {
@@ -39,18 +38,12 @@ pub(crate) fn latency(args: &LatencyArgs) -> Result<Outcome, CliError> {
     };
     // (The probe checks the cycle, --spin and --busy against each other itself.)
     args.realtime.check_cpu()?;
-    // A --json that cannot be written fails now, not after the probe.
-    if let Some(path) = &args.json {
-        ringsync::output::writable(path)?;
-    }
     let stop = ringsync::layers::runtime::stop_flag();
     let r = ringsync::rt::latency(&opts, stop)?;
-    let mut text = ringsync::rt::latency_text(&r, &opts);
-    if let Some(path) = &args.json {
+    if args.json {
         let json = serde_json::to_string_pretty(&ringsync::rt::latency_json(&r, &opts))
             .map_err(|e| CliError::Failure(format!("cannot format JSON: {e}")))?;
-        ringsync::output::write_file(path, format!("{json}\n"))?;
-        text += &format!("  wrote {}\n", path.display());
+        return out(&format!("{json}\n"));
     }
-    out(&text)
+    out(&ringsync::rt::latency_text(&r, &opts))
 }

@@ -120,6 +120,76 @@ enum Command {
     /// Sweep scenario keys (their product, several seeds each), or one scenario over many
     /// seeds, in parallel: CSV and a figure.
     Sweep(sim_cmd::SweepArgs),
+    /// Print a shell completion script for bash, zsh, fish, elvish or powershell (e.g.
+    /// `ringsync completions bash > ~/.local/share/bash-completion/completions/ringsync`).
+    Completions {
+        /// The shell.
+        shell: clap_complete::Shell,
+    },
+    /// Write the man pages (ringsync.1 and one per command, ringsync-sim.1, …) into a
+    /// directory, generated from these same definitions (`man -l DIR/ringsync.1`).
+    Man {
+        /// Directory to write them into (created if missing).
+        #[arg(long, value_name = "DIR", default_value = "man")]
+        out: std::path::PathBuf,
+    },
+}
+
+/// `ringsync completions SHELL`: the script on standard output.
+fn completions(shell: clap_complete::Shell) -> Result<Outcome, CliError> {
+    use clap::CommandFactory as _;
+    let mut buf = Vec::new();
+    clap_complete::generate(shell, &mut Cli::command(), "ringsync", &mut buf);
+    out(&String::from_utf8_lossy(&buf))
+}
+
+/// `ringsync man --out DIR`: ringsync.1 and a page per command (and per subcommand of
+/// `scenario` and `node`), each written atomically.
+fn man_pages(dir: &std::path::Path) -> Result<Outcome, CliError> {
+    use clap::CommandFactory as _;
+    let failed = |e: std::io::Error| {
+        CliError::Failure(format!(
+            "cannot write the man pages into {}: {e}",
+            dir.display()
+        ))
+    };
+    std::fs::create_dir_all(dir).map_err(failed)?;
+    let mut written = Vec::new();
+    fn walk(
+        cmd: clap::Command,
+        name: String,
+        dir: &std::path::Path,
+        written: &mut Vec<String>,
+    ) -> Result<(), CliError> {
+        let cmd = cmd
+            .display_name(name.clone())
+            .bin_name(name.replace('-', " "));
+        let mut buf = Vec::new();
+        clap_mangen::Man::new(cmd.clone())
+            .render(&mut buf)
+            .map_err(|e| CliError::Failure(format!("cannot render the man page of {name}: {e}")))?;
+        let file = format!("{name}.1");
+        ringsync::output::write_file(&dir.join(&file), &buf)?;
+        written.push(file);
+        for sub in cmd.get_subcommands().filter(|s| s.get_name() != "help") {
+            walk(
+                sub.clone(),
+                format!("{name}-{}", sub.get_name()),
+                dir,
+                written,
+            )?;
+        }
+        Ok(())
+    }
+    let mut root = Cli::command();
+    root.build();
+    walk(root, "ringsync".into(), dir, &mut written)?;
+    out(&format!(
+        "wrote {} man pages into {}: {}\n",
+        written.len(),
+        dir.display(),
+        written.join(", ")
+    ))
 }
 
 /// Writes `text` to standard output. A closed pipe (`ringsync plan | head`) ends the output
@@ -177,6 +247,8 @@ fn main() -> ExitCode {
         Command::Rt(args) => rt_cmd::rt(&args),
         Command::Node(cmd) => node_cmd::node(&cmd),
         Command::Latency(args) => latency_cmd::latency(&args),
+        Command::Completions { shell } => completions(shell),
+        Command::Man { out } => man_pages(&out),
     };
     match result {
         Ok(Outcome::Done) => ExitCode::SUCCESS,

@@ -335,7 +335,15 @@ pub(crate) fn rt(args: &RtArgs) -> Result<Outcome, CliError> {
             observers,
         )?
     } else {
-        ringsync::rt::run_rt_streamed(&mut dir, s, &opts, stop, observers, args.pcap.as_deref())?
+        ringsync::rt::run_rt_streamed(
+            &mut dir,
+            s,
+            loaded.hash,
+            &opts,
+            stop,
+            observers,
+            args.pcap.as_deref(),
+        )?
     };
     #[cfg(feature = "scope")]
     scope.finish(&r.scenario, loaded.hash, &r.run);

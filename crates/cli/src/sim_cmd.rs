@@ -250,11 +250,14 @@ pub struct SweepArgs {
     /// Scenario file or built-in name: the base of every case.
     scenario: String,
     /// A key and its values, e.g. `faults.loss=0,0.01,0.02`; several give their product;
-    /// none: the scenario alone, over its seeds.
+    /// none: the scenario alone, over its seeds. Commas inside brackets or quotes belong to
+    /// the value: `control.kp=[1,2],[3,4]` is two cases.
     #[arg(long = "set", value_name = "KEY=V1,V2,…")]
     set: Vec<ringsync::sweep::SweepAxis>,
-    /// Seeds per case (the scenario's seed, +1, …); means are over them.
-    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    /// Seeds per case (the scenario's seed, +1, …), as in `reproduce` and Python; means and
+    /// sample standard deviations are over them.
+    #[arg(long, default_value_t = ringsync::sweep::DEFAULT_SEEDS,
+          value_parser = clap::value_parser!(u32).range(1..=i64::from(ringsync::sweep::MAX_SEEDS)))]
     seeds: u32,
     /// Give each case whose cycle is too short for its ring the shortest cycle that holds it (+10 %).
     #[arg(long)]
@@ -332,6 +335,11 @@ pub struct IdentifyArgs {
     /// kf); written beside and renamed into place.
     #[arg(long, value_name = "FILE.toml")]
     out: PathBuf,
+    /// Bandwidth of the disturbance observer the written scenario adds [Hz] (0: none, and
+    /// K_F = F instead): it holds the compensation when the model is not equally right on
+    /// every axis (docs/experiments.md, section 6).
+    #[arg(long, value_name = "HZ", default_value_t = ringsync::identify::DOB_BANDWIDTH_HZ)]
+    dob_bandwidth: f64,
 }
 
 /// Runs `ringsync identify`: the table of estimates, and the scenario with them.
@@ -339,10 +347,25 @@ pub(crate) fn identify(args: &IdentifyArgs) -> Result<Outcome, CliError> {
     ringsync::identify::check_out(&args.run, &args.out)?;
     ringsync::output::writable(&args.out)?;
     let id = ringsync::identify::identify_run(&args.run)?;
-    ringsync::output::write_file(&args.out, ringsync::identify::identified_toml(&id)?)?;
+    let text = ringsync::identify::identified_toml(&id, args.dob_bandwidth)?;
+    ringsync::output::write_file(&args.out, &text)?;
+    let dob = text
+        .lines()
+        .find_map(|l| l.strip_prefix("dob_bandwidth = "))
+        .map(str::to_string);
+    let written_hz = dob.as_deref().and_then(|d| d.parse().ok()).unwrap_or(0.0);
+    if let Some(w) = id.warning(written_hz) {
+        eprintln!("ringsync: {w}");
+    }
     out(&format!(
-        "{}\nWrote {}: the run's scenario with K_H = H, K_C = C, K_F = F per axis.\n",
+        "{}\nWrote {}: the run's scenario with K_H = H, K_C = C per axis, {}.\n",
         id.text(),
-        args.out.display()
+        args.out.display(),
+        match dob {
+            Some(hz) if hz != "0.0" => format!(
+                "and a disturbance observer of {hz} Hz in place of K_F (--dob-bandwidth 0: K_F = F instead)"
+            ),
+            _ => "K_F = F".to_string(),
+        }
     ))
 }

@@ -134,8 +134,8 @@ fn what_would_hang_or_exhaust_memory_is_refused() {
     );
 }
 
-/// A file target in a missing directory is refused before the work, as `latency --json`
-/// already was (they failed with status 1 after it); `rt --cycle 0ns` names the cycle (it
+/// A file target in a missing directory is refused before the work (they failed with
+/// status 1 after it); `rt --cycle 0ns` names the cycle (it
 /// blamed `--spin`).
 #[test]
 fn targets_and_cycles_are_checked_before_the_work() {

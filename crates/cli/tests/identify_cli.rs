@@ -51,8 +51,9 @@ fn figures(run: &Path) -> (f64, f64, f64) {
 }
 
 /// A PD run of the reference scenario in `d/P` (`outputs` as `--outputs`, or all), then
-/// `identify` of it into `d/id.toml`: (the run, the scenario file, what `identify` printed).
-fn pd_identified(d: &Path, outputs: &str) -> (PathBuf, PathBuf, String) {
+/// `identify` of it into `d/id.toml` (with `--dob-bandwidth dob`, or identify's default
+/// observer for `None`): (the run, the scenario file, what `identify` printed).
+fn pd_identified(d: &Path, outputs: &str, dob: Option<&str>) -> (PathBuf, PathBuf, String) {
     let (pd, id) = (d.join("P"), d.join("id.toml"));
     ok(&[
         "sim",
@@ -65,7 +66,11 @@ fn pd_identified(d: &Path, outputs: &str) -> (PathBuf, PathBuf, String) {
         p(&pd),
     ]);
     assert!(pd.join("scenario.toml").exists());
-    let text = ok(&["identify", p(&pd), "--out", p(&id)]);
+    let mut args = vec!["identify", p(&pd), "--out", p(&id)];
+    if let Some(hz) = dob {
+        args.extend(["--dob-bandwidth", hz]);
+    }
+    let text = ok(&args);
     (pd, id, text)
 }
 
@@ -91,7 +96,8 @@ fn list(toml: &str, key: &str) -> Vec<f64> {
 fn identify_then_compensate_beats_pd() {
     let d = dir("flow");
     let sync = d.join("S");
-    let (pd, id, text) = pd_identified(&d, "all");
+    // Feed-forward alone (K_F = F, no observer): the figures docs/experiments.md gives.
+    let (pd, id, text) = pd_identified(&d, "all", Some("0"));
     assert!(text.contains("| axis | H = J/K_a"), "{text}");
     let toml = std::fs::read_to_string(&id).expect("id.toml");
     // The reference axes (docs/system.md): J/K_a, b/K_a = b·10 V/rated, T_c/K_a = 0.02·10 V.
@@ -105,18 +111,20 @@ fn identify_then_compensate_beats_pd() {
         .map(|(b, r)| b * 10.0 / r)
         .collect();
     let (h, c, f) = (list(&toml, "kh"), list(&toml, "kc"), list(&toml, "kf"));
+    // docs/control.md, "Feed-forward and identification": H within 0.01 %, C within 2.3 %,
+    // F within 0.04 % of the plant's values; asserted with a little room (0.1 %, 3 %, 0.2 %).
     for i in 0..4 {
         assert!(
-            (h[i] / truth_h[i] - 1.0).abs() < 0.05,
+            (h[i] / truth_h[i] - 1.0).abs() < 1e-3,
             "H axis {}: {h:?}",
             i + 1
         );
         assert!(
-            (c[i] / truth_c[i] - 1.0).abs() < 0.05,
+            (c[i] / truth_c[i] - 1.0).abs() < 0.03,
             "C axis {}: {c:?}",
             i + 1
         );
-        assert!((f[i] / 0.2 - 1.0).abs() < 0.20, "F axis {}: {f:?}", i + 1);
+        assert!((f[i] / 0.2 - 1.0).abs() < 2e-3, "F axis {}: {f:?}", i + 1);
     }
     assert!(toml.contains("velocity = \"differenced\""), "{toml}");
     assert!(toml.contains("estimator = \"hold\""), "{toml}");
@@ -124,8 +132,10 @@ fn identify_then_compensate_beats_pd() {
     ok(&["sim", id_s, "--set", "control.law=sync", "--out", p(&sync)]);
     let (tp, sp, up) = figures(&pd);
     let (ts, ss, us) = figures(&sync);
-    assert!(ss <= 0.10 * sp, "Sync-RMSE {ss} against PD's {sp}");
-    assert!(ts <= 0.20 * tp, "Track-RMSE {ts} against PD's {tp}");
+    // docs/experiments.md, section 6: 99.79 % and 99.88 % lower than PD's.
+    eprintln!("compensated: Sync {ss} / {sp}, Track {ts} / {tp}");
+    assert!(ss <= 0.005 * sp, "Sync-RMSE {ss} against PD's {sp}");
+    assert!(ts <= 0.005 * tp, "Track-RMSE {ts} against PD's {tp}");
     assert!(us <= 1.05 * up, "peak command {us} V against PD's {up} V");
     for factor in [0.9, 1.1] {
         let off = d.join(format!("off-{factor}"));
@@ -151,9 +161,12 @@ fn identify_then_compensate_beats_pd() {
             p(&off),
         ]);
         let (t, s, _) = figures(&off);
-        assert!(s <= 0.20 * sp, "×{factor}: Sync-RMSE {s} against PD's {sp}");
+        // docs/experiments.md, section 6: with every value 10 % off on all axes, Track-RMSE
+        // 92.5 % and Sync-RMSE 94.5 % below PD's.
+        eprintln!("×{factor}: Sync {s} / {sp}, Track {t} / {tp}");
+        assert!(s <= 0.07 * sp, "×{factor}: Sync-RMSE {s} against PD's {sp}");
         assert!(
-            t <= 0.30 * tp,
+            t <= 0.09 * tp,
             "×{factor}: Track-RMSE {t} against PD's {tp}"
         );
     }
@@ -168,7 +181,7 @@ fn identify_then_compensate_beats_pd() {
 #[test]
 fn a_lost_frame_leaves_the_compensated_axes_as_they_were() {
     let d = dir("loss");
-    let (_, id, _) = pd_identified(&d, "summary,trace");
+    let (_, id, _) = pd_identified(&d, "summary,trace", Some("0"));
     let mean_sync = |loss: &str| {
         let runs: Vec<f64> = ["1", "2", "3"]
             .iter()
@@ -211,15 +224,20 @@ fn a_lost_frame_leaves_the_compensated_axes_as_they_were() {
     let _ = std::fs::remove_dir_all(&d);
 }
 
-/// The disturbance observer makes the compensation robust to a feed-forward that is wrong by
-/// a different amount on each axis: +10 % on axes 1 and 3, −10 % on 2 and 4 makes the sync
-/// error larger than PD's; with the observer (20 Hz, K_F = 0) Sync-RMSE is again at least
-/// 80 % below PD's and Track-RMSE 95 %.
+/// The disturbance observer `identify` writes by default makes the compensation robust to a
+/// feed-forward that is wrong by a different amount on each axis: +10 % on axes 1 and 3,
+/// −10 % on 2 and 4 makes the sync error 3.2× PD's without it; with it (20 Hz, K_F = 0)
+/// Sync-RMSE is 0.084× PD's and Track-RMSE 0.0074× (docs/experiments.md, section 6).
 #[test]
 fn the_disturbance_observer_absorbs_a_wrong_feed_forward() {
     let d = dir("dob");
-    let (pd, id, _) = pd_identified(&d, "summary,trace");
+    let (pd, id, text) = pd_identified(&d, "summary,trace", None);
     let toml = std::fs::read_to_string(&id).expect("id.toml");
+    assert!(
+        toml.contains("dob_bandwidth = 20.0") && toml.contains("kf = 0.0"),
+        "identify adds the observer by default, in place of K_F: {toml}"
+    );
+    assert!(text.contains("a disturbance observer of 20.0 Hz"), "{text}");
     let skew = |key: &str| {
         let vals: Vec<String> = list(&toml, key)
             .iter()
@@ -255,12 +273,12 @@ fn the_disturbance_observer_absorbs_a_wrong_feed_forward() {
     let (tp, sp, _) = figures(&pd);
     let (_, s_off, _) = run("off", "0");
     assert!(
-        s_off > sp,
-        "without the observer the skewed feed-forward beats PD? {s_off} < {sp}"
+        s_off > 2.0 * sp,
+        "without the observer the skewed feed-forward is not worse than PD? {s_off} against {sp}"
     );
     let (t_on, s_on, _) = run("on", "20");
-    assert!(s_on <= 0.20 * sp, "Sync-RMSE {s_on} against PD's {sp}");
-    assert!(t_on <= 0.05 * tp, "Track-RMSE {t_on} against PD's {tp}");
+    assert!(s_on <= 0.12 * sp, "Sync-RMSE {s_on} against PD's {sp}");
+    assert!(t_on <= 0.012 * tp, "Track-RMSE {t_on} against PD's {tp}");
     let _ = std::fs::remove_dir_all(&d);
 }
 

@@ -93,10 +93,41 @@ fn reproduce_writes_the_table_and_rows_over_seeds() {
         text.contains("0.23267") && text.contains("49.270 %") && text.contains("over 8 seeds"),
         "{text}"
     );
-    let rows: serde_json::Value =
+    let summary: serde_json::Value =
         serde_json::from_slice(&std::fs::read(d.join("summary.json")).expect("read"))
             .expect("json");
-    let rows = rows.as_array().expect("array");
+    assert_eq!(summary["schema_version"], 2, "{summary}");
+    assert!(summary["ringsync_version"].is_string());
+    // A verdict on both of the paper's claims, each with our figure beside the paper's.
+    let claims = summary["claims"].as_array().expect("claims");
+    for (claim, metric, paper) in [
+        ("controller", "Sync-RMSE", 49.270),
+        ("controller", "Track-RMSE", 21.171),
+        ("plan", "Sync-RMSE", 37.996),
+    ] {
+        let c = claims
+            .iter()
+            .find(|c| c["claim"] == claim && c["metric"] == metric)
+            .unwrap_or_else(|| panic!("claim {claim} {metric}: {summary}"));
+        assert!(
+            (c["paper_percent"].as_f64().expect("paper") - paper).abs() < 1e-3,
+            "{c}"
+        );
+        assert!(
+            c["ours_percent"]["mean"].is_f64() && c["verdict"].is_string(),
+            "{c}"
+        );
+    }
+    assert!(
+        text.contains("Claim 1, the controller (Sync-RMSE)")
+            && text.contains("Claim 2, the plan (Sync-RMSE, sync controller)"),
+        "{text}"
+    );
+    assert!(
+        summary["bench"]["pd_ratio"].as_f64().expect("bench") > 1.0,
+        "{summary}"
+    );
+    let rows = summary["cases"].as_array().expect("cases");
     let get = |ctl: &str| {
         rows.iter()
             .find(|r| r["controller"] == ctl && r["plan"] == "p2p-lumped")
@@ -122,11 +153,20 @@ fn reproduce_writes_the_table_and_rows_over_seeds() {
         assert_eq!(per.len(), 8);
         let mean = per.iter().sum::<f64>() / 8.0;
         assert!((f(r, "sync_rmse") - mean).abs() <= 1e-15 * mean, "{r}");
+        // The sample standard deviation (n − 1) and the range of exactly these values.
+        let sd = (per.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / 7.0).sqrt();
         assert!(
-            f(r, "sync_rmse_sd") > 0.0 && f(r, "track_rmse_sd") > 0.0,
+            (f(r, "sync_rmse_sd") - sd).abs() <= 1e-12 * sd,
+            "{r}: sd {sd}"
+        );
+        assert!(f(r, "track_rmse_sd") > 0.0, "{r}");
+        let lo = per.iter().copied().fold(f64::INFINITY, f64::min);
+        let hi = per.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        assert_eq!(
+            (f(r, "sync_rmse_min"), f(r, "sync_rmse_max")),
+            (lo, hi),
             "{r}"
         );
-        assert!(f(r, "sync_rmse_min") <= mean && mean <= f(r, "sync_rmse_max"));
     }
     // The acceptance of the paper's result: the sync controller lowers both errors, in
     // the mean and in every seed.
@@ -137,13 +177,19 @@ fn reproduce_writes_the_table_and_rows_over_seeds() {
     );
     let table = std::fs::read_to_string(d.join("table.md")).expect("table");
     assert!(
-        table.contains("| Sync-RMSE, proposed (P2P + lumped) | 49.270 % |")
-            && table.contains("Verdict:")
-            && table.contains("the sync controller lowers it in every seed"),
+        table.contains(
+            "| Sync-RMSE, sync controller vs standard PD, proposed (P2P + lumped) | 49.270 % |"
+        ) && table.contains("Verdict:")
+            && table.contains("the paper's sync controller lowers it by 49.270 %"),
         "{table}"
     );
     let html = std::fs::read_to_string(d.join("report.html")).expect("html");
-    assert!(html.contains("<li>Sync-RMSE, proposed") && html.contains("seeds 1–8"));
+    assert!(
+        html.contains("<li>Claim 1, the controller (Sync-RMSE)")
+            && html.contains("<li>Claim 2, the plan")
+            && html.contains("seeds 1–8"),
+        "{html}"
+    );
 }
 
 /// Each seed's runs are the same whichever thread ran them: the reproduction's files do
@@ -171,10 +217,13 @@ fn reproduce_is_the_same_on_one_thread_or_two() {
             "{f}"
         );
     }
-    let rows: serde_json::Value =
+    let summary: serde_json::Value =
         serde_json::from_slice(&std::fs::read(a.join("summary.json")).expect("read"))
             .expect("json");
-    assert_eq!(rows[0]["seed_values"], serde_json::json!([1, 2, 3]));
+    assert_eq!(
+        summary["cases"][0]["seed_values"],
+        serde_json::json!([1, 2, 3])
+    );
     let o = ringsync(&["reproduce", "--seeds", "0", "--out", a.to_str().expect("p")]);
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(2), "{err}");

@@ -454,13 +454,53 @@ fn a_sim_capture_decodes_frame_by_frame() {
         assert_eq!(f["ringsync.slave"], ["1", "2", "3", "4"]);
         assert_eq!(f["ringsync.cycle"], ["7"]);
     }
+    // The capture names its run and its clock: simulated time from 0.
+    let (app, comment, first) = provenance(&cap);
+    assert!(app.ends_with("co-simulator"), "{app}");
+    assert!(
+        comment.contains("scenario short, seed 1, scenario hash")
+            && comment.contains("simulated time from 0"),
+        "{comment}"
+    );
+    assert!(first < 1.0, "simulated time: {first}");
     let _ = std::fs::remove_dir_all(&d);
+}
+
+/// What tshark reads of a capture's provenance: the section header's application and
+/// comment, and the first frame's absolute time [s since 1970].
+fn provenance(cap: &Path) -> (String, String, f64) {
+    let file = std::fs::read(cap).expect("read capture");
+    let shb_len = u32::from_le_bytes(file[4..8].try_into().expect("4 bytes")) as usize;
+    let shb = &file[..shb_len];
+    // Options after the 24-byte fixed part: (code, length, value padded to 4).
+    let (mut at, mut app, mut comment) = (24, String::new(), String::new());
+    while at + 4 <= shb_len - 4 {
+        let code = u16::from_le_bytes([shb[at], shb[at + 1]]);
+        let len = usize::from(u16::from_le_bytes([shb[at + 2], shb[at + 3]]));
+        let value = String::from_utf8_lossy(&shb[at + 4..at + 4 + len]).into_owned();
+        match code {
+            0 => break,
+            1 => comment = value,
+            4 => app = value,
+            _ => {}
+        }
+        at += 4 + len.div_ceil(4) * 4;
+    }
+    let first: f64 = tshark(cap, &["-c", "1", "-T", "fields", "-e", "frame.time_epoch"])
+        .trim()
+        .parse()
+        .expect("a time");
+    (app, comment, first)
 }
 
 #[test]
 fn an_rt_capture_decodes_frame_by_frame() {
     let d = dir("rt");
     let cap = d.join("rt.pcapng");
+    let before = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .expect("after 1970")
+        .as_secs_f64();
     rt_capture(
         &[
             "--transport",
@@ -472,6 +512,14 @@ fn an_rt_capture_decodes_frame_by_frame() {
         ],
         &cap,
         250,
+    );
+    // A real-time capture says so and dates its frames from the wall clock (to the second).
+    let (app, comment, first) = provenance(&cap);
+    assert!(app.ends_with("real-time runtime (udp)"), "{app}");
+    assert!(comment.contains("scenario paper-2015, seed 1"), "{comment}");
+    assert!(
+        first >= before.floor() - 1.0 && first < before + 120.0,
+        "first frame at {first}, the run started at {before}"
     );
     let _ = std::fs::remove_dir_all(&d);
 }
@@ -595,7 +643,12 @@ fn ethernet_capture(
         })
         .collect();
     let cap = d.join(format!("{name}.pcapng"));
-    std::fs::write(&cap, pcap::pcapng(&captured, 4)).expect("write");
+    let info = pcap::CaptureInfo {
+        application: "ringsync test".into(),
+        comment: name.into(),
+        tsoffset_s: None,
+    };
+    std::fs::write(&cap, pcap::pcapng(&captured, 4, &info)).expect("write");
     let payloads = packets(&std::fs::read(&cap).expect("read"))
         .into_iter()
         .map(|(_, b)| b[14..].to_vec())

@@ -489,12 +489,13 @@ fn program<'py>(
 /// (seed, plan, controller), seeds outermost, with `seed`, `plan`, `controller`,
 /// `track_rmse`, `sync_rmse` [rad] and `group_stop` (bool).
 #[pyfunction]
+#[allow(clippy::type_complexity)]
 fn reproduce<'py>(
     py: Python<'py>,
     text: String,
     origin: String,
     seeds: Bound<'py, PyAny>,
-) -> PyResult<Vec<Bound<'py, PyDict>>> {
+) -> PyResult<(Vec<Bound<'py, PyDict>>, Bound<'py, PyAny>)> {
     let max = ringsync::reproduce::MAX_SEEDS;
     let seeds = whole("seeds", &seeds, 1, u64::from(max), " (seeds per case)")?;
     let seeds = u32::try_from(seeds).unwrap_or(max);
@@ -506,6 +507,8 @@ fn reproduce<'py>(
             ..Default::default()
         };
         let r = ringsync::reproduce_with(&s, &opts)?;
+        let summary =
+            ringsync::layers::report::repro::repro_json(&s.name, &r.rows, r.bench.as_ref());
         let mut rows = Vec::new();
         for (k, &seed) in r
             .rows
@@ -525,9 +528,12 @@ fn reproduce<'py>(
                 ));
             }
         }
-        Ok(rows)
+        Ok((rows, summary))
     })?;
-    rows.into_iter()
+    let (rows, summary) = rows;
+    let summary = json_to_py(py, &summary)?;
+    let rows = rows
+        .into_iter()
         .map(|(seed, plan, controller, track, sync, stop)| {
             let d = PyDict::new(py);
             d.set_item("seed", seed)?;
@@ -538,7 +544,8 @@ fn reproduce<'py>(
             d.set_item("group_stop", stop)?;
             Ok(d)
         })
-        .collect()
+        .collect::<PyResult<Vec<_>>>()?;
+    Ok((rows, summary))
 }
 
 /// Registers the simulation functions.

@@ -5,7 +5,7 @@
 //! named in errors); every function validates it again here, which takes microseconds.
 
 use pyo3::prelude::*;
-use pyo3::types::PyDict;
+use pyo3::types::{PyDict, PyList};
 
 use ringsync::sweep::SweepAxis;
 use ringsync::{Loaded, ScenarioError as LibScenarioError};
@@ -195,6 +195,35 @@ fn laws() -> String {
     ringsync::layers::control::law::registry::catalogue()
 }
 
+/// The control laws of the registry as data, in registry order (what [`laws`] prints): one
+/// dict per law with `name`, `description`, `min_axes` and `params`, a list of dicts with
+/// `key`, `doc`, `unit`, `default`, `min` and `max` (`inf` for no upper bound) of the law's
+/// own parameters (`[control.params]`).
+#[pyfunction]
+fn law_registry(py: Python<'_>) -> PyResult<Bound<'_, PyList>> {
+    let out = PyList::empty(py);
+    for e in ringsync::layers::control::law::LAWS {
+        let params = PyList::empty(py);
+        for p in e.params {
+            let d = PyDict::new(py);
+            d.set_item("key", p.key)?;
+            d.set_item("doc", p.doc)?;
+            d.set_item("unit", p.unit)?;
+            d.set_item("default", p.default)?;
+            d.set_item("min", p.min)?;
+            d.set_item("max", p.max)?;
+            params.append(d)?;
+        }
+        let d = PyDict::new(py);
+        d.set_item("name", e.name)?;
+        d.set_item("description", e.description)?;
+        d.set_item("min_axes", e.min_axes)?;
+        d.set_item("params", params)?;
+        out.append(d)?;
+    }
+    Ok(out)
+}
+
 /// Registers the scenario functions.
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(scenarios, m)?)?;
@@ -205,6 +234,7 @@ pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(values, m)?)?;
     m.add_function(wrap_pyfunction!(builtin_text, m)?)?;
     m.add_function(wrap_pyfunction!(laws, m)?)?;
+    m.add_function(wrap_pyfunction!(law_registry, m)?)?;
     Ok(())
 }
 

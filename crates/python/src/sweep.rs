@@ -19,7 +19,7 @@ use crate::guard;
 use crate::scenario::axis;
 
 /// The most seeds per combination of a sweep's values.
-pub(crate) const MAX_SEEDS: u64 = 1_000_000;
+pub(crate) const MAX_SEEDS: u64 = ringsync::sweep::MAX_SEEDS as u64;
 
 /// The most threads a sweep runs on, as the CLI's `--jobs`.
 pub(crate) const MAX_JOBS: u64 = ringsync::sweep::MAX_JOBS as u64;

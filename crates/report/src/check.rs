@@ -154,8 +154,13 @@ pub fn verdict_text(r: &CheckReport) -> &'static str {
     }
 }
 
-/// The same as one JSON object (delays in ns, rounded).
+/// `ringsync check --json`, with `ringsync_version` and `schema_version` (1) first.
 pub fn check_json(r: &CheckReport) -> Value {
+    crate::provenance::stamp(check_json_fields(r), 1)
+}
+
+/// The same as one JSON object (delays in ns, rounded).
+fn check_json_fields(r: &CheckReport) -> Value {
     json!({
         "scenario": r.scenario,
         "law": r.law,

@@ -9,6 +9,7 @@ pub mod path;
 pub mod pcap;
 pub mod plan;
 pub mod plot;
+pub mod provenance;
 pub mod repro;
 pub mod sim;
 mod svg;

@@ -427,8 +427,13 @@ pub fn program_text(v: &ProgramView<'_>) -> String {
     o
 }
 
-/// The plan as JSON (lengths in mm, times in s).
+/// `ringsync program --json`, with `ringsync_version` and `schema_version` (1) first.
 pub fn program_json(v: &ProgramView<'_>) -> Value {
+    crate::provenance::stamp(program_json_fields(v), 1)
+}
+
+/// The plan as JSON (lengths in mm, times in s).
+fn program_json_fields(v: &ProgramView<'_>) -> Value {
     let p = v.path;
     let c = v.check;
     json!({

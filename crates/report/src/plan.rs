@@ -286,11 +286,16 @@ fn ns_list(v: &[Duration]) -> Vec<i64> {
     v.iter().map(|d| d.as_ns()).collect()
 }
 
+/// `ringsync plan --json`, with `ringsync_version` and `schema_version` (1) first.
+pub fn plan_json(p: &CyclePlan, kind: PlanKind, events: bool) -> Value {
+    crate::provenance::stamp(plan_json_fields(p, kind, events), 1)
+}
+
 /// The plan as one JSON object in integer nanoseconds (keys documented in docs/planner.md).
 /// Top-level terms are the proposed plan's; `lumped_only` holds the other plan's; `plan`
 /// names the plan the cycle was checked against. With `events`, the frame-by-frame timeline
 /// is included.
-pub fn plan_json(p: &CyclePlan, kind: PlanKind, events: bool) -> Value {
+fn plan_json_fields(p: &CyclePlan, kind: PlanKind, events: bool) -> Value {
     let max_n = largest(p, PlanKind::P2pLumped);
     let mut v = json!({
         "plan": kind.name(),

@@ -8,7 +8,9 @@ use std::fmt::Write as _;
 use ringsync_model::RunResult;
 use ringsync_model::result::ASSUMPTIONS;
 use ringsync_model::scenario::{CoulombSign, Scenario};
-use serde_json::{Value, json};
+use schemars::JsonSchema;
+use serde::Serialize;
+use serde_json::Value;
 
 use crate::sim::{esc, per_axis};
 
@@ -25,8 +27,15 @@ const PAPER_REDUCTIONS: [(&str, [f64; 2]); 2] = [
     ("lumped-only", [20.564, 45.717]),
 ];
 
+/// Version of the schema of `reproduce`'s summary.json ([`ReproSummary`]; docs/schemas/).
+/// 1 was a bare list of cases; 2 is an object with the claims, their verdicts and provenance.
+pub const REPRO_SCHEMA_VERSION: u32 = 2;
+
+/// What "sd" means in every output of ringsync.
+pub const SD_MEANING: &str = "sample standard deviation (n − 1 in the denominator; 0 for one seed)";
+
 /// Mean, standard deviation and range of one figure over seeds.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, JsonSchema)]
 pub struct Spread {
     /// Values in it (seeds).
     pub n: usize,
@@ -195,9 +204,241 @@ fn paper_values(plan: &str, ctl: &str) -> Option<(f64, f64)> {
     })
 }
 
-/// The paper's Table 1 beside ours over seeds, as Markdown: the RMSEs (mean ± standard
-/// deviation and range) per plan and controller, the reductions per seed, and the verdict.
-pub fn repro_table(rows: &[ReproRow]) -> String {
+/// Standard PD's and the sync controller's Sync-RMSE of ref. \[3\] against the paper's own
+/// (Table 1): how much worse the paper found the lumped-only plan, on its other test bench.
+pub const PAPER_BENCH_RATIOS: [(&str, f64); 2] = [
+    ("pd", PAPER_TABLE_1[0].1[3] / PAPER_TABLE_1[0].1[2]),
+    ("sync", PAPER_TABLE_1[1].1[3] / PAPER_TABLE_1[1].1[2]),
+];
+
+/// How much wider the bench experiment makes the spread of the axes' J/K_a (each axis's
+/// deviation from their mean times this): the factor that raises standard PD's Sync-RMSE
+/// on the lumped-only plan of `paper-2015` about as much as ref. \[3\]'s bench raised it
+/// (1.51×; docs/simulator.md, "The plan comparison", fitted once over 8 seeds).
+pub const BENCH_SPREAD: f64 = 1.5;
+
+/// The bench experiment of a reproduction: the lumped-only plan on the same plant with the
+/// spread of its axes' J/K_a widened [`BENCH_SPREAD`] times, standard PD and the sync
+/// controller over the same seeds.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BenchRows {
+    /// The factor on each axis's deviation of J/K_a from the axes' mean.
+    pub spread: f64,
+    /// Standard PD.
+    pub pd: ReproRow,
+    /// The sync controller.
+    pub sync: ReproRow,
+}
+
+/// How much lower one controller's Sync-RMSE is on the proposed plan than on the
+/// lumped-only plan: each seed's 1 − proposed/lumped-only (same clocks, same draws).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PlanGap {
+    /// `pd` or `sync`.
+    pub controller: &'static str,
+    /// The paper's [%]: its proposed plan against ref. \[3\]'s rows (another test bench).
+    pub paper: f64,
+    /// Ours over the seeds, on one plant [%].
+    pub ours: Spread,
+}
+
+fn paired(a: &[f64], b: &[f64]) -> Spread {
+    let per_seed: Vec<f64> = a
+        .iter()
+        .zip(b)
+        .map(|(x, y)| (1.0 - y / x) * 100.0)
+        .collect();
+    Spread::of(&per_seed)
+}
+
+/// The plan gaps of standard PD and the sync controller, for those whose rows on both
+/// plans are present.
+pub fn plan_gaps(rows: &[ReproRow]) -> Vec<PlanGap> {
+    let mut out = Vec::new();
+    for (k, ctl) in ["pd", "sync"].into_iter().enumerate() {
+        let (Some(p2p), Some(lo)) = (
+            find(rows, "p2p-lumped", ctl),
+            find(rows, "lumped-only", ctl),
+        ) else {
+            continue;
+        };
+        let p = PAPER_TABLE_1[k].1;
+        out.push(PlanGap {
+            controller: ctl,
+            paper: (1.0 - p[2] / p[3]) * 100.0,
+            ours: paired(&lo.sync_rmse, &p2p.sync_rmse),
+        });
+    }
+    out
+}
+
+/// What ringsync's figures say of one of the paper's claims.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, JsonSchema)]
+#[serde(rename_all = "kebab-case")]
+pub enum ClaimVerdict {
+    /// Ours lowers the error in every seed and the paper's figure lies within our range.
+    Reproduced,
+    /// Ours lowers the error in every seed, by a size whose range does not hold the paper's.
+    DirectionOnly,
+    /// Ours does not lower the error in every seed.
+    NotReproduced,
+}
+
+impl ClaimVerdict {
+    fn of(ours: &Spread, paper: f64) -> Self {
+        if ours.min <= 0.0 || !ours.min.is_finite() {
+            ClaimVerdict::NotReproduced
+        } else if ours.covers(paper) {
+            ClaimVerdict::Reproduced
+        } else {
+            ClaimVerdict::DirectionOnly
+        }
+    }
+
+    /// The verdict in words.
+    pub fn words(self) -> &'static str {
+        match self {
+            ClaimVerdict::Reproduced => "reproduced",
+            ClaimVerdict::DirectionOnly => "direction reproduced, size not",
+            ClaimVerdict::NotReproduced => "not reproduced",
+        }
+    }
+}
+
+/// One of the paper's claims, one figure of it, beside ours.
+#[derive(Debug, Clone, PartialEq, Serialize, JsonSchema)]
+pub struct Claim {
+    /// `controller` (the sync controller against standard PD, on the proposed plan) or
+    /// `plan` (the proposed plan against ref. \[3\]'s lumped-only plan, sync controller).
+    pub claim: String,
+    /// The claim as the paper makes it.
+    pub statement: String,
+    /// `Sync-RMSE` or `Track-RMSE`.
+    pub metric: String,
+    /// The paper's reduction [%].
+    pub paper_percent: f64,
+    /// Ours over the seeds, each seed's reduction paired [%].
+    pub ours_percent: Spread,
+    /// What ours says of it.
+    pub verdict: ClaimVerdict,
+    /// The verdict as a sentence, with the figures and why.
+    pub text: String,
+}
+
+/// The paper's two claims: the sync controller's reductions of both errors against standard
+/// PD on the proposed plan, and the proposed plan's lower Sync-RMSE than ref. \[3\]'s plan
+/// with the sync controller (with the bench experiment's figures when it ran).
+pub fn claims(rows: &[ReproRow], bench: Option<&BenchRows>) -> Vec<Claim> {
+    let mut out = Vec::new();
+    for r in reductions(rows)
+        .iter()
+        .filter(|r| r.plan == "p2p-lumped")
+        .rev()
+    {
+        let verdict = ClaimVerdict::of(&r.ours, r.paper);
+        let text = format!(
+            "Claim 1, the controller ({}): the paper's sync controller lowers it by {:.3} % against standard PD; ours by {} % \
+over the seeds ({} %): {}; {}.",
+            r.metric,
+            r.paper,
+            r.ours.pm(1),
+            r.ours.range(1),
+            verdict.words(),
+            gap_words(&r.ours, r.paper, "the paper's"),
+        );
+        out.push(Claim {
+            claim: "controller".into(),
+            statement: format!(
+                "The sync controller lowers {} by {:.3} % against standard PD on the proposed plan (Table 1).",
+                r.metric, r.paper
+            ),
+            metric: r.metric.into(),
+            paper_percent: r.paper,
+            ours_percent: r.ours,
+            verdict,
+            text,
+        });
+    }
+    let gaps = plan_gaps(rows);
+    if let Some(sync) = gaps.iter().find(|g| g.controller == "sync") {
+        let verdict = ClaimVerdict::of(&sync.ours, sync.paper);
+        let mut text = format!(
+            "Claim 2, the plan (Sync-RMSE, sync controller): the paper's proposed plan is {:.1} % lower than ref. [3]'s lumped-only \
+plan ({} against {}); on one plant ours is {} % lower ({} %): {}.",
+            sync.paper,
+            PAPER_TABLE_1[1].1[2],
+            PAPER_TABLE_1[1].1[3],
+            sync.ours.pm(1),
+            sync.ours.range(1),
+            verdict.words()
+        );
+        if let Some(pd) = gaps.iter().find(|g| g.controller == "pd") {
+            text.push_str(&format!(
+                " The paper's standard PD rows differ by {:.1} % as well, though PD reads only each axis's own sample, fresh on both \
+plans (ours: {} %): most of the paper's gap lies between its two test benches, not its two plans.",
+                pd.paper,
+                pd.ours.pm(1)
+            ));
+        }
+        if let Some(b) = bench {
+            let ratio = |row: &ReproRow, ctl: &str| {
+                find(rows, "p2p-lumped", ctl).map_or(f64::NAN, |p| row.sync().mean / p.sync().mean)
+            };
+            let red = paired(&b.pd.sync_rmse, &b.sync.sync_rmse);
+            text.push_str(&format!(
+                " A bench difference of that size is enough: the same plant on the lumped-only plan with its axes' J/K_a spread \
+{}× wider raises our standard PD's Sync-RMSE {:.2}× (ref. [3]'s PD against the paper's: {:.2}×) and the sync controller's \
+{:.2}× ({:.2}×), the controller's reduction becoming {} % (ref. [3]: {:.3} %). How ref. [3]'s slaves compute (holding the \
+frame while they do), their estimator and a longer cycle move neither row that far (docs/simulator.md, \"The plan comparison\").",
+                b.spread,
+                ratio(&b.pd, "pd"),
+                PAPER_BENCH_RATIOS[0].1,
+                ratio(&b.sync, "sync"),
+                PAPER_BENCH_RATIOS[1].1,
+                red.pm(1),
+                PAPER_REDUCTIONS[1].1[1],
+            ));
+        }
+        out.push(Claim {
+            claim: "plan".into(),
+            statement: format!(
+                "The proposed plan (P2P + lumped) gives the sync controller {:.1} % lower Sync-RMSE than the lumped-only plan of \
+ref. [3] (Table 1; ref. [3]'s rows were measured on another test bench).",
+                sync.paper
+            ),
+            metric: "Sync-RMSE".into(),
+            paper_percent: sync.paper,
+            ours_percent: sync.ours,
+            verdict,
+            text,
+        });
+    }
+    out
+}
+
+/// Where the paper's figure lies against our spread: `the paper's 49.270 % lies within our
+/// range (41.3–50.2 %), 4.4 points above our mean`.
+fn gap_words(ours: &Spread, paper: f64, who: &str) -> String {
+    let d = paper - ours.mean;
+    let place = if ours.covers(paper) {
+        "within"
+    } else if paper > ours.max {
+        "above"
+    } else {
+        "below"
+    };
+    format!(
+        "{who} {paper:.3} % lies {place} our range ({} %), {:.1} points {} our mean",
+        ours.range(1),
+        d.abs(),
+        if d < 0.0 { "below" } else { "above" }
+    )
+}
+
+/// The paper's Table 1 beside ours over seeds, as Markdown: the RMSEs (mean ± sample
+/// standard deviation and range) per plan and controller, the bench experiment's rows, the
+/// reductions and plan gaps per seed, and the verdict on both of the paper's claims.
+pub fn repro_table(rows: &[ReproRow], bench: Option<&BenchRows>) -> String {
     let mut o = String::new();
     let seeds = rows.first().map_or(0, |r| r.seeds.len());
     let _ = writeln!(
@@ -205,43 +446,53 @@ pub fn repro_table(rows: &[ReproRow]) -> String {
         "| plan | controller | Track, paper | Track, ringsync | range | Sync, paper | Sync, ringsync | range |"
     );
     let _ = writeln!(o, "|---|---|---:|---:|---:|---:|---:|---:|");
+    let line = |o: &mut String, plan: String, r: &ReproRow, paper: Option<(f64, f64)>| {
+        let (t, s) = (r.track(), r.sync());
+        let _ = writeln!(
+            o,
+            "| {} | {} | {} | {} | {} | {} | {} | {} |",
+            plan,
+            controller_label(r.controller),
+            paper.map_or("–".into(), |p| p.0.to_string()),
+            t.pm(5),
+            t.range(5),
+            paper.map_or("–".into(), |p| p.1.to_string()),
+            s.pm(7),
+            s.range(7)
+        );
+    };
     for plan in ["p2p-lumped", "lumped-only"] {
         for ctl in ["pd", "sync", "ring-coupled"] {
-            let Some(r) = find(rows, plan, ctl) else {
-                continue;
-            };
-            let paper = paper_values(plan, ctl);
-            let (t, s) = (r.track(), r.sync());
-            let _ = writeln!(
-                o,
-                "| {} | {} | {} | {} | {} | {} | {} | {} |",
-                plan_label(plan),
-                controller_label(ctl),
-                paper.map_or("–".into(), |p| p.0.to_string()),
-                t.pm(5),
-                t.range(5),
-                paper.map_or("–".into(), |p| p.1.to_string()),
-                s.pm(7),
-                s.range(7)
-            );
+            if let Some(r) = find(rows, plan, ctl) {
+                line(&mut o, plan_label(plan).into(), r, paper_values(plan, ctl));
+            }
+        }
+    }
+    if let Some(b) = bench {
+        for r in [&b.pd, &b.sync] {
+            let label = format!("lumped-only, J/K_a spread {}× (bench experiment)", b.spread);
+            line(&mut o, label, r, paper_values("lumped-only", r.controller));
         }
     }
     let _ = writeln!(
         o,
-        "\nTrack = Track-RMSE, Sync = Sync-RMSE [rad] (eq. 26-27); ringsync: mean ± standard deviation over {seeds} seed{} and the range. The paper reports one measurement per case; it measured its ref. [3] rows on another test bench, ringsync runs both plans on one plant.\n",
-        if seeds == 1 { "" } else { "s" }
+        "\nTrack = Track-RMSE, Sync = Sync-RMSE [rad] (eq. 26-27); ringsync: mean ± sample standard deviation (n − 1) over {seeds} seed{} and the range. The paper reports one measurement per case; it measured its ref. [3] rows on another test bench, ringsync runs both plans on one plant.{}\n",
+        if seeds == 1 { "" } else { "s" },
+        if bench.is_some() {
+            " The bench experiment runs that plant again with each axis's J/K_a moved further from the axes' mean, to see how much of the paper's plan gap a bench difference explains."
+        } else {
+            ""
+        }
     );
     let red = reductions(rows);
-    if !red.is_empty() {
-        let _ = writeln!(
-            o,
-            "| reduction, sync controller vs standard PD | paper | ringsync | range |"
-        );
+    let gaps = plan_gaps(rows);
+    if !red.is_empty() || !gaps.is_empty() {
+        let _ = writeln!(o, "| reduction | paper | ringsync | range |");
         let _ = writeln!(o, "|---|---:|---:|---:|");
         for r in &red {
             let _ = writeln!(
                 o,
-                "| {}, {} | {:.3} % | {} % | {} % |",
+                "| {}, sync controller vs standard PD, {} | {:.3} % | {} % | {} % |",
                 r.metric,
                 plan_label(r.plan),
                 r.paper,
@@ -249,60 +500,39 @@ pub fn repro_table(rows: &[ReproRow]) -> String {
                 r.ours.range(3)
             );
         }
+        for g in &gaps {
+            let _ = writeln!(
+                o,
+                "| Sync-RMSE, proposed vs lumped-only plan, {} | {:.3} % | {} % | {} % |",
+                controller_label(g.controller),
+                g.paper,
+                g.ours.pm(3),
+                g.ours.range(3)
+            );
+        }
         let _ = writeln!(
             o,
-            "\nEach seed's reduction is 1 − sync/PD from the two runs of that seed (same clocks, same draws).\n"
+            "\nEach seed's reduction is 1 − new/old from the two runs of that seed (same clocks, same draws); the paper's plan figures compare its proposed plan with ref. [3]'s rows.\n"
         );
     }
     let _ = writeln!(o, "Verdict:\n");
-    for line in verdict(rows) {
+    for line in verdict(rows, bench) {
         let _ = writeln!(o, "- {line}");
     }
     o
 }
 
-/// The verdict in plain sentences: direction and size of each reduction against the paper,
-/// and what this reconstruction cannot match and why.
-pub fn verdict(rows: &[ReproRow]) -> Vec<String> {
-    let mut v = Vec::new();
-    for r in reductions(rows) {
-        let who = if r.plan == "lumped-only" {
-            "ref. [3]'s (another test bench)"
-        } else {
-            "the paper's"
-        };
-        let direction = if r.ours.max < 0.0 {
-            "raises it in every seed, unlike the paper".to_string()
-        } else if r.ours.min <= 0.0 {
-            "does not lower it in every seed, unlike the paper".to_string()
-        } else {
-            format!("lowers it in every seed by {:.1} % on average", r.ours.mean)
-        };
-        let size = if r.ours.covers(r.paper) {
-            format!(
-                "{who} {:.3} % lies within our range ({} %)",
-                r.paper,
-                r.ours.range(1)
-            )
-        } else {
-            let d = r.ours.mean - r.paper;
-            format!(
-                "{who} {:.3} % lies {} our range ({} %): ours is {:.1} points {} on average",
-                r.paper,
-                if r.paper > r.ours.max {
-                    "above"
-                } else {
-                    "below"
-                },
-                r.ours.range(1),
-                d.abs(),
-                if d < 0.0 { "smaller" } else { "larger" }
-            )
-        };
+/// The verdict in plain sentences: each of the paper's claims beside ours (with its
+/// verdict and the gap), ref. \[3\]'s own reductions, and what cannot match and why.
+pub fn verdict(rows: &[ReproRow], bench: Option<&BenchRows>) -> Vec<String> {
+    let mut v: Vec<String> = claims(rows, bench).into_iter().map(|c| c.text).collect();
+    for r in reductions(rows).iter().filter(|r| r.plan == "lumped-only") {
         v.push(format!(
-            "{}, {}: the sync controller {direction}; {size}.",
+            "{}, lumped-only plan: the sync controller lowers it by {} % ({} %) against standard PD; {}.",
             r.metric,
-            plan_label(r.plan)
+            r.ours.pm(1),
+            r.ours.range(1),
+            gap_words(&r.ours, r.paper, "ref. [3]'s (another test bench)")
         ));
     }
     if let Some(pd) = find(rows, "p2p-lumped", "pd") {
@@ -334,33 +564,190 @@ fn above_below(ours: f64, paper: f64) -> String {
     )
 }
 
-/// `summary.json` of `reproduce`: one object per (plan, controller) with the means
-/// (`track_rmse`, `sync_rmse`), standard deviations, ranges, the seeds and each seed's
-/// values \[rad\].
-pub fn repro_json(rows: &[ReproRow]) -> Value {
-    Value::Array(
-        rows.iter()
-            .map(|r| {
-                let (t, s) = (r.track(), r.sync());
-                json!({
-                    "plan": r.plan,
-                    "controller": r.controller,
-                    "seeds": r.seeds.len(),
-                    "track_rmse": t.mean,
-                    "track_rmse_sd": t.sd,
-                    "track_rmse_min": t.min,
-                    "track_rmse_max": t.max,
-                    "sync_rmse": s.mean,
-                    "sync_rmse_sd": s.sd,
-                    "sync_rmse_min": s.min,
-                    "sync_rmse_max": s.max,
-                    "seed_values": r.seeds,
-                    "track_rmse_per_seed": r.track_rmse,
-                    "sync_rmse_per_seed": r.sync_rmse,
-                })
-            })
+/// One case of `reproduce`'s summary.json: means, sample standard deviations and ranges
+/// over the seeds, every seed's values, and the paper's where Table 1 has them \[rad\].
+#[derive(Debug, Clone, PartialEq, Serialize, JsonSchema)]
+pub struct CaseSummary {
+    /// `p2p-lumped` or `lumped-only`.
+    pub plan: String,
+    /// `pd`, `sync` or `ring-coupled`.
+    pub controller: String,
+    /// The paper's Track-RMSE \[rad\] (Table 1; ref. \[3\]'s on the lumped-only plan).
+    pub paper_track_rmse: Option<f64>,
+    /// The paper's Sync-RMSE \[rad\].
+    pub paper_sync_rmse: Option<f64>,
+    /// Seeds run.
+    pub seeds: usize,
+    /// Track-RMSE, mean over the seeds \[rad\].
+    pub track_rmse: f64,
+    /// Its sample standard deviation (n − 1) \[rad\].
+    pub track_rmse_sd: f64,
+    /// Its smallest value \[rad\].
+    pub track_rmse_min: f64,
+    /// Its largest value \[rad\].
+    pub track_rmse_max: f64,
+    /// Sync-RMSE, mean over the seeds \[rad\].
+    pub sync_rmse: f64,
+    /// Its sample standard deviation (n − 1) \[rad\].
+    pub sync_rmse_sd: f64,
+    /// Its smallest value \[rad\].
+    pub sync_rmse_min: f64,
+    /// Its largest value \[rad\].
+    pub sync_rmse_max: f64,
+    /// The seeds, in run order.
+    pub seed_values: Vec<u64>,
+    /// Track-RMSE of each seed's run \[rad\].
+    pub track_rmse_per_seed: Vec<f64>,
+    /// Sync-RMSE of each seed's run \[rad\].
+    pub sync_rmse_per_seed: Vec<f64>,
+}
+
+impl CaseSummary {
+    fn of(r: &ReproRow, paper: Option<(f64, f64)>) -> Self {
+        let (t, s) = (r.track(), r.sync());
+        CaseSummary {
+            plan: r.plan.into(),
+            controller: r.controller.into(),
+            paper_track_rmse: paper.map(|p| p.0),
+            paper_sync_rmse: paper.map(|p| p.1),
+            seeds: r.seeds.len(),
+            track_rmse: t.mean,
+            track_rmse_sd: t.sd,
+            track_rmse_min: t.min,
+            track_rmse_max: t.max,
+            sync_rmse: s.mean,
+            sync_rmse_sd: s.sd,
+            sync_rmse_min: s.min,
+            sync_rmse_max: s.max,
+            seed_values: r.seeds.clone(),
+            track_rmse_per_seed: r.track_rmse.clone(),
+            sync_rmse_per_seed: r.sync_rmse.clone(),
+        }
+    }
+}
+
+/// One reduction in `reproduce`'s summary.json: the paper's [%] beside ours over the seeds.
+#[derive(Debug, Clone, PartialEq, Serialize, JsonSchema)]
+pub struct ReductionSummary {
+    /// What is compared: `sync vs pd` (controllers, on `plan`) or `p2p-lumped vs
+    /// lumped-only` (plans, for `controller`).
+    pub compares: String,
+    /// The plan (controller reductions) or `both` (plan gaps).
+    pub plan: String,
+    /// The controller (plan gaps) or `sync vs pd`.
+    pub controller: String,
+    /// `Sync-RMSE` or `Track-RMSE`.
+    pub metric: String,
+    /// The paper's [%].
+    pub paper_percent: f64,
+    /// Ours over the seeds, each seed paired [%].
+    pub ours_percent: Spread,
+}
+
+/// The bench experiment in `reproduce`'s summary.json.
+#[derive(Debug, Clone, PartialEq, Serialize, JsonSchema)]
+pub struct BenchSummary {
+    /// The factor on each axis's deviation of J/K_a from the axes' mean.
+    pub spread: f64,
+    /// Standard PD on the lumped-only plan of the widened bench.
+    pub pd: CaseSummary,
+    /// The sync controller likewise.
+    pub sync: CaseSummary,
+    /// PD's mean Sync-RMSE there over PD's on the proposed plan of the scenario's bench.
+    pub pd_ratio: f64,
+    /// The paper's: ref. \[3\]'s PD Sync-RMSE over its own.
+    pub paper_pd_ratio: f64,
+    /// The sync controller's ratio likewise.
+    pub sync_ratio: f64,
+    /// The paper's likewise.
+    pub paper_sync_ratio: f64,
+    /// The sync controller's reduction of Sync-RMSE against PD there [%].
+    pub reduction_percent: Spread,
+    /// Ref. \[3\]'s [%].
+    pub paper_reduction_percent: f64,
+}
+
+/// `reproduce`'s summary.json (schema version [`REPRO_SCHEMA_VERSION`]).
+#[derive(Debug, Clone, PartialEq, Serialize, JsonSchema)]
+pub struct ReproSummary {
+    /// The version of ringsync that wrote it.
+    pub ringsync_version: String,
+    /// The version of this schema.
+    pub schema_version: u32,
+    /// The base scenario's name.
+    pub scenario: String,
+    /// The seeds of every case.
+    pub seeds: Vec<u64>,
+    /// What `_sd` means.
+    pub sd: String,
+    /// The paper's claims, each with ours and a verdict.
+    pub claims: Vec<Claim>,
+    /// One per (plan, controller).
+    pub cases: Vec<CaseSummary>,
+    /// The sync controller against standard PD per plan and metric, and each controller's
+    /// Sync-RMSE on the proposed plan against the lumped-only plan.
+    pub reductions: Vec<ReductionSummary>,
+    /// The bench experiment, when it ran (axes whose J/K_a differ).
+    pub bench: Option<BenchSummary>,
+    /// The verdict's sentences, as table.md prints them.
+    pub verdict: Vec<String>,
+}
+
+/// `reproduce`'s summary.json for scenario `name`.
+pub fn repro_summary(name: &str, rows: &[ReproRow], bench: Option<&BenchRows>) -> ReproSummary {
+    let mut reds: Vec<ReductionSummary> = reductions(rows)
+        .into_iter()
+        .map(|r| ReductionSummary {
+            compares: "sync vs pd".into(),
+            plan: r.plan.into(),
+            controller: "sync vs pd".into(),
+            metric: r.metric.into(),
+            paper_percent: r.paper,
+            ours_percent: r.ours,
+        })
+        .collect();
+    reds.extend(plan_gaps(rows).into_iter().map(|g| ReductionSummary {
+        compares: "p2p-lumped vs lumped-only".into(),
+        plan: "both".into(),
+        controller: g.controller.into(),
+        metric: "Sync-RMSE".into(),
+        paper_percent: g.paper,
+        ours_percent: g.ours,
+    }));
+    let bench_summary = bench.map(|b| {
+        let base = |ctl: &str| find(rows, "p2p-lumped", ctl).map_or(f64::NAN, |p| p.sync().mean);
+        BenchSummary {
+            spread: b.spread,
+            pd: CaseSummary::of(&b.pd, paper_values("lumped-only", "pd")),
+            sync: CaseSummary::of(&b.sync, paper_values("lumped-only", "sync")),
+            pd_ratio: b.pd.sync().mean / base("pd"),
+            paper_pd_ratio: PAPER_BENCH_RATIOS[0].1,
+            sync_ratio: b.sync.sync().mean / base("sync"),
+            paper_sync_ratio: PAPER_BENCH_RATIOS[1].1,
+            reduction_percent: paired(&b.pd.sync_rmse, &b.sync.sync_rmse),
+            paper_reduction_percent: PAPER_REDUCTIONS[1].1[1],
+        }
+    });
+    ReproSummary {
+        ringsync_version: crate::provenance::RINGSYNC_VERSION.into(),
+        schema_version: REPRO_SCHEMA_VERSION,
+        scenario: name.into(),
+        seeds: rows.first().map(|r| r.seeds.clone()).unwrap_or_default(),
+        sd: SD_MEANING.into(),
+        claims: claims(rows, bench),
+        cases: rows
+            .iter()
+            .map(|r| CaseSummary::of(r, paper_values(r.plan, r.controller)))
             .collect(),
-    )
+        reductions: reds,
+        bench: bench_summary,
+        verdict: verdict(rows, bench),
+    }
+}
+
+/// [`repro_summary`] as JSON.
+pub fn repro_json(name: &str, rows: &[ReproRow], bench: Option<&BenchRows>) -> Value {
+    serde_json::to_value(repro_summary(name, rows, bench)).unwrap_or(Value::Null)
 }
 
 /// The figures of a reproduction: (file name, SVG). Fig. 1 is the cycle's timing diagram,
@@ -484,7 +871,12 @@ fn markdown_html(md: &str) -> String {
 
 /// One self-contained HTML page: what was run, Table 1 beside the paper's over seeds with
 /// the verdict, the figures (the first seed's runs), and every assumption.
-pub fn repro_html(s: &Scenario, rows: &[ReproRow], figures: &[(&str, String)]) -> String {
+pub fn repro_html(
+    s: &Scenario,
+    rows: &[ReproRow],
+    bench: Option<&BenchRows>,
+    figures: &[(&str, String)],
+) -> String {
     let mut o = String::new();
     let _ = write!(
         o,
@@ -522,7 +914,7 @@ ringsync the mean, the spread and the range over the seeds. Re-run it with <code
         nseeds = seeds.len(),
     );
     o.push_str("<h2>Table 1 [rad]</h2>\n");
-    o.push_str(&markdown_html(&repro_table(rows)));
+    o.push_str(&markdown_html(&repro_table(rows, bench)));
     let _ = writeln!(
         o,
         "<p class=\"note\">Track-RMSE = sqrt((1/N)·Σ<sub>j</sub>Σ<sub>i</sub> e<sub>i</sub>(j)²), Sync-RMSE likewise with ε (eq. 26-27), \
@@ -634,39 +1026,117 @@ mod tests {
             row("p2p-lumped", "pd", &[0.2, 0.2], &[0.004, 0.004]),
             row("p2p-lumped", "sync", &[0.15, 0.16], &[0.0021, 0.0019]),
         ];
-        let v = verdict(&rows);
-        // Track: 20-25 % covers 21.171 %; Sync: 47.5-52.5 % covers 49.270 %.
+        let c = claims(&rows, None);
+        assert_eq!(c.len(), 2, "no lumped-only rows: claim 1 only");
+        // Sync: 47.5-52.5 % covers 49.270 %; Track: 20-25 % covers 21.171 %.
+        assert_eq!(
+            (c[0].metric.as_str(), c[0].verdict),
+            ("Sync-RMSE", ClaimVerdict::Reproduced)
+        );
+        assert_eq!(
+            (c[1].metric.as_str(), c[1].verdict),
+            ("Track-RMSE", ClaimVerdict::Reproduced)
+        );
+        let v = verdict(&rows, None);
         assert!(
-            v[0].contains("lies within our range (20.0–25.0 %)"),
+            v[1].contains("lies within our range (20.0–25.0 %), 1.3 points below our mean"),
             "{v:?}"
         );
-        assert!(v[1].contains("within our range"), "{v:?}");
+        assert!(
+            v[0].contains("within our range") && v[0].contains("points"),
+            "{v:?}"
+        );
         let rows = [
             row("p2p-lumped", "pd", &[0.2, 0.2], &[0.004, 0.004]),
             row("p2p-lumped", "sync", &[0.21, 0.22], &[0.003, 0.0031]),
         ];
-        let v = verdict(&rows);
-        assert!(v[0].contains("raises it in every seed"), "{v:?}");
+        let c = claims(&rows, None);
+        assert_eq!(c[0].verdict, ClaimVerdict::DirectionOnly, "{c:?}");
+        assert_eq!(c[1].verdict, ClaimVerdict::NotReproduced, "{c:?}");
+        let v = verdict(&rows, None);
         assert!(
-            v[1].contains("lies above our range") && v[1].contains("smaller"),
+            v[0].contains("lies above our range")
+                && v[0].contains("direction reproduced, size not"),
             "{v:?}"
         );
-        let t = repro_table(&rows);
+        let t = repro_table(&rows, None);
         assert!(
-            t.contains("| Sync-RMSE, proposed (P2P + lumped) | 49.270 % |"),
+            t.contains(
+                "| Sync-RMSE, sync controller vs standard PD, proposed (P2P + lumped) | 49.270 % |"
+            ),
             "{t}"
         );
         assert!(t.contains("0.20000 ± 0.00000"), "{t}");
     }
 
     #[test]
+    fn the_plan_claim_compares_each_seed_on_both_plans() {
+        let rows = [
+            row("p2p-lumped", "pd", &[0.2, 0.2], &[0.004, 0.004]),
+            row("p2p-lumped", "sync", &[0.15, 0.16], &[0.0020, 0.0022]),
+            row("lumped-only", "pd", &[0.2, 0.2], &[0.004, 0.004]),
+            row("lumped-only", "sync", &[0.15, 0.16], &[0.0025, 0.0021]),
+        ];
+        let g = plan_gaps(&rows);
+        // Seed 1: 1 − 0.0020/0.0025 = 20 %; seed 2: 1 − 0.0022/0.0021 < 0.
+        let sync = g.iter().find(|g| g.controller == "sync").expect("sync");
+        assert!(
+            (sync.ours.max - 20.0).abs() < 1e-9 && sync.ours.min < 0.0,
+            "{sync:?}"
+        );
+        assert!((sync.paper - 37.996).abs() < 1e-3, "{}", sync.paper);
+        let c = claims(&rows, None);
+        let plan = c.iter().find(|c| c.claim == "plan").expect("plan claim");
+        assert_eq!(plan.verdict, ClaimVerdict::NotReproduced);
+        assert!(
+            plan.text.contains("PD rows differ by 33.7 %"),
+            "{}",
+            plan.text
+        );
+        let bench = BenchRows {
+            spread: 1.5,
+            pd: row("lumped-only", "pd", &[0.2, 0.2], &[0.006, 0.006]),
+            sync: row("lumped-only", "sync", &[0.15, 0.16], &[0.0033, 0.0033]),
+        };
+        let j = repro_json("x", &rows, Some(&bench));
+        assert!(
+            (j["bench"]["pd_ratio"].as_f64().expect("ratio") - 1.5).abs() < 1e-12,
+            "{j}"
+        );
+        assert!(
+            (j["bench"]["reduction_percent"]["mean"]
+                .as_f64()
+                .expect("red")
+                - 45.0)
+                .abs()
+                < 1e-9
+        );
+        assert_eq!(j["claims"][2]["verdict"], "not-reproduced");
+        let t = repro_table(&rows, Some(&bench));
+        assert!(
+            t.contains("| lumped-only, J/K_a spread 1.5× (bench experiment) | standard PD |"),
+            "{t}"
+        );
+        assert!(
+            t.contains("spread 1.5× wider raises our standard PD's Sync-RMSE 1.50×"),
+            "{t}"
+        );
+    }
+
+    #[test]
     fn one_seed_has_no_spread_and_the_json_keeps_every_seed() {
         let rows = [row("lumped-only", "ring-coupled", &[0.3], &[0.005])];
-        let j = repro_json(&rows);
-        assert_eq!(j[0]["seeds"], 1);
-        assert_eq!(j[0]["track_rmse_sd"], 0.0);
-        assert_eq!(j[0]["sync_rmse_per_seed"][0], 0.005);
-        let html = markdown_html(&repro_table(&rows));
+        let j = repro_json("x", &rows, None);
+        assert_eq!(j["cases"][0]["seeds"], 1);
+        assert_eq!(j["cases"][0]["track_rmse_sd"], 0.0);
+        assert_eq!(j["cases"][0]["sync_rmse_per_seed"][0], 0.005);
+        assert_eq!(
+            j["cases"][0]["paper_sync_rmse"],
+            Value::Null,
+            "no paper value"
+        );
+        assert_eq!(j["schema_version"], REPRO_SCHEMA_VERSION);
+        let html = markdown_html(&repro_table(&rows, None));
         assert!(
             html.contains("<th>plan</th>") && html.contains("<li>"),
             "{html}"

@@ -171,8 +171,14 @@ fn fault_steps_json(r: &RunResult) -> Vec<Value> {
         .collect()
 }
 
-/// `summary.json` of one run. Deterministic: no wall time, no paths.
+/// `summary.json` of one run, with `ringsync_version` and `schema_version` (1) first. Deterministic:
+/// no wall time, no paths.
 pub fn summary_json(s: &Scenario, hash: u64, r: &RunResult) -> Value {
+    crate::provenance::stamp(summary_json_fields(s, hash, r), 1)
+}
+
+/// `summary.json` of one run. Deterministic: no wall time, no paths.
+fn summary_json_fields(s: &Scenario, hash: u64, r: &RunResult) -> Value {
     let m = &r.summary;
     let axes: Vec<Value> = m
         .axes

@@ -29,6 +29,21 @@ pub struct IdentifiedAxis {
     pub scenario: (f64, f64, f64),
 }
 
+/// The disturbance observer's bandwidth `identify` writes by default \[Hz\]
+/// (`control.dob_bandwidth`). Feed-forward alone is only as good as the model is equal on
+/// every axis: on `paper-2015` with the identified gains, per-axis errors alternating ±1 %,
+/// ±3 %, ±10 % between the axes give the sync law Sync-RMSE 0.32×, 0.96×, 3.2× standard
+/// PD's; with this observer 0.010×, 0.026×, 0.084× (±30 %: 0.25×), for +4 % peak command
+/// and a Track-RMSE of 0.0014 rad against 0.0002 rad with an exact model
+/// (docs/experiments.md, section 6).
+pub const DOB_BANDWIDTH_HZ: f64 = 20.0;
+
+/// The per-axis model error (relative, alternating between axes) above which feed-forward
+/// without an observer leaves the sync law's Sync-RMSE above standard PD's: 3.1 % measured
+/// on `paper-2015` (see [`DOB_BANDWIDTH_HZ`]); a fit whose 95 % intervals are wider than
+/// this is warned about.
+pub const FEED_FORWARD_BREAK_EVEN: f64 = 0.03;
+
 /// A run identified: every axis, and the scenario it ran.
 #[derive(Debug, Clone)]
 pub struct Identification {
@@ -108,7 +123,10 @@ pub fn check_out(dir: &Path, out: &Path) -> Result<()> {
 /// for a in &id.axes {
 ///     println!("axis {}: H = {:.5} V·s²/rad", a.axis, a.id.h.value);
 /// }
-/// std::fs::write("id.toml", ringsync::identify::identified_toml(&id)?)?;
+/// std::fs::write(
+///     "id.toml",
+///     ringsync::identify::identified_toml(&id, ringsync::identify::DOB_BANDWIDTH_HZ)?,
+/// )?;
 /// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```
 pub fn identify_run(dir: &Path) -> Result<Identification> {
@@ -184,6 +202,68 @@ pub fn identify_run(dir: &Path) -> Result<Identification> {
 }
 
 impl Identification {
+    /// How well the fit knows each axis's feed-forward on the run's own motion: the 95 %
+    /// interval of H·|ẍ^d| + C·|ẋ^d| + F at the motion's peaks, relative to its value
+    /// (H_ci·A + C_ci·V + F_ci) / (H·A + C·V + F), the widest over the axes, with its axis.
+    /// The model error the fit itself can see; unmodelled dynamics add to it.
+    pub fn model_uncertainty(&self) -> (f64, usize) {
+        let s = &self.run.scenario;
+        let peaks: Vec<(f64, f64)> = match s.trajectories() {
+            Ok(traj) => {
+                let g = ringsync_control::GroupTrajectories::new(traj);
+                let dur = s.duration.secs();
+                let steps = 2000;
+                (0..g.len())
+                    .map(|i| {
+                        (0..=steps).fold((0.0f64, 0.0f64), |(a, v), k| {
+                            let d = g.at(i, dur * k as f64 / steps as f64);
+                            (a.max(d.a.abs()), v.max(d.v.abs()))
+                        })
+                    })
+                    .collect()
+            }
+            Err(_) => Vec::new(),
+        };
+        let mut worst = (0.0, 0);
+        for (k, a) in self.axes.iter().enumerate() {
+            let (acc, vel) = peaks.get(k).copied().unwrap_or((1.0, 1.0));
+            let (h, c, f) = (a.id.h, a.id.c, a.id.f);
+            let ff = h.value.abs() * acc + c.value.abs() * vel + f.value.abs();
+            let ci = h.ci95 * acc + c.ci95 * vel + f.ci95;
+            let rel = if ff > 0.0 { ci / ff } else { f64::INFINITY };
+            if rel > worst.0 || rel.is_nan() {
+                worst = (rel, a.axis);
+            }
+        }
+        worst
+    }
+
+    /// A warning when the fit's intervals are wider than [`FEED_FORWARD_BREAK_EVEN`]: what
+    /// feed-forward alone would then do, and whether the written scenario's observer
+    /// (`dob_hz`, 0 for none) holds it.
+    pub fn warning(&self, dob_hz: f64) -> Option<String> {
+        let (rel, axis) = self.model_uncertainty();
+        if rel <= FEED_FORWARD_BREAK_EVEN {
+            return None;
+        }
+        let rel = if rel.is_finite() {
+            format!("±{:.1} %", rel * 100.0)
+        } else {
+            "unbounded".to_string()
+        };
+        Some(format!(
+            "warning: the feed-forward of axis {axis} (H·ẍ + C·ẋ + F at the motion's peaks) is known to {rel} (95 %): per-axis model errors above about {:.0} % make feed-forward alone worse than standard PD on Sync-RMSE; {}",
+            FEED_FORWARD_BREAK_EVEN * 100.0,
+            if dob_hz > 0.0 {
+                format!(
+                    "the written scenario's disturbance observer ({dob_hz} Hz) holds errors of ±30 % to a quarter of PD's Sync-RMSE"
+                )
+            } else {
+                "consider a disturbance observer (--dob-bandwidth, default 20 Hz), which holds errors of ±30 % to a quarter of PD's Sync-RMSE".to_string()
+            }
+        ))
+    }
+
     /// The estimates beside the scenario's values, as a Markdown table.
     pub fn text(&self) -> String {
         let rows: Vec<_> = self
@@ -201,8 +281,46 @@ impl Identification {
 
 /// The run's scenario with the identified H, C, F as `control.kh`, `control.kc` and
 /// `control.kf` (one value per axis; a negative F, which friction cannot be, becomes 0),
-/// behind a header that gives every estimate with its interval.
-pub fn identified_toml(id: &Identification) -> Result<String> {
+/// behind a header that gives every estimate with its interval. With `dob_hz` > 0 it adds a
+/// disturbance observer of that bandwidth (`control.dob_bandwidth`), which cancels the
+/// Coulomb friction itself, so `control.kf` is 0 ([`DOB_BANDWIDTH_HZ`] says why); an
+/// observer the stability check cannot show stable on the scenario's ring is halved until
+/// it can (down to 1 Hz), or left out, and the header says which.
+pub fn identified_toml(id: &Identification, dob_hz: f64) -> Result<String> {
+    if !(0.0..=1000.0).contains(&dob_hz) {
+        return Err(Error::Input(format!(
+            "--dob-bandwidth {dob_hz}: expected 0 (no observer) to 1000 Hz"
+        )));
+    }
+    let mut hz = dob_hz;
+    loop {
+        let text = identified_toml_at(id, hz)?;
+        if hz == 0.0 {
+            return Ok(text);
+        }
+        let stable = crate::parse(&text, "identified scenario")
+            .ok()
+            .and_then(|l| crate::check(&l.scenario, 11).ok())
+            .is_some_and(|r| r.verdict() == crate::Verdict::Stable);
+        if stable {
+            if hz == dob_hz {
+                return Ok(text);
+            }
+            return Ok(format!(
+                "# control.dob_bandwidth: {dob_hz} Hz is not shown stable on this ring by `ringsync check`; {hz} Hz is.\n{text}"
+            ));
+        }
+        hz /= 2.0;
+        if hz < 1.0 {
+            let text = identified_toml_at(id, 0.0)?;
+            return Ok(format!(
+                "# control.dob_bandwidth: no observer from 1 to {dob_hz} Hz is shown stable on this ring by `ringsync check`: none written.\n{text}"
+            ));
+        }
+    }
+}
+
+fn identified_toml_at(id: &Identification, dob_hz: f64) -> Result<String> {
     let mut table: toml::Table = toml::from_str(&id.run.text)
         .map_err(|e| Error::Failed(format!("the run's scenario: {e}")))?;
     let list = |f: &dyn Fn(&IdentifiedAxis) -> f64| {
@@ -215,7 +333,12 @@ pub fn identified_toml(id: &Identification) -> Result<String> {
         .ok_or_else(|| Error::Failed("the run's scenario: control is not a table".into()))?;
     control.insert("kh".into(), list(&|a| a.id.h.value));
     control.insert("kc".into(), list(&|a| a.id.c.value));
-    control.insert("kf".into(), list(&|a| a.id.f.value.max(0.0)));
+    if dob_hz > 0.0 {
+        control.insert("kf".into(), toml::Value::Float(0.0));
+        control.insert("dob_bandwidth".into(), toml::Value::Float(dob_hz));
+    } else {
+        control.insert("kf".into(), list(&|a| a.id.f.value.max(0.0)));
+    }
     let choices = measurement_choices(&id.run.scenario);
     for c in &choices {
         control.insert(c.key.into(), toml::Value::String(c.to.to_string()));
@@ -231,6 +354,17 @@ pub fn identified_toml(id: &Identification) -> Result<String> {
     );
     for c in &choices {
         head.push_str(&format!("# {}\n", c.why));
+    }
+    if dob_hz > 0.0 {
+        head.push_str(&format!(
+            "# control.dob_bandwidth = {dob_hz} Hz with control.kf = 0: a disturbance observer through the\n\
+             # identified H and C cancels what the model misses, the Coulomb friction included\n\
+             # (feed-forward alone is only as good as the model is equal on every axis;\n\
+             # `ringsync identify --dob-bandwidth 0` leaves it out and writes K_F = F).\n"
+        ));
+    }
+    if let Some(w) = id.warning(dob_hz) {
+        head.push_str(&format!("# {w}\n"));
     }
     for a in &id.axes {
         head.push_str(&format!(
@@ -378,5 +512,55 @@ impl Trace {
             return Err(bad("the last cycle has fewer rows than axes".into()));
         }
         Ok(tr)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use ringsync_control::identify::{AxisIdentification, Estimate};
+
+    fn identification(h_ci: f64) -> Identification {
+        let est = |value, ci95| Estimate { value, ci95 };
+        let axes = (1..=4)
+            .map(|axis| IdentifiedAxis {
+                axis,
+                id: AxisIdentification {
+                    h: est(0.016, h_ci),
+                    c: est(3e-4, 1e-4),
+                    f: est(0.2, 1e-4),
+                    windows: 95,
+                    half_window: 0.02,
+                    v_min: 0.3,
+                    residual_v: 2e-4,
+                },
+                scenario: (0.016, 3e-4, 0.2),
+            })
+            .collect();
+        Identification {
+            run: crate::load("paper-2015").expect("built-in"),
+            axes,
+        }
+    }
+
+    /// The warning follows the feed-forward's own interval on the run's motion: the cosine
+    /// of paper-2015 peaks at 15.12 rad/s and 47.5 rad/s², where H·ẍ = 0.76 V dominates.
+    #[test]
+    fn a_feed_forward_known_worse_than_the_break_even_is_warned_about() {
+        let good = identification(1.6e-5);
+        let (rel, _) = good.model_uncertainty();
+        // (1.6e-5·47.5 + 1e-4·15.12 + 1e-4) / (0.016·47.5 + 3e-4·15.12 + 0.2) = 0.24 %.
+        assert!((rel - 0.0024).abs() < 2e-4, "{rel}");
+        assert_eq!(good.warning(20.0), None);
+        let poor = identification(1e-3);
+        let (rel, axis) = poor.model_uncertainty();
+        assert!(rel > FEED_FORWARD_BREAK_EVEN && axis == 1, "{rel}");
+        let w = poor.warning(20.0).expect("a warning");
+        assert!(
+            w.contains("known to ±5.") && w.contains("observer (20 Hz) holds"),
+            "{w}"
+        );
+        let w = poor.warning(0.0).expect("a warning");
+        assert!(w.contains("consider a disturbance observer"), "{w}");
     }
 }

@@ -6,7 +6,9 @@
 use ringsync_model::law::{pd, ring, sync};
 use ringsync_model::{RunResult, Scenario};
 use ringsync_proto::{CyclePlan, PlanKind};
-use ringsync_report::repro::{ReproRow, repro_figures, repro_html, repro_json, repro_table};
+use ringsync_report::repro::{
+    BENCH_SPREAD, BenchRows, ReproRow, repro_figures, repro_html, repro_json, repro_table,
+};
 
 use crate::error::{Error, Result};
 use crate::output::OutDir;
@@ -25,6 +27,43 @@ pub struct Reproduction {
     /// Why a case's run stopped, per row: `(seed, reason)` of every run that ended in a
     /// group stop.
     pub stops: Vec<Vec<(u64, String)>>,
+    /// The bench experiment: standard PD and the sync controller on the lumped-only plan
+    /// with the spread of the axes' J/K_a widened ([`bench_scenario`]); `None` when the
+    /// axes' J/K_a are all equal (no spread to widen).
+    pub bench: Option<BenchRows>,
+}
+
+/// `s` with each axis table's J/K_a moved `spread` times as far from the tables' mean:
+/// the bench experiment of [`reproduce_with`] (docs/simulator.md, "The plan comparison");
+/// `None` when every table has the same J/K_a.
+///
+/// ```
+/// let s = ringsync::load("paper-2015")?.scenario;
+/// let b = ringsync::reproduce::bench_scenario(&s, 2.0).expect("the axes differ");
+/// let mean = |s: &ringsync::Scenario| s.axis.iter().map(|a| a.j_over_ka).sum::<f64>() / 4.0;
+/// assert!((mean(&b) - mean(&s)).abs() < 1e-15);
+/// assert!((b.axis[0].j_over_ka - mean(&s) - 2.0 * (s.axis[0].j_over_ka - mean(&s))).abs() < 1e-15);
+/// # Ok::<(), ringsync::Error>(())
+/// ```
+pub fn bench_scenario(s: &Scenario, spread: f64) -> Option<Scenario> {
+    let j: Vec<f64> = s.axis.iter().map(|a| a.j_over_ka).collect();
+    let (lo, hi) = j
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &x| {
+            (l.min(x), h.max(x))
+        });
+    if hi.partial_cmp(&lo) != Some(std::cmp::Ordering::Greater) {
+        return None;
+    }
+    let mean = j.iter().sum::<f64>() / j.len() as f64;
+    let mut b = s.clone();
+    for a in &mut b.axis {
+        a.j_over_ka = mean + spread * (a.j_over_ka - mean);
+        if a.j_over_ka.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
+            return None;
+        }
+    }
+    Some(b)
 }
 
 /// The controllers of the reproduction by their registry names, in the table's order: the
@@ -132,6 +171,29 @@ pub fn reproduce_with(base: &Scenario, opts: &ReproOptions<'_>) -> Result<Reprod
             });
         }
     }
+    // The bench experiment: PD and sync on the lumped-only plan of the widened bench, rows
+    // after the table's.
+    let bench = bench_scenario(base, BENCH_SPREAD);
+    if let Some(b) = &bench {
+        for (k, law) in [pd::ENTRY.name, sync::ENTRY.name].into_iter().enumerate() {
+            let mut s = b.clone();
+            s.control.law = law.to_string();
+            let entry = ringsync_model::law::registry::find(law);
+            s.control
+                .params
+                .retain(|k, _| entry.is_some_and(|e| e.param(k).is_some()));
+            s.ring.plan = PlanKind::LumpedOnly;
+            for &seed in &seeds {
+                let mut s = s.clone();
+                s.seed = seed;
+                jobs.push(Job {
+                    row: combos.len() + k,
+                    scenario: s,
+                    trace: false,
+                });
+            }
+        }
+    }
     let results = crate::sweep::par_map(
         &jobs,
         opts.jobs,
@@ -148,7 +210,14 @@ pub fn reproduce_with(base: &Scenario, opts: &ReproOptions<'_>) -> Result<Reprod
     );
     let mut rows: Vec<ReproRow> = combos
         .iter()
-        .map(|&(plan, law)| ReproRow {
+        .copied()
+        .chain(bench.iter().flat_map(|_| {
+            [
+                (PlanKind::LumpedOnly, pd::ENTRY.name),
+                (PlanKind::LumpedOnly, sync::ENTRY.name),
+            ]
+        }))
+        .map(|(plan, law)| ReproRow {
             plan: plan.name(),
             controller: law,
             seeds: seeds.clone(),
@@ -157,7 +226,7 @@ pub fn reproduce_with(base: &Scenario, opts: &ReproOptions<'_>) -> Result<Reprod
         })
         .collect();
     let mut runs = Vec::with_capacity(combos.len());
-    let mut stops = vec![Vec::new(); combos.len()];
+    let mut stops = vec![Vec::new(); rows.len()];
     for (j, r) in jobs.iter().zip(results) {
         let r = r?;
         let row = &mut rows[j.row];
@@ -166,27 +235,44 @@ pub fn reproduce_with(base: &Scenario, opts: &ReproOptions<'_>) -> Result<Reprod
         if let Some((_, why)) = &r.group_stop {
             stops[j.row].push((j.scenario.seed, crate::sweep::stop_reason(why)));
         }
-        if j.scenario.seed == seeds[0] {
+        if j.scenario.seed == seeds[0] && j.row < combos.len() {
             runs.push(r);
         }
     }
+    let bench = if rows.len() > combos.len() {
+        let sync = rows.pop();
+        let pd = rows.pop();
+        pd.zip(sync).map(|(pd, sync)| BenchRows {
+            spread: BENCH_SPREAD,
+            pd,
+            sync,
+        })
+    } else {
+        None
+    };
     Ok(Reproduction {
         scenario: base.clone(),
         rows,
         runs,
         stops,
+        bench,
     })
 }
 
 impl Reproduction {
     /// The paper's Table 1 beside ours, as Markdown.
     pub fn table(&self) -> String {
-        repro_table(&self.rows)
+        repro_table(&self.rows, self.bench.as_ref())
+    }
+
+    /// The paper's claims, each beside ours with a verdict.
+    pub fn claims(&self) -> Vec<ringsync_report::repro::Claim> {
+        ringsync_report::repro::claims(&self.rows, self.bench.as_ref())
     }
 
     /// The verdict in plain sentences (also at the end of [`Reproduction::table`]).
     pub fn verdict(&self) -> Vec<String> {
-        ringsync_report::repro::verdict(&self.rows)
+        ringsync_report::repro::verdict(&self.rows, self.bench.as_ref())
     }
 
     /// The cases with a run that ended in a group stop, e.g. `sync on p2p-lumped (seeds 3,
@@ -194,6 +280,7 @@ impl Reproduction {
     pub fn stopped(&self) -> Vec<String> {
         self.rows
             .iter()
+            .chain(self.bench.iter().flat_map(|b| [&b.pd, &b.sync]))
             .zip(&self.stops)
             .filter(|(_, s)| !s.is_empty())
             .map(|(row, s)| {
@@ -213,8 +300,10 @@ impl Reproduction {
     }
 }
 
-/// Writes a reproduction into `dir`: `summary.json` (a row per case with means, spreads
-/// and every seed's values), `table.md` (the tables and the verdict), `report.html` and the
+/// Writes a reproduction into `dir`: `summary.json` (the paper's claims with ours and a
+/// verdict each, a case per (plan, controller) with means, sample standard deviations,
+/// ranges and every seed's values, the reductions, the bench experiment, provenance;
+/// [`ringsync_report::repro::ReproSummary`]), `table.md` (the tables and the verdict), `report.html` and the
 /// paper's figures (`fig*.svg`, the first seed's runs).
 pub fn write_reproduction(dir: &OutDir, r: &Reproduction) -> Result<()> {
     let base = &r.scenario;
@@ -225,8 +314,11 @@ pub fn write_reproduction(dir: &OutDir, r: &Reproduction) -> Result<()> {
     for (name, svg) in &figures {
         dir.write(name, svg)?;
     }
-    dir.write("report.html", repro_html(base, &r.rows, &figures))?;
-    let json = serde_json::to_string_pretty(&repro_json(&r.rows))?;
+    dir.write(
+        "report.html",
+        repro_html(base, &r.rows, r.bench.as_ref(), &figures),
+    )?;
+    let json = serde_json::to_string_pretty(&repro_json(&base.name, &r.rows, r.bench.as_ref()))?;
     dir.write("summary.json", format!("{json}\n"))?;
     dir.write(
         "table.md",

@@ -77,7 +77,12 @@ pub fn run_rt_processes(
     let mut w = std::io::BufWriter::with_capacity(1 << 16, file);
     let axes = loaded.scenario.axes_count();
     let named = |e: std::io::Error| std::io::Error::new(e.kind(), format!("{shown}: {e}"));
-    w.write_all(&ringsync_report::pcap::pcapng_header(axes))
+    let info = ringsync_report::pcap::CaptureInfo::real_time(
+        &loaded.scenario,
+        loaded.hash,
+        opts.transport.name(),
+    );
+    w.write_all(&ringsync_report::pcap::pcapng_header(axes, &info))
         .map_err(|e| Error::io(&shown, e))?;
     let mut buf = Vec::with_capacity(256);
     let mut each = |f: &ringsync_model::result::Captured| {
@@ -258,16 +263,19 @@ pub fn with_clock_bias(spec: &ringsync_model::Spec, bias_ns: &[f64]) -> ringsync
 /// does not grow with its duration. The result's trace and captured frames are empty
 /// ([`RtResult::streamed`] says what went to the files, and what they could not take);
 /// [`write_rt`] then writes the rest.
+#[allow(clippy::too_many_arguments)]
 pub fn run_rt_streamed(
     dir: &mut OutDir,
     s: &Scenario,
+    hash: u64,
     opts: &RtOptions,
     stop: &AtomicBool,
     observers: Vec<Box<dyn Observer>>,
     pcap: Option<&Path>,
 ) -> Result<RtResult> {
     let pcap = pcap.filter(|_| opts.capture);
-    let (streams, sinks) = crate::stream::open(dir, s.axes_count(), opts.trace, pcap)?;
+    let info = ringsync_report::pcap::CaptureInfo::real_time(s, hash, opts.transport.name());
+    let (streams, sinks) = crate::stream::open(dir, s.axes_count(), opts.trace, pcap, &info)?;
     let run = ringsync_rt::run_streamed(s, opts, stop, observers, sinks);
     // The run is over and its sinks are gone: the writers end.
     let written = streams.finish();
@@ -306,7 +314,15 @@ pub fn write_rt(
     {
         dir.write_file(
             p,
-            ringsync_report::pcap::pcapng(&r.run.captured, r.scenario.axes_count()),
+            ringsync_report::pcap::pcapng(
+                &r.run.captured,
+                r.scenario.axes_count(),
+                &ringsync_report::pcap::CaptureInfo::real_time(
+                    &r.scenario,
+                    hash,
+                    r.transport.name(),
+                ),
+            ),
         )?;
     }
     Ok(())
@@ -613,6 +629,10 @@ pub fn latency(opts: &HostOptions, stop: &AtomicBool) -> Result<HostLatency> {
 /// The host probe's figures as JSON.
 pub fn latency_json(r: &HostLatency, opts: &HostOptions) -> Value {
     let us = |ns: i64| ns as f64 * 1e-3;
+    ringsync_report::provenance::stamp(latency_fields(r, opts, &us), 1)
+}
+
+fn latency_fields(r: &HostLatency, opts: &HostOptions, us: &dyn Fn(i64) -> f64) -> Value {
     json!({
         "cycles": r.cycles,
         "cycle_us": us(opts.cycle.as_ns()),

@@ -183,7 +183,11 @@ pub fn write_sim(
     if let Some(p) = pcap {
         dir.write_file(
             p,
-            ringsync_report::pcap::pcapng(&r.captured, s.axes_count()),
+            ringsync_report::pcap::pcapng(
+                &r.captured,
+                s.axes_count(),
+                &ringsync_report::pcap::CaptureInfo::simulated(s, hash),
+            ),
         )?;
     }
     if outputs.summary {

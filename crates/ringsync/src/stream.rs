@@ -144,6 +144,7 @@ pub fn open(
     axes: usize,
     trace: bool,
     pcap: Option<&Path>,
+    info: &ringsync_report::pcap::CaptureInfo,
 ) -> Result<(Streams, Sinks)> {
     let mut streams = Streams::default();
     let mut sinks = Sinks::default();
@@ -163,7 +164,7 @@ pub fn open(
             dir.stream_file(p)?,
             p.display().to_string(),
             CAPTURE_QUEUE_FRAMES,
-            pcapng_header(axes),
+            pcapng_header(axes, info),
             move |o, f: &Captured| push_pcapng_frame(o, f, axes),
         )?;
         sinks.capture = Some(Box::new(q));
@@ -197,7 +198,14 @@ mod tests {
     fn a_streamed_trace_is_the_written_one_and_a_full_queue_counts() {
         let dir = std::env::temp_dir().join(format!("ringsync-stream-{}", std::process::id()));
         let mut out = OutDir::create("--out", &dir).expect("out");
-        let (streams, mut sinks) = open(&mut out, 4, true, None).expect("open");
+        let (streams, mut sinks) = open(
+            &mut out,
+            4,
+            true,
+            None,
+            &ringsync_report::pcap::CaptureInfo::simulated(&ringsync_model::Scenario::default(), 0),
+        )
+        .expect("open");
         let mut sink = sinks.trace.take().expect("trace sink");
         let mut want = TRACE_CSV_HEADER.as_bytes().to_vec();
         for k in 0..1_000 {

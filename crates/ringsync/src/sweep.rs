@@ -34,6 +34,13 @@ use crate::load::Loaded;
 use crate::output::OutDir;
 pub use ringsync_sim::Stop;
 
+/// Seeds per case by default, in `sweep`, `reproduce` and Python alike: enough for a
+/// standard deviation worth reading.
+pub const DEFAULT_SEEDS: u32 = crate::reproduce::DEFAULT_SEEDS;
+
+/// Most seeds per case, in `sweep`, `reproduce` and Python alike.
+pub const MAX_SEEDS: u32 = crate::reproduce::MAX_SEEDS;
+
 /// One swept key and its values, from `key=v1,v2,…`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SweepAxis {
@@ -62,7 +69,10 @@ impl std::str::FromStr for SweepAxis {
             )));
         }
         one_line(key, values)?;
-        let values: Vec<String> = values.split(',').map(|v| v.trim().to_string()).collect();
+        let values: Vec<String> = split_values(values)
+            .into_iter()
+            .map(|v| v.trim().to_string())
+            .collect();
         if values.iter().all(|v| v.is_empty()) {
             return Err(Error::Input(format!("'{s}' gives no values")));
         }
@@ -85,6 +95,45 @@ impl std::str::FromStr for SweepAxis {
             values,
         })
     }
+}
+
+/// `v1,v2,…` split at the commas between values: not inside brackets (an array such as
+/// `[1,2]` or an inline table) or quotes (a string holding a comma).
+///
+/// ```
+/// # use ringsync::sweep::SweepAxis;
+/// let a: SweepAxis = "control.kp=[1, 2],[3,4],\"a,b\",5".parse().unwrap();
+/// assert_eq!(a.values, ["[1, 2]", "[3,4]", "\"a,b\"", "5"]);
+/// ```
+fn split_values(s: &str) -> Vec<&str> {
+    let mut out = Vec::new();
+    let (mut depth, mut quote, mut start) = (0i32, None::<char>, 0);
+    let mut escaped = false;
+    for (i, c) in s.char_indices() {
+        match quote {
+            Some(q) => {
+                if escaped {
+                    escaped = false;
+                } else if c == '\\' && q == '"' {
+                    escaped = true;
+                } else if c == q {
+                    quote = None;
+                }
+            }
+            None => match c {
+                '"' | '\'' => quote = Some(c),
+                '[' | '{' => depth += 1,
+                ']' | '}' => depth -= 1,
+                ',' if depth <= 0 => {
+                    out.push(&s[start..i]);
+                    start = i + 1;
+                }
+                _ => {}
+            },
+        }
+    }
+    out.push(&s[start..]);
+    out
 }
 
 /// Refuses a value of `key` with a line break or another control character: a value is
@@ -582,14 +631,30 @@ pub struct Mean {
     pub track_rmse: f64,
     /// Mean Sync-RMSE \[rad\].
     pub sync_rmse: f64,
-    /// Standard deviation of Sync-RMSE over the seeds (population) \[rad\].
+    /// Sample standard deviation (n − 1) of Sync-RMSE over the seeds; 0 for one seed \[rad\].
     pub sync_rmse_std: f64,
     /// Mean over the seeds of the peak |command| \[V\].
     pub peak_u: f64,
     /// Mean RMS contour error of a part program \[mm\] (`None` for other trajectories).
     pub contour_rmse: Option<f64>,
-    /// Its standard deviation over the seeds (population) \[mm\].
+    /// Its sample standard deviation (n − 1) over the seeds \[mm\].
     pub contour_rmse_std: Option<f64>,
+}
+
+/// The sample standard deviation (n − 1 in the denominator) of `values` about their mean
+/// `mean`; 0 for fewer than two values. The one estimator of every "± sd" ringsync writes.
+///
+/// ```
+/// let sd = ringsync::sweep::sample_sd([1.0, 2.0, 3.0].into_iter(), 2.0);
+/// assert_eq!(sd, 1.0);
+/// assert_eq!(ringsync::sweep::sample_sd([5.0].into_iter(), 5.0), 0.0);
+/// ```
+pub fn sample_sd(values: impl Iterator<Item = f64> + Clone, mean: f64) -> f64 {
+    let n = values.clone().count();
+    if n < 2 {
+        return 0.0;
+    }
+    (values.map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1) as f64).sqrt()
 }
 
 /// Means over the seeds, per combination of values, in the cases' order.
@@ -610,13 +675,12 @@ pub fn aggregate(cases: &[Case], results: &[CaseResult]) -> Vec<Mean> {
             let n = v.len() as f64;
             let track = v.iter().map(|x| x.0).sum::<f64>() / n;
             let sync = v.iter().map(|x| x.1).sum::<f64>() / n;
-            let sd = (v.iter().map(|x| (x.1 - sync).powi(2)).sum::<f64>() / n).sqrt();
+            let sd = sample_sd(v.iter().map(|x| x.1), sync);
             let contour: Option<Vec<f64>> = v.iter().map(|x| x.3).collect();
             let (contour_rmse, contour_rmse_std) = match contour {
                 Some(c) if !c.is_empty() => {
                     let m = c.iter().sum::<f64>() / n;
-                    let sd = (c.iter().map(|x| (x - m).powi(2)).sum::<f64>() / n).sqrt();
-                    (Some(m), Some(sd))
+                    (Some(m), Some(sample_sd(c.iter().copied(), m)))
                 }
                 _ => (None, None),
             };
@@ -709,7 +773,7 @@ impl Sweep {
     /// The means as a Markdown table (no key columns for a sweep over seeds alone).
     pub fn table(&self) -> String {
         let mut table = format!(
-            "| {}runs | Track-RMSE [rad] | Sync-RMSE [rad] (± std over seeds) | peak \\|u\\| [V] |\n|{}---:|---:|---:|---:|\n",
+            "| {}runs | Track-RMSE [rad] | Sync-RMSE [rad] (± sample sd over seeds) | peak \\|u\\| [V] |\n|{}---:|---:|---:|---:|\n",
             self.keys
                 .iter()
                 .map(|k| format!("{k} | "))
@@ -728,79 +792,99 @@ impl Sweep {
     }
 }
 
-/// The leading CSV fields of a row: each swept key's value followed by a comma (nothing
-/// for a sweep over seeds alone).
-fn key_fields(labels: &[(String, String)]) -> String {
-    labels.iter().map(|(_, v)| format!("{v},")).collect()
-}
-
 /// Writes a sweep into `dir`: `sweep.csv` (one row per case), `means.csv` (one row per
-/// combination) and `sweep.svg` (mean Sync-RMSE against the first key, one line per value
-/// of the others; with no key, each seed's Sync-RMSE).
+/// combination; `sync_rmse_std` is the sample standard deviation, n − 1) and `sweep.svg`
+/// (mean Sync-RMSE against the first key, one line per value of the others; with no key,
+/// each seed's Sync-RMSE). The CSV files go through the `csv` writer: a value with a comma
+/// or a quote (an array, a file name) is quoted.
 pub fn write_sweep(dir: &OutDir, sw: &Sweep) -> Result<()> {
-    let keys: String = sw.keys.iter().map(|k| format!("{k},")).collect();
     // A part program's sweep gains the contour error's columns [mm].
     let contour = sw.results.iter().any(|r| r.contour_rmse.is_some());
     let opt = |v: Option<f64>| v.map_or(String::new(), |x| format!("{x:.9}"));
-    let mut csv = format!(
-        "{keys}seed,track_rmse,sync_rmse,lumped_lost,retries,commands_lost,clock_error_max_ns,group_stop_s,peak_u_v,saturated_cycles{}\n",
+    let header = |cols: &[&str], extra: &[&str]| -> Vec<String> {
+        let mut h: Vec<String> = sw.keys.clone();
+        h.extend(cols.iter().map(|c| c.to_string()));
         if contour {
-            ",contour_rmse_mm,contour_max_mm"
-        } else {
-            ""
+            h.extend(extra.iter().map(|c| c.to_string()));
         }
-    );
+        h
+    };
+    let mut w = csv::Writer::from_writer(Vec::new());
+    w.write_record(header(
+        &[
+            "seed",
+            "track_rmse",
+            "sync_rmse",
+            "lumped_lost",
+            "retries",
+            "commands_lost",
+            "clock_error_max_ns",
+            "group_stop_s",
+            "peak_u_v",
+            "saturated_cycles",
+        ],
+        &["contour_rmse_mm", "contour_max_mm"],
+    ))
+    .map_err(csv_failed)?;
     for (c, r) in sw.cases.iter().zip(&sw.results) {
-        let _ = writeln!(
-            csv,
-            "{}{},{:.9},{:.9},{},{},{},{:.0},{},{:.6},{}{}",
-            key_fields(&c.labels),
-            c.seed,
-            r.track_rmse,
-            r.sync_rmse,
-            r.lumped_lost,
-            r.retries,
-            r.commands_lost,
-            r.clock_error_max_ns,
+        let mut rec: Vec<String> = c.labels.iter().map(|(_, v)| v.clone()).collect();
+        rec.extend([
+            c.seed.to_string(),
+            format!("{:.9}", r.track_rmse),
+            format!("{:.9}", r.sync_rmse),
+            r.lumped_lost.to_string(),
+            r.retries.to_string(),
+            r.commands_lost.to_string(),
+            format!("{:.0}", r.clock_error_max_ns),
             r.group_stop_s.map_or(String::new(), |t| format!("{t:.4}")),
-            r.peak_u,
-            r.saturated_cycles,
-            if contour {
-                format!(",{},{}", opt(r.contour_rmse), opt(r.contour_max))
-            } else {
-                String::new()
-            }
-        );
-    }
-    dir.write("sweep.csv", &csv)?;
-    let mut mcsv = format!(
-        "{keys}runs,track_rmse_mean,sync_rmse_mean,sync_rmse_std,peak_u_mean_v{}\n",
+            format!("{:.6}", r.peak_u),
+            r.saturated_cycles.to_string(),
+        ]);
         if contour {
-            ",contour_rmse_mean_mm,contour_rmse_std_mm"
-        } else {
-            ""
+            rec.extend([opt(r.contour_rmse), opt(r.contour_max)]);
         }
-    );
-    for m in &sw.means {
-        let _ = writeln!(
-            mcsv,
-            "{}{},{:.9},{:.9},{:.9},{:.6}{}",
-            key_fields(&m.labels),
-            m.runs,
-            m.track_rmse,
-            m.sync_rmse,
-            m.sync_rmse_std,
-            m.peak_u,
-            if contour {
-                format!(",{},{}", opt(m.contour_rmse), opt(m.contour_rmse_std))
-            } else {
-                String::new()
-            }
-        );
+        w.write_record(&rec).map_err(csv_failed)?;
     }
-    dir.write("means.csv", &mcsv)?;
+    dir.write("sweep.csv", csv_bytes(w)?)?;
+    let mut w = csv::Writer::from_writer(Vec::new());
+    w.write_record(header(
+        &[
+            "runs",
+            "track_rmse_mean",
+            "sync_rmse_mean",
+            "sync_rmse_std",
+            "peak_u_mean_v",
+        ],
+        &["contour_rmse_mean_mm", "contour_rmse_std_mm"],
+    ))
+    .map_err(csv_failed)?;
+    for m in &sw.means {
+        let mut rec: Vec<String> = m.labels.iter().map(|(_, v)| v.clone()).collect();
+        rec.extend([
+            m.runs.to_string(),
+            format!("{:.9}", m.track_rmse),
+            format!("{:.9}", m.sync_rmse),
+            format!("{:.9}", m.sync_rmse_std),
+            format!("{:.6}", m.peak_u),
+        ]);
+        if contour {
+            rec.extend([opt(m.contour_rmse), opt(m.contour_rmse_std)]);
+        }
+        w.write_record(&rec).map_err(csv_failed)?;
+    }
+    dir.write("means.csv", csv_bytes(w)?)?;
     dir.write("sweep.svg", sweep_svg(sw))?;
     Ok(())
+}
+
+/// The bytes a CSV writer over memory holds.
+fn csv_bytes(w: csv::Writer<Vec<u8>>) -> Result<Vec<u8>> {
+    w.into_inner()
+        .map_err(|e| Error::Failed(format!("sweep CSV: {e}")))
+}
+
+fn csv_failed(e: csv::Error) -> Error {
+    Error::Failed(format!("sweep CSV: {e}"))
 }
 
 /// Mean Sync-RMSE against the first key, one line per value of the others; with no key,
@@ -1081,9 +1165,11 @@ mod tests {
             &[r(1.0), r(3.0), r(5.0)],
         );
         assert_eq!(m.len(), 2);
+        // The sample standard deviation: √(((1−2)² + (3−2)²)/(2 − 1)) = √2, not the
+        // population's 1.
         assert_eq!(
             (m[0].runs, m[0].sync_rmse, m[0].sync_rmse_std),
-            (2, 2.0, 1.0)
+            (2, 2.0, std::f64::consts::SQRT_2)
         );
         assert_eq!(
             (m[1].runs, m[1].sync_rmse, m[1].sync_rmse_std),
