@@ -48,12 +48,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 colour: PALETTE[0],
                 points: points.iter().map(|p| (p.0, p.1)).collect(),
                 extent: None,
+                errors: Vec::new(),
             },
             Series {
                 name: format!("{per_axis:.2} µs × n"),
                 colour: PALETTE[1],
                 points: vec![(0.0, 0.0), (256.0, 256.0 * per_axis)],
                 extent: None,
+                errors: Vec::new(),
             },
         ],
     );

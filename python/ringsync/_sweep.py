@@ -201,6 +201,12 @@ class Sweep:
             ax.errorbar(x, mean, yerr=sd, marker="o", capsize=3, label=", ".join(label) or None)
         if not numeric:
             ax.set_xticks([pos[repr(v)] for v in xs], [str(v) for v in xs])
+        elif _doubling([float(v) for v in xs]):
+            # As the CLI's sweep.svg: values that double (ring sizes, cycles) on a log axis,
+            # base 2, a tick at each.
+            ax.set_xscale("log", base=2)
+            ax.set_xticks([float(v) for v in xs], [str(v) for v in xs])
+            ax.minorticks_off()
         ax.set_xlabel(first)
         ax.set_ylabel(f"{metric} [{unit}]" if unit else metric)
         ax.set_title(f"{self.scenario.name}: mean ± sample sd (n − 1) over {self.seeds} seed(s)")
@@ -348,6 +354,15 @@ def sweep(
     rows = [named(r) for r in out["rows"]]
     means = [named(m) for m in out["means"]]
     return Sweep(s, g, int(out["seeds"]), rows, means, int(out["jobs"]), tasks)
+
+
+def _doubling(xs: list[float]) -> bool:
+    """Whether ``xs`` are all positive, each a power of 2 times the least, spanning a factor
+    of 8 or more: the values the CLI's ``sweep.svg`` draws on a log axis."""
+    if not xs or min(xs) <= 0:
+        return False
+    lo = min(xs)
+    return max(xs) / lo >= 8 and all(abs(math.log2(x / lo) - round(math.log2(x / lo))) < 1e-9 for x in xs)
 
 
 def sample_sd(values: Sequence[float], mean: float) -> float:

@@ -221,7 +221,8 @@ pub(crate) fn run(args: &PlanArgs) -> Result<Outcome, CliError> {
         ),
     };
     if let Some(path) = &args.svg {
-        let svg = timing_svg(&plan).ok_or_else(|| {
+        // The cycle the options ask for: the plan `--plan`, with `--break-link`'s link broken.
+        let svg = timing_svg(&plan, args.plan, broken.as_ref()).ok_or_else(|| {
             CliError::Usage(format!(
                 "--svg draws at most {MAX_SVG_SLAVES} slaves, --slaves is {}",
                 params.slaves

@@ -14,12 +14,18 @@ use crate::record::FaultEvent;
 pub const ASSUMPTIONS: &[&str] = &[
     "the master's clock is the reference; slave oscillators are offset and drift uniformly within the scenario's bounds",
     "slaves sample their encoders at synchronised time k·T_cyc − clock.sample_lead (0 unless the scenario sets it); velocity is the encoder difference over the velocity window",
-    "the master runs the law at the start of the P2P phase; time slices are fixed from the event-level cycle plan (plus jitter allowance)",
     "a command takes effect at its last bit at the slave; frames on a link never contend (the schedule keeps them apart)",
     "Track-RMSE and Sync-RMSE use the true axis positions at each cycle start (k·T_cyc), one sample per cycle",
     "Coulomb friction uses the exact sign with stiction unless the scenario asks for the smooth tanh model",
-    "lumped-only plan: each slave evaluates the shared trajectory itself to form e_j = x^d_j(s_j) − x_j; the frame's desired fields carry the master's values for monitoring",
 ];
+
+/// The assumption of a run on the proposed plan (`ring.plan = "p2p-lumped"`), named after
+/// [`ASSUMPTIONS`] in its outputs.
+pub const P2P_ASSUMPTION: &str = "p2p-lumped plan: the master runs the law at the start of the P2P phase; time slices are fixed from the event-level cycle plan (plus jitter allowance)";
+
+/// The assumption of a run on the lumped-only plan (`ring.plan = "lumped-only"`), named
+/// after [`ASSUMPTIONS`] in its outputs.
+pub const LUMPED_ONLY_ASSUMPTION: &str = "lumped-only plan: each slave evaluates the shared trajectory itself to form e_j = x^d_j(s_j) − x_j; the frame's desired fields carry the master's values for monitoring";
 
 /// Assumptions of the coupled two-link arm (`[plant] kind = "two-link-arm"`), named after
 /// [`ASSUMPTIONS`] in the outputs of a run of it (docs/simulator.md, "The plant").
@@ -44,6 +50,10 @@ pub const PROGRAM_ASSUMPTIONS: &[&str] = &[
 /// measured.
 pub fn assumptions(s: &crate::Scenario) -> Vec<&'static str> {
     let mut v = ASSUMPTIONS.to_vec();
+    v.push(match s.ring.plan {
+        ringsync_proto::PlanKind::LumpedOnly => LUMPED_ONLY_ASSUMPTION,
+        _ => P2P_ASSUMPTION,
+    });
     if s.plant.arm().is_some() {
         v.extend_from_slice(ARM_ASSUMPTIONS);
     }

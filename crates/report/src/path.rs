@@ -520,6 +520,7 @@ pub fn program_svg(v: &ProgramView<'_>) -> String {
                 colour: crate::plot::PALETTE[1],
                 points: limit,
                 extent: None,
+                errors: Vec::new(),
             },
         ],
     )

@@ -6,7 +6,7 @@
 use std::fmt::Write as _;
 
 use ringsync_model::RunResult;
-use ringsync_model::result::ASSUMPTIONS;
+use ringsync_model::result::{ASSUMPTIONS, LUMPED_ONLY_ASSUMPTION, P2P_ASSUMPTION};
 use ringsync_model::scenario::{CoulombSign, Scenario};
 use schemars::JsonSchema;
 use serde::Serialize;
@@ -774,42 +774,41 @@ pub fn repro_figures(
             &[cmd],
         ),
     ));
-    figs.push((
-        "fig4-position-errors-pd.svg",
-        line_chart(
-            "Fig. 4a: position errors e = x^d − x, standard PD",
-            "t [s]",
-            "e [rad]",
-            &per_axis(pd, |t, i| t.e(i)),
-        ),
-    ));
-    figs.push((
-        "fig4-position-errors-sync.svg",
-        line_chart(
-            "Fig. 4b: position errors e = x^d − x, sync controller",
-            "t [s]",
-            "e [rad]",
-            &per_axis(sync, |t, i| t.e(i)),
-        ),
-    ));
-    figs.push((
-        "fig5-sync-errors-pd.svg",
-        line_chart(
-            "Fig. 5a: synchronisation errors ε = Te, standard PD",
-            "t [s]",
-            "ε [rad]",
-            &per_axis(pd, |t, i| t.eps[i]),
-        ),
-    ));
-    figs.push((
-        "fig5-sync-errors-sync.svg",
-        line_chart(
-            "Fig. 5b: synchronisation errors ε = Te, sync controller",
-            "t [s]",
-            "ε [rad]",
-            &per_axis(sync, |t, i| t.eps[i]),
-        ),
-    ));
+    // Each pair shares its y range, so that PD's and the sync controller's errors compare
+    // by eye as in the paper's Figs. 4 and 5.
+    let pair = |title_a: &str,
+                title_b: &str,
+                y: &str,
+                f: fn(&ringsync_model::result::Trace, usize) -> f64| {
+        let (a, b) = (per_axis(pd, f), per_axis(sync, f));
+        let range = crate::plot::extent(&a)
+            .zip(crate::plot::extent(&b))
+            .map(|(p, q)| (p[2].min(q[2]), p[3].max(q[3])));
+        let opts = crate::plot::Chart {
+            y_range: range,
+            ..Default::default()
+        };
+        (
+            crate::plot::chart(title_a, "t [s]", y, &a, &opts),
+            crate::plot::chart(title_b, "t [s]", y, &b, &opts),
+        )
+    };
+    let (a, b) = pair(
+        "Fig. 4a: position errors e = x^d − x, standard PD",
+        "Fig. 4b: position errors e = x^d − x, sync controller",
+        "e [rad]",
+        |t, i| t.e(i),
+    );
+    figs.push(("fig4-position-errors-pd.svg", a));
+    figs.push(("fig4-position-errors-sync.svg", b));
+    let (a, b) = pair(
+        "Fig. 5a: synchronisation errors ε = Te, standard PD",
+        "Fig. 5b: synchronisation errors ε = Te, sync controller",
+        "ε [rad]",
+        |t, i| t.eps[i],
+    );
+    figs.push(("fig5-sync-errors-pd.svg", a));
+    figs.push(("fig5-sync-errors-sync.svg", b));
     figs
 }
 
@@ -881,9 +880,9 @@ pub fn repro_html(
     let _ = write!(
         o,
         "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>ringsync: {name}</title>\
-<style>body{{font-family:DejaVu Sans,Verdana,sans-serif;max-width:980px;margin:2em auto;line-height:1.45;color:#222}}\
-table{{border-collapse:collapse;margin:1em 0}}td,th{{border:1px solid #ccc;padding:4px 10px;text-align:right}}\
-th:first-child,td:first-child{{text-align:left}}figure{{margin:1.5em 0}}figure svg{{max-width:100%;height:auto}}code{{background:#f4f4f4;padding:0 3px}}\
+<style>body{{font-family:DejaVu Sans,Verdana,sans-serif;max-width:1240px;margin:2em auto;line-height:1.45;color:#222}}\
+table{{border-collapse:collapse;margin:1em 0}}td,th{{border:1px solid #ccc;padding:4px 10px;text-align:right;white-space:nowrap}}\
+th:first-child,td:first-child{{text-align:left;white-space:normal}}figure{{margin:1.5em 0}}figure svg{{max-width:100%;height:auto}}code{{background:#f4f4f4;padding:0 3px}}\
 .note{{color:#555;font-size:90%}}</style></head><body>\n",
         name = esc(&s.name)
     );
@@ -981,7 +980,11 @@ on what the frame carries: this cycle's data of the slaves before them, last cyc
     ] {
         let _ = writeln!(o, "<li>{item}</li>");
     }
-    for a in ASSUMPTIONS.iter().chain(ringsync_proto::plan::ASSUMPTIONS) {
+    for a in ASSUMPTIONS
+        .iter()
+        .chain(&[P2P_ASSUMPTION, LUMPED_ONLY_ASSUMPTION])
+        .chain(ringsync_proto::plan::ASSUMPTIONS)
+    {
         let _ = writeln!(o, "<li>{}</li>", esc(a));
     }
     let _ = write!(

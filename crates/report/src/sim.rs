@@ -547,14 +547,50 @@ pub fn run_figures(timing: Option<String>, r: &RunResult) -> Vec<(String, String
         "commands.svg",
         line_chart("Commands", "t [s]", "u [V]", &per_axis(r, |t, i| t.u[i])),
     ));
+    // The clocks' acquisition (microseconds off at t = 0) would flatten the nanoseconds
+    // that follow into a line: the figure starts once every slave is within 1 µs for good.
+    let tr = &r.trace;
+    let n = tr.axes.max(1);
+    let (mut settled, mut before) = (0.0, 0.0f64);
+    for i in 0..tr.len() {
+        let e = tr.clock_error_ns[i].abs();
+        if e > 1000.0 {
+            settled = tr.t.get(i / n + 1).copied().unwrap_or(settled);
+            before = before.max(e);
+        }
+    }
+    let end = tr.t.last().copied().unwrap_or(0.0);
+    let (title, clock) = if settled > 0.0 && settled < end {
+        let series = (1..=r.summary.axes.len())
+            .map(|a| {
+                let rows = (a - 1..tr.len())
+                    .step_by(n)
+                    .filter(|&i| tr.t[i / n] >= settled);
+                let mut th = crate::plot::Thinning::new(rows.clone().count());
+                for i in rows {
+                    th.push((tr.t[i / n], tr.clock_error_ns[i]));
+                }
+                th.finish(
+                    format!("axis {a}"),
+                    crate::plot::PALETTE[(a - 1) % crate::plot::PALETTE.len()],
+                )
+            })
+            .collect::<Vec<_>>();
+        (
+            format!(
+                "Slave clock minus master clock at each cycle start, from t = {settled:.3} s (acquisition before: up to {before:.0} ns)"
+            ),
+            series,
+        )
+    } else {
+        (
+            "Slave clock minus master clock, at each cycle start".to_string(),
+            per_axis(r, |t, i| t.clock_error_ns[i]),
+        )
+    };
     figs.push((
         "clock-errors.svg",
-        line_chart(
-            "Slave clock minus master clock, at each cycle start",
-            "t [s]",
-            "clock error [ns]",
-            &per_axis(r, |t, i| t.clock_error_ns[i]),
-        ),
+        line_chart(&title, "t [s]", "clock error [ns]", &clock),
     ));
     let mut figs: Vec<(String, String)> =
         figs.into_iter().map(|(n, s)| (n.to_string(), s)).collect();

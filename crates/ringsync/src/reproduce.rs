@@ -309,7 +309,7 @@ pub fn write_reproduction(dir: &OutDir, r: &Reproduction) -> Result<()> {
     let base = &r.scenario;
     let timing = CyclePlan::new(&base.ring_params())
         .ok()
-        .and_then(|p| ringsync_report::timing_svg(&p));
+        .and_then(|p| ringsync_report::timing_svg(&p, PlanKind::P2pLumped, None));
     let figures = repro_figures(timing, &r.runs[0], &r.runs[1]);
     for (name, svg) in &figures {
         dir.write(name, svg)?;

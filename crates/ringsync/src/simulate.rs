@@ -5,7 +5,6 @@ use std::path::Path;
 
 use ringsync_model::observer::Observer;
 use ringsync_model::{RunResult, Scenario};
-use ringsync_proto::PlanKind;
 use ringsync_report::sim::{run_figures, run_html, summary_json, write_trace_csv};
 pub use ringsync_sim::RunOptions as SimOptions;
 
@@ -210,12 +209,11 @@ pub fn write_sim(
     if !(outputs.figures || outputs.report) {
         return Ok(());
     }
-    let timing = match s.ring.plan {
-        PlanKind::P2pLumped => ringsync_proto::CyclePlan::new(&s.ring_params())
-            .ok()
-            .and_then(|p| ringsync_report::timing_svg(&p)),
-        PlanKind::LumpedOnly => None,
-    };
+    // The cycle of the run's plan (the broken ring's is drawn by `ringsync plan
+    // --break-link`: a run's break comes and goes).
+    let timing = ringsync_proto::CyclePlan::new(&s.ring_params())
+        .ok()
+        .and_then(|p| ringsync_report::timing_svg(&p, s.ring.plan, None));
     let figures = run_figures(timing, r);
     if outputs.figures {
         for (name, svg) in &figures {

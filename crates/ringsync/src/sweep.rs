@@ -887,10 +887,13 @@ fn csv_failed(e: csv::Error) -> Error {
     Error::Failed(format!("sweep CSV: {e}"))
 }
 
-/// Mean Sync-RMSE against the first key, one line per value of the others; with no key,
-/// each seed's Sync-RMSE.
+/// Mean Sync-RMSE against the first key with ± one sample standard deviation (n − 1) over
+/// the seeds as error bars, one line with markers per combination of the other keys (as
+/// Python's `Sweep.plot()` draws it): a key whose values are not all numbers is drawn as
+/// categories, a numeric key whose values double from one to the next (ring sizes) and span
+/// a factor of 8 or more on a log axis. With no key, each seed's Sync-RMSE and their mean.
 fn sweep_svg(sw: &Sweep) -> String {
-    use ringsync_report::plot::{PALETTE, Series, line_chart};
+    use ringsync_report::plot::{Chart, PALETTE, Series, chart};
     let Some(first) = sw.keys.first() else {
         let points = sw
             .cases
@@ -903,36 +906,56 @@ fn sweep_svg(sw: &Sweep) -> String {
             colour: PALETTE[0],
             points,
             extent: None,
+            errors: Vec::new(),
         }];
         let mean = sw.means.first().map_or(f64::NAN, |m| m.sync_rmse);
-        return line_chart(
-            &format!(
-                "Sync-RMSE of each seed ({}, {}, mean {mean:.7} rad)",
-                sw.origin,
-                seeds_run(sw)
-            ),
+        return chart(
+            &format!("{}: Sync-RMSE of each of {}", sw.origin, seeds_run(sw)),
             "seed",
             "Sync-RMSE [rad]",
             &series,
+            &Chart {
+                markers: true,
+                hline: Some((mean, format!("mean {mean:.6}"))),
+                ..Chart::default()
+            },
         );
     };
-    let mut groups: Vec<(String, Vec<(f64, f64)>)> = Vec::new();
-    for (k, m) in sw.means.iter().enumerate() {
+    // The first key's values in the sweep's order, and whether they are all numbers.
+    let mut xs: Vec<&str> = Vec::new();
+    for m in &sw.means {
+        if !xs.contains(&m.labels[0].1.as_str()) {
+            xs.push(&m.labels[0].1);
+        }
+    }
+    let numbers: Option<Vec<f64>> = xs.iter().map(|v| v.parse::<f64>().ok()).collect();
+    let numbers = numbers.filter(|v| v.iter().all(|x| x.is_finite()));
+    let x_of = |label: &str| {
+        let k = xs.iter().position(|v| *v == label).unwrap_or(0);
+        numbers.as_ref().map_or(k as f64, |n| n[k])
+    };
+    // Per line (the other keys' values): its name, (x, mean) points and sample sds.
+    type Line = (String, Vec<(f64, f64)>, Vec<f64>);
+    let mut groups: Vec<Line> = Vec::new();
+    for m in &sw.means {
         let name = m.labels[1..]
             .iter()
             .map(|(k, v)| format!("{k}={v}"))
             .collect::<Vec<_>>()
             .join(", ");
-        let x = m.labels[0].1.parse::<f64>().unwrap_or(k as f64);
-        match groups.iter_mut().find(|(n, _)| *n == name) {
-            Some((_, pts)) => pts.push((x, m.sync_rmse)),
-            None => groups.push((name, vec![(x, m.sync_rmse)])),
+        let p = (x_of(&m.labels[0].1), m.sync_rmse);
+        match groups.iter_mut().find(|(n, _, _)| *n == name) {
+            Some((_, pts, sd)) => {
+                pts.push(p);
+                sd.push(m.sync_rmse_std);
+            }
+            None => groups.push((name, vec![p], vec![m.sync_rmse_std])),
         }
     }
     let series: Vec<Series<'_>> = groups
         .into_iter()
         .enumerate()
-        .map(|(i, (name, points))| Series {
+        .map(|(i, (name, points, errors))| Series {
             name: if name.is_empty() {
                 "Sync-RMSE".into()
             } else {
@@ -941,17 +964,32 @@ fn sweep_svg(sw: &Sweep) -> String {
             colour: PALETTE[i % PALETTE.len()],
             points,
             extent: None,
+            errors,
         })
         .collect();
-    line_chart(
+    let x_log = numbers.as_ref().is_some_and(|n| {
+        let (lo, hi) = n
+            .iter()
+            .fold((f64::INFINITY, 0.0f64), |(l, h), &x| (l.min(x), h.max(x)));
+        lo > 0.0 && hi / lo >= 8.0
+    });
+    chart(
         &format!(
-            "Sync-RMSE against {first} ({}, mean of {})",
+            "{}: mean ± sample sd (n − 1) over {}",
             sw.origin,
             seeds_run(sw)
         ),
         first,
         "Sync-RMSE [rad]",
         &series,
+        &Chart {
+            x_log,
+            markers: true,
+            x_categories: numbers
+                .is_none()
+                .then(|| xs.iter().map(|v| v.trim_matches('"').to_string()).collect()),
+            ..Chart::default()
+        },
     )
 }
 
