@@ -485,7 +485,10 @@ fn a_sweep_without_keys_runs_the_scenario_over_its_seeds() {
     let single = v["sync_rmse"].as_f64().expect("sync_rmse");
     assert!((single - sync[1]).abs() < 1e-9, "{single} vs {}", sync[1]);
     let svg = std::fs::read_to_string(d.join("sweep.svg")).expect("svg");
-    assert!(svg.contains("<polyline") && svg.contains("Sync-RMSE of each seed"));
+    assert!(
+        svg.contains("<polyline") && svg.contains("Sync-RMSE of each of"),
+        "{svg}"
+    );
 }
 
 #[test]

@@ -32,14 +32,25 @@ pub fn stamp(v: Value, schema_version: u32) -> Value {
 /// them: (file name under docs/schemas/, schema). A test keeps the published files equal to
 /// these (`RINGSYNC_BLESS=1 cargo test -p ringsync-report schemas` rewrites them).
 pub fn schemas() -> Vec<(&'static str, Value)> {
-    let mut s = schemars::schema_for!(crate::repro::ReproSummary);
-    s.insert(
-        "title".into(),
-        Value::from("summary.json of `ringsync reproduce`"),
-    );
-    let mut v = s.to_value();
-    unescape_docs(&mut v);
-    vec![("reproduce-summary.json", v)]
+    let mut out = Vec::new();
+    for (name, title, mut s) in [
+        (
+            "reproduce-summary.json",
+            "summary.json of `ringsync reproduce`",
+            schemars::schema_for!(crate::repro::ReproSummary),
+        ),
+        (
+            "run-summary.json",
+            "summary.json of a run (`ringsync sim`; `ringsync rt` adds keys of its own)",
+            schemars::schema_for!(crate::sim::RunSummary),
+        ),
+    ] {
+        s.insert("title".into(), Value::from(title));
+        let mut v = s.to_value();
+        unescape_docs(&mut v);
+        out.push((name, v));
+    }
+    out
 }
 
 /// Descriptions taken from the doc comments without rustdoc's escapes (`\[rad\]`).

@@ -6,6 +6,8 @@ use ringsync_model::RunResult;
 use ringsync_model::result::assumptions;
 use ringsync_model::scenario::Scenario;
 use ringsync_proto::node::{Rejections, StopReason};
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
 use serde_json::{Value, json};
 
 fn stop_json(stop: &Option<(f64, StopReason)>) -> Value {
@@ -134,130 +136,382 @@ pub fn ring_json(s: &Scenario, r: &RunResult) -> Option<Value> {
     }))
 }
 
-/// A node's refused frames, per reason (every reason listed, zeros included).
-pub fn rejections_json(r: &Rejections) -> Value {
-    let mut m = serde_json::Map::new();
-    for (why, n) in r.iter() {
-        m.insert(why.name().to_string(), json!(n));
-    }
-    Value::Object(m)
+/// `summary.json` of one run, with `ringsync_version` and `schema_version` (1) first. Deterministic:
+/// no wall time, no paths.
+pub fn summary_json(s: &Scenario, hash: u64, r: &RunResult) -> Value {
+    serde_json::to_value(run_summary(s, hash, r)).unwrap_or(Value::Null)
 }
 
-/// The refused frames of every node: per node and reason, and the total.
-fn rejected_json(r: &RunResult) -> Value {
+/// Version of the schema of a run's summary.json ([`RunSummary`]; docs/schemas/).
+pub const SUMMARY_SCHEMA_VERSION: u32 = 1;
+
+/// One axis in summary.json.
+#[derive(Debug, Clone, PartialEq, Serialize, JsonSchema)]
+pub struct AxisSummary {
+    /// Axis, 1-based.
+    pub axis: usize,
+    /// RMS of its position error e \[rad\].
+    pub rms_e: f64,
+    /// Largest |e| \[rad\].
+    pub max_e: f64,
+    /// RMS of its sync error ε \[rad\].
+    pub rms_eps: f64,
+    /// Largest |ε| \[rad\].
+    pub max_eps: f64,
+    /// RMS of its command u \[V\].
+    pub rms_u: f64,
+    /// Largest |u| \[V\].
+    pub peak_u: f64,
+    /// Cycles its drive was held at ±u_max.
+    pub saturations: u64,
+    /// Largest residual clock error of its slave after the first half of the run \[ns\].
+    pub clock_error_max_ns: f64,
+    /// RMS of that clock error \[ns\].
+    pub clock_error_rms_ns: f64,
+}
+
+/// The frames of a run, as the master and the links count them.
+#[derive(Debug, Clone, PartialEq, Serialize, JsonSchema)]
+pub struct FramesSummary {
+    /// Frames the master sent.
+    pub sent_by_master: u64,
+    /// Frames lost on the links.
+    pub lost_on_links: u64,
+    /// Frames corrupted on the links.
+    pub corrupted_on_links: u64,
+    /// Lumped frames that did not come back.
+    pub lumped_lost: u64,
+    /// Samples missing from lumped frames.
+    pub samples_missing: u64,
+    /// Samples that were last cycle's again.
+    pub samples_stale: u64,
+    /// P2P slices without a valid response.
+    pub slices_failed: u64,
+    /// Commands sent again in a reserve slice.
+    pub retries: u64,
+    /// Retries answered.
+    pub retries_ok: u64,
+    /// Commands never acknowledged.
+    pub commands_lost: u64,
+    /// Responses whose echoed command differs from the one sent.
+    pub command_mismatches: u64,
+}
+
+/// One slave's counters.
+#[derive(Debug, Clone, PartialEq, Serialize, JsonSchema)]
+pub struct SlaveSummary {
+    /// Slave, 1-based.
+    pub slave: usize,
+    /// Clock syncs taken.
+    pub syncs: u64,
+    /// Commands applied.
+    pub commands: u64,
+    /// Frames refused.
+    pub rejected: u64,
+    /// Retries answered as repeats.
+    pub retries_answered: u64,
+    /// Times its clock relocked.
+    pub clock_relocks: u64,
+    /// Times its clock acquisition started again.
+    pub clock_acquisitions_restarted: u64,
+}
+
+/// The group stop of a run.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct GroupStop {
+    /// When \[s\].
+    pub time_s: f64,
+    /// Why: `following-error`, `axis-fault`, `no-response`, `no-feedback`,
+    /// `command-mismatch`, `sync-error-trip`, `following-error-trip`, `ring-split`.
+    pub reason: String,
+    /// The axis, 1-based.
+    pub axis: usize,
+    /// The error that tripped it \[rad\], where one did.
+    pub error_rad: Option<f64>,
+    /// A split ring's slaves cut off, 1-based.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub isolated_slaves: Option<Vec<usize>>,
+}
+
+/// A slave's watchdog expiry.
+#[derive(Debug, Clone, PartialEq, Serialize, JsonSchema)]
+pub struct WatchdogEvent {
+    /// Slave, 1-based.
+    pub slave: usize,
+    /// When \[s\].
+    pub time_s: f64,
+}
+
+/// A step of a fault reaction.
+#[derive(Debug, Clone, PartialEq, Serialize, JsonSchema)]
+pub struct FaultStepSummary {
+    /// When \[s\].
+    pub time_s: f64,
+    /// Axis, 1-based.
+    pub axis: usize,
+    /// What happened.
+    pub step: String,
+    /// Why, in words.
+    pub detail: String,
+}
+
+/// What went wrong in a run and what the nodes did about it.
+#[derive(Debug, Clone, PartialEq, Serialize, JsonSchema)]
+pub struct FaultsSummary {
+    /// Watchdog expiries.
+    pub watchdog: Vec<WatchdogEvent>,
+    /// The group stop, if any.
+    pub group_stop: Option<GroupStop>,
+    /// What a slave that loses its master does: `brake` or `torque-off`.
+    pub safe_state: String,
+    /// Every step of the fault reactions.
+    pub steps: Vec<FaultStepSummary>,
+    /// The node or link that failed, in words, if one did.
+    pub failed: Option<String>,
+    /// The slave that failed, 1-based, if one did.
+    pub failed_slave: Option<usize>,
+}
+
+/// Counts by name, written as one JSON object in their order (the reasons' order of
+/// `ringsync_proto::node::Reject`).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Counts(pub Vec<(String, u64)>);
+
+impl Serialize for Counts {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeMap as _;
+        let mut m = s.serialize_map(Some(self.0.len()))?;
+        for (k, v) in &self.0 {
+            m.serialize_entry(k, v)?;
+        }
+        m.end()
+    }
+}
+
+impl JsonSchema for Counts {
+    fn schema_name() -> std::borrow::Cow<'static, str> {
+        "Counts".into()
+    }
+
+    fn json_schema(generator: &mut schemars::SchemaGenerator) -> schemars::Schema {
+        <std::collections::BTreeMap<String, u64>>::json_schema(generator)
+    }
+}
+
+/// Frames refused by the nodes.
+#[derive(Debug, Clone, PartialEq, Serialize, JsonSchema)]
+pub struct RejectedSummary {
+    /// All of them.
+    pub total: u64,
+    /// Per reason, every reason listed.
+    pub by_reason: Counts,
+    /// The master's, per reason.
+    pub master: Counts,
+    /// Each slave's, per reason, then `slave` (1-based).
+    pub slaves: Vec<Counts>,
+}
+
+/// A run's summary.json (`sim`; `rt` adds its own keys): schema version
+/// [`SUMMARY_SCHEMA_VERSION`]. Deterministic: no wall time, no paths.
+#[derive(Debug, Clone, PartialEq, Serialize, JsonSchema)]
+pub struct RunSummary {
+    /// The version of ringsync that wrote it.
+    pub ringsync_version: String,
+    /// The version of this schema.
+    pub schema_version: u32,
+    /// The scenario's name.
+    pub scenario: String,
+    /// FNV-1a 64-bit hash of the scenario's text, hexadecimal.
+    pub scenario_hash: String,
+    /// The seed of every random draw.
+    pub seed: u64,
+    /// `p2p-lumped` or `lumped-only`.
+    pub plan: String,
+    /// The law as run (`pd`, `pd+ff`, `sync`, …).
+    pub controller: String,
+    /// `hold`, `linear` or `paper`.
+    pub estimator: String,
+    /// Cycles run.
+    pub cycles: i64,
+    /// T_cyc \[s\].
+    pub t_cyc_s: f64,
+    /// Track-RMSE (eq. 26) \[rad\].
+    pub track_rmse: f64,
+    /// Sync-RMSE (eq. 27) \[rad\].
+    pub sync_rmse: f64,
+    /// Per axis.
+    pub axes: Vec<AxisSummary>,
+    /// The frames.
+    pub frames: FramesSummary,
+    /// Frames refused.
+    pub rejected: RejectedSummary,
+    /// Per slave.
+    pub slaves: Vec<SlaveSummary>,
+    /// Largest residual clock error of any slave \[ns\].
+    pub clock_error_max_ns: f64,
+    /// Faults and reactions.
+    pub faults: FaultsSummary,
+    /// What the run assumes that the paper does not state.
+    pub assumptions: Vec<String>,
+    /// The sync and following monitors: their limits, counts and first trip (when on).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub monitor: Option<Value>,
+    /// Every change of the ring the master found (when the ring changed or a break was
+    /// scheduled).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ring: Option<Value>,
+    /// What the nodes' start-up phase measured (measured path delays).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub start_up: Option<Value>,
+    /// A part program's RMS contour error \[mm\].
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub contour_rmse: Option<f64>,
+    /// Its largest contour error \[mm\].
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub contour_max: Option<f64>,
+    /// Its mean contour error \[mm\].
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub contour_mean: Option<f64>,
+    /// The program: its file, duration, the circular tests (docs/programs.md).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub program: Option<Value>,
+}
+
+fn stop_summary(stop: &Option<(f64, StopReason)>) -> Option<GroupStop> {
+    serde_json::from_value(stop_json(stop)).ok()
+}
+
+fn by_reason(r: &Rejections) -> Counts {
+    Counts(
+        r.iter()
+            .map(|(why, n)| (why.name().to_string(), n))
+            .collect(),
+    )
+}
+
+/// A run's summary.json as its type.
+pub fn run_summary(s: &Scenario, hash: u64, r: &RunResult) -> RunSummary {
+    let m = &r.summary;
+    let mc = &r.master;
     let total = r
         .slaves
         .iter()
         .fold(r.master.rejected, |acc, c| acc.plus(&c.rejected));
-    json!({
-        "total": total.total(),
-        "by_reason": rejections_json(&total),
-        "master": rejections_json(&r.master.rejected),
-        "slaves": r.slaves.iter().enumerate().map(|(i, c)| {
-            let mut v = rejections_json(&c.rejected);
-            if let Value::Object(m) = &mut v {
-                m.insert("slave".into(), json!(i + 1));
-            }
-            v
-        }).collect::<Vec<_>>(),
-    })
-}
-
-/// Every step of the fault reactions: time, axis (1-based), what, why.
-fn fault_steps_json(r: &RunResult) -> Vec<Value> {
-    r.faults
-        .iter()
-        .map(|f| json!({"time_s": f.t, "axis": f.axis, "step": f.step.name(), "detail": f.step.detail()}))
-        .collect()
-}
-
-/// `summary.json` of one run, with `ringsync_version` and `schema_version` (1) first. Deterministic:
-/// no wall time, no paths.
-pub fn summary_json(s: &Scenario, hash: u64, r: &RunResult) -> Value {
-    crate::provenance::stamp(summary_json_fields(s, hash, r), 1)
-}
-
-/// `summary.json` of one run. Deterministic: no wall time, no paths.
-fn summary_json_fields(s: &Scenario, hash: u64, r: &RunResult) -> Value {
-    let m = &r.summary;
-    let axes: Vec<Value> = m
-        .axes
-        .iter()
-        .enumerate()
-        .map(|(i, a)| {
-            json!({
-                "axis": i + 1,
-                "rms_e": a.rms_e, "max_e": a.max_e, "rms_eps": a.rms_eps, "max_eps": a.max_eps,
-                "rms_u": a.rms_u, "peak_u": a.peak_u, "saturations": a.saturations,
-                "clock_error_max_ns": r.clock_error_max_ns[i], "clock_error_rms_ns": r.clock_error_rms_ns[i],
+    let mut summary = RunSummary {
+        ringsync_version: crate::provenance::RINGSYNC_VERSION.into(),
+        schema_version: SUMMARY_SCHEMA_VERSION,
+        scenario: s.name.clone(),
+        scenario_hash: format!("{hash:016x}"),
+        seed: s.seed,
+        plan: s.ring.plan.name().into(),
+        controller: s.law_name().to_string(),
+        estimator: s.control.estimator.name().into(),
+        cycles: r.cycles,
+        t_cyc_s: s.ring.cycle.secs(),
+        track_rmse: m.track_rmse,
+        sync_rmse: m.sync_rmse,
+        axes: m
+            .axes
+            .iter()
+            .enumerate()
+            .map(|(i, a)| AxisSummary {
+                axis: i + 1,
+                rms_e: a.rms_e,
+                max_e: a.max_e,
+                rms_eps: a.rms_eps,
+                max_eps: a.max_eps,
+                rms_u: a.rms_u,
+                peak_u: a.peak_u,
+                saturations: a.saturations,
+                clock_error_max_ns: r.clock_error_max_ns[i],
+                clock_error_rms_ns: r.clock_error_rms_ns[i],
             })
-        })
-        .collect();
-    let slaves: Vec<Value> = r
-        .slaves
-        .iter()
-        .enumerate()
-        .map(|(i, c)| json!({"slave": i + 1, "syncs": c.syncs, "commands": c.commands, "rejected": c.rejected.total(), "retries_answered": c.duplicates, "clock_relocks": c.relocks, "clock_acquisitions_restarted": c.acquisitions_restarted}))
-        .collect();
-    let mc = &r.master;
-    let mut v = json!({
-        "scenario": s.name,
-        "scenario_hash": format!("{hash:016x}"),
-        "seed": s.seed,
-        "plan": s.ring.plan.name(),
-        "controller": s.law_name(),
-        "estimator": s.control.estimator.name(),
-        "cycles": r.cycles,
-        "t_cyc_s": s.ring.cycle.secs(),
-        "track_rmse": m.track_rmse,
-        "sync_rmse": m.sync_rmse,
-        "axes": axes,
-        "frames": {
-            "sent_by_master": mc.frames_sent,
-            "lost_on_links": r.links.lost,
-            "corrupted_on_links": r.links.corrupted,
-            "lumped_lost": mc.lumped_lost,
-            "samples_missing": mc.samples_missing,
-            "samples_stale": mc.samples_stale,
-            "slices_failed": mc.slices_failed,
-            "retries": mc.retries,
-            "retries_ok": mc.retries_ok,
-            "commands_lost": mc.commands_lost,
-            "command_mismatches": mc.command_mismatches,
+            .collect(),
+        frames: FramesSummary {
+            sent_by_master: mc.frames_sent,
+            lost_on_links: r.links.lost,
+            corrupted_on_links: r.links.corrupted,
+            lumped_lost: mc.lumped_lost,
+            samples_missing: mc.samples_missing,
+            samples_stale: mc.samples_stale,
+            slices_failed: mc.slices_failed,
+            retries: mc.retries,
+            retries_ok: mc.retries_ok,
+            commands_lost: mc.commands_lost,
+            command_mismatches: mc.command_mismatches,
         },
-        "rejected": rejected_json(r),
-        "slaves": slaves,
-        "clock_error_max_ns": r.clock_error_max_ns.iter().copied().fold(0.0, f64::max),
-        "faults": {
-            "watchdog": r.watchdog.iter().map(|(s, t)| json!({"slave": s, "time_s": t})).collect::<Vec<_>>(),
-            "group_stop": stop_json(&r.group_stop),
-            "safe_state": s.faults.safe_state.name(),
-            "steps": fault_steps_json(r),
-            "failed": r.ring_break.map(|b| b.describe()),
-            "failed_slave": r.ring_break.and_then(|b| b.slave()),
+        rejected: RejectedSummary {
+            total: total.total(),
+            by_reason: by_reason(&total),
+            master: by_reason(&r.master.rejected),
+            slaves: r
+                .slaves
+                .iter()
+                .enumerate()
+                .map(|(i, c)| {
+                    let mut m = by_reason(&c.rejected);
+                    m.0.push(("slave".into(), i as u64 + 1));
+                    m
+                })
+                .collect(),
         },
-        "assumptions": assumptions(s),
-    });
-    if let (Some(m), Value::Object(o)) = (monitor_json(s, r), &mut v) {
-        o.insert("monitor".into(), m);
-    }
-    if let (Some(m), Value::Object(o)) = (ring_json(s, r), &mut v) {
-        o.insert("ring".into(), m);
-    }
-    if let (Some(m), Value::Object(o)) = (start_up_json(r), &mut v) {
-        o.insert("start_up".into(), m);
-    }
-    if let (
-        Some(p),
-        Value::Object(o),
-        ringsync_model::scenario::TrajectorySpec::Program { program },
-    ) = (&r.path, &mut v, &s.trajectory)
+        slaves: r
+            .slaves
+            .iter()
+            .enumerate()
+            .map(|(i, c)| SlaveSummary {
+                slave: i + 1,
+                syncs: c.syncs,
+                commands: c.commands,
+                rejected: c.rejected.total(),
+                retries_answered: c.duplicates,
+                clock_relocks: c.relocks,
+                clock_acquisitions_restarted: c.acquisitions_restarted,
+            })
+            .collect(),
+        clock_error_max_ns: r.clock_error_max_ns.iter().copied().fold(0.0, f64::max),
+        faults: FaultsSummary {
+            watchdog: r
+                .watchdog
+                .iter()
+                .map(|&(slave, time_s)| WatchdogEvent { slave, time_s })
+                .collect(),
+            group_stop: stop_summary(&r.group_stop),
+            safe_state: s.faults.safe_state.name().into(),
+            steps: r
+                .faults
+                .iter()
+                .map(|f| FaultStepSummary {
+                    time_s: f.t,
+                    axis: f.axis,
+                    step: f.step.name().into(),
+                    detail: f.step.detail(),
+                })
+                .collect(),
+            failed: r.ring_break.map(|b| b.describe()),
+            failed_slave: r.ring_break.and_then(|b| b.slave()),
+        },
+        assumptions: assumptions(s).into_iter().map(String::from).collect(),
+        monitor: monitor_json(s, r),
+        ring: ring_json(s, r),
+        start_up: start_up_json(r),
+        contour_rmse: None,
+        contour_max: None,
+        contour_mean: None,
+        program: None,
+    };
+    if let (Some(p), ringsync_model::scenario::TrajectorySpec::Program { program }) =
+        (&r.path, &s.trajectory)
     {
-        for (k, val) in crate::path::path_json(program, p) {
-            o.insert(k.into(), val);
-        }
+        summary.contour_rmse = Some(p.rmse);
+        summary.contour_max = Some(p.max);
+        summary.contour_mean = Some(p.mean);
+        summary.program = crate::path::path_json(program, p)
+            .into_iter()
+            .find(|(k, _)| *k == "program")
+            .map(|(_, v)| v);
     }
-    v
+    summary
 }
 
 /// The `start_up` key of summary.json: what the nodes' start-up phase measured (one link,

@@ -1132,7 +1132,7 @@ mod tests {
         assert_eq!(sw.means[0].runs, 3);
         assert_eq!(sw.results[0], run_case(&c[0]).expect("run"));
         assert!(
-            sweep_svg(&sw).contains("mean of 3 of 5 seeds (interrupted)"),
+            sweep_svg(&sw).contains("over 3 of 5 seeds (interrupted)"),
             "the figure says which seeds its means are over"
         );
         let r = run_cases_until(&c, 2, &|_, _| {}, &stop);
