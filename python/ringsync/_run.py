@@ -39,36 +39,33 @@ COLUMNS: dict[str, str] = {
 }
 
 
-def _pandas(what: str) -> Any:
+def _optional(module: str, extra: str, package: str, what: str, name: str = "") -> Any:
+    """``module``, imported on first use, or ImportError saying that ``what`` needs
+    ``name`` (default ``package``) and the extra (``ringsync[extra]``) or package that
+    installs it."""
+    import importlib
+
     try:
-        import pandas
+        return importlib.import_module(module)
     except ImportError as e:  # pragma: no cover - depends on the environment
         raise ImportError(
-            f"{what} needs pandas: pip install 'ringsync[pandas]' (or pip install pandas)"
+            f"{what} needs {name or package}: pip install 'ringsync[{extra}]' (or pip install {package})"
         ) from e
-    return pandas
+
+
+def _pandas(what: str) -> Any:
+    """pandas, imported on first use."""
+    return _optional("pandas", "pandas", "pandas", what)
 
 
 def _pyplot(what: str) -> Any:
     """matplotlib.pyplot, imported on first use (the backend is the caller's choice)."""
-    try:
-        import matplotlib.pyplot as plt
-    except ImportError as e:  # pragma: no cover - depends on the environment
-        raise ImportError(
-            f"{what} needs matplotlib: pip install 'ringsync[plot]' (or pip install matplotlib)"
-        ) from e
-    return plt
+    return _optional("matplotlib.pyplot", "plot", "matplotlib", what)
 
 
 def _control(what: str) -> Any:
     """python-control, imported on first use."""
-    try:
-        import control
-    except ImportError as e:  # pragma: no cover - depends on the environment
-        raise ImportError(
-            f"{what} needs python-control: pip install 'ringsync[control]' (or pip install control)"
-        ) from e
-    return control
+    return _optional("control", "control", "control", what, "python-control")
 
 
 def _root_figure(ax: Axes) -> Figure:

@@ -189,7 +189,7 @@ def test_laws_are_typed_records_with_their_params() -> None:
     laws = ringsync.laws()
     assert isinstance(laws, list) and all(isinstance(law, ringsync.Law) for law in laws)
     by_name = {law.name: law for law in laws}
-    assert list(by_name) == ["pd", "sync", "ring-coupled", "adjacent"]
+    assert list(by_name) == ["pd", "sync", "ring-coupled", "adjacent", "ccc"]
     sync = by_name["sync"]
     assert "synchronisation controller" in sync.description
     assert sync.params == () and sync.min_axes == 2 and sync.defaults == {}
@@ -204,7 +204,8 @@ def test_laws_are_typed_records_with_their_params() -> None:
         adjacent.param("ky")
     with pytest.raises(dataclasses.FrozenInstanceError):
         sync.name = "other"  # type: ignore[misc]
-    assert hash(adjacent) == hash(ringsync.laws()[-1])  # frozen, so hashable and equal
+    assert hash(adjacent) == hash(ringsync.laws()[3])  # frozen, so hashable and equal
+    assert [p.name for p in by_name["ccc"].params] == ["kcp", "kcd"]
 
 
 def test_laws_text_is_the_clis_and_matches_the_records(cli: Any) -> None:

@@ -194,3 +194,68 @@ fn a_node_plan_whose_run_has_begun_is_refused_as_stale() {
         refused(&args, "the run this node plan describes started");
     }
 }
+
+/// `node plan --out` writes as every single file ringsync writes: through a symbolic link
+/// (the link stays), and onto a device without replacing it (as root it used to rename its
+/// temporary over /dev/full, replacing the host's device node with a file).
+#[test]
+fn a_node_plan_goes_through_links_and_never_replaces_a_device() {
+    use std::os::unix::fs::FileTypeExt as _;
+    let d = common::scratch("audit", "node-plan-out");
+    std::fs::create_dir_all(&d).expect("scratch directory");
+    let target = d.join("real.json");
+    let link = d.join("link.json");
+    std::fs::write(&target, "old").expect("target");
+    std::os::unix::fs::symlink(&target, &link).expect("symlink");
+    let plan = |out: &str| {
+        ringsync(&[
+            "node",
+            "plan",
+            "paper-2015",
+            "--links",
+            "lo:lo,lo:lo,lo:lo,lo:lo,lo:lo",
+            "--start-in",
+            "5s",
+            "--duration",
+            "1s",
+            "--out",
+            out,
+        ])
+    };
+    let o = plan(p(&link));
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(
+        std::fs::symlink_metadata(&link)
+            .expect("link")
+            .file_type()
+            .is_symlink()
+    );
+    let written = std::fs::read_to_string(&target).expect("through the link");
+    assert!(
+        written.starts_with('{') && written.contains("\"scenario\""),
+        "{written}"
+    );
+    // A device: written to (/dev/null takes it), never replaced by a file.
+    let o = plan("/dev/null");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let meta = std::fs::metadata("/dev/null").expect("/dev/null");
+    assert!(
+        meta.file_type().is_char_device(),
+        "/dev/null is still a device"
+    );
+    let o = plan("/dev/full");
+    assert_eq!(
+        o.status.code(),
+        Some(1),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert!(
+        std::fs::metadata("/dev/full")
+            .expect("/dev/full")
+            .file_type()
+            .is_char_device(),
+        "/dev/full is still a device"
+    );
+    let _ = std::fs::remove_dir_all(&d);
+}

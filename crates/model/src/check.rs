@@ -76,6 +76,10 @@ pub enum NotModelled {
     /// delay > T_cyc): the check holds each command from its effect to the next one within
     /// a cycle.
     LateCommand,
+    /// A law whose gains follow the path (`control.law = "ccc"`): the check linearises about
+    /// a desired position at rest, where the path has no direction and the contour term
+    /// vanishes, so it would vouch for PD instead.
+    PathDependentLaw,
 }
 
 impl NotModelled {
@@ -90,6 +94,9 @@ impl NotModelled {
             }
             NotModelled::VelocityWindow => {
                 "an axis's velocity window (axis.velocity_window) reaches back past its command's effect in the cycle before, so its reported velocity spans two commands, which the check does not model"
+            }
+            NotModelled::PathDependentLaw => {
+                "the law's coupling follows the path's direction and curvature (control.law = \"ccc\"): linearised about a desired position at rest its contour term vanishes, so the check would show PD's loop, not this one"
             }
             NotModelled::CoupledPlant => {
                 "the plant is the coupled two-link arm (plant.kind = \"two-link-arm\"): the check models independent linear axes only, and the arm's inertia couples its joints and changes with its configuration"
@@ -268,6 +275,8 @@ pub fn check(s: &Scenario, points: usize) -> Result<CheckReport, CheckError> {
     let lumped_only = s.ring.plan == PlanKind::LumpedOnly;
     let not_modelled = if coupled {
         Some(NotModelled::CoupledPlant)
+    } else if s.control.law == ringsync_control::law::ccc::ENTRY.name {
+        Some(NotModelled::PathDependentLaw)
     } else if late(&delays) {
         Some(NotModelled::LateCommand)
     } else if spans_two(&delays) {

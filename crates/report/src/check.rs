@@ -50,7 +50,8 @@ pub fn check_text(r: &CheckReport) -> String {
             Some(
                 m @ (NotModelled::LumpedOnlyPlan
                 | NotModelled::VelocityWindow
-                | NotModelled::LateCommand),
+                | NotModelled::LateCommand
+                | NotModelled::PathDependentLaw),
             ) => {
                 let _ = writeln!(o, "\nDiscrete-time check: not available: {}.", m.reason());
             }
@@ -141,6 +142,9 @@ pub fn verdict_text(r: &CheckReport) -> &'static str {
         }
         (Verdict::NotShown, false) if r.not_modelled == Some(NotModelled::LateCommand) => {
             "NOT SHOWN: the discrete-time check does not model a command that takes effect more than a cycle after its sample"
+        }
+        (Verdict::NotShown, false) if r.not_modelled == Some(NotModelled::PathDependentLaw) => {
+            "NOT SHOWN: the discrete-time check linearises about a desired position at rest, where the contour law (ccc) has no direction and its coupling vanishes"
         }
         (Verdict::NotShown, false) if r.not_modelled == Some(NotModelled::VelocityWindow) => {
             "NOT SHOWN: the discrete-time check does not model a velocity window that spans two commands (axis.velocity_window > T_cyc − the command's delay)"

@@ -222,6 +222,25 @@ fn head(plan: &CyclePlan, what: &str) -> String {
     )
 }
 
+/// The sync phase up to `back` and T_rest from there to `rest_end`, the bands every plan's
+/// cycle starts with.
+fn sync_and_rest(back: i64, rest_end: i64) -> Vec<Band> {
+    vec![
+        Band {
+            kind: PhaseKind::Sync,
+            start: 0,
+            end: back,
+            side_b: false,
+        },
+        Band {
+            kind: PhaseKind::Rest,
+            start: back,
+            end: rest_end,
+            side_b: false,
+        },
+    ]
+}
+
 fn idle_band(bands: &mut Vec<Band>, end: i64, t_cyc: i64) {
     if t_cyc > end {
         bands.push(Band {
@@ -318,20 +337,7 @@ fn lumped_only(plan: &CyclePlan) -> Diagram {
     }
     let rest_end = back + plan.params.t_rest.as_ns();
     let t_cyc = plan.params.t_cyc.as_ns();
-    let mut bands = vec![
-        Band {
-            kind: PhaseKind::Sync,
-            start: 0,
-            end: back,
-            side_b: false,
-        },
-        Band {
-            kind: PhaseKind::Rest,
-            start: back,
-            end: rest_end,
-            side_b: false,
-        },
-    ];
+    let mut bands = sync_and_rest(back, rest_end);
     idle_band(&mut bands, rest_end, t_cyc);
     let frames = lo.lumped.frame_bytes.len();
     let sizes: Vec<String> = lo
@@ -430,20 +436,7 @@ fn broken_ring(plan: &CyclePlan, br: &BrokenRing) -> Diagram {
         .max()
         .map_or(0, |d| d.as_ns());
     let p2p = br.p2p_start.as_ns();
-    let mut bands = vec![
-        Band {
-            kind: PhaseKind::Sync,
-            start: 0,
-            end: back,
-            side_b: false,
-        },
-        Band {
-            kind: PhaseKind::Rest,
-            start: back,
-            end: p2p,
-            side_b: false,
-        },
-    ];
+    let mut bands = sync_and_rest(back, p2p);
     let (t_cmf, t_rmf) = (plan.t_cmf.as_ns(), plan.t_rmf.as_ns());
     let t_ti = plan.params.response_delay.as_ns();
     let mut start = p2p;

@@ -110,9 +110,13 @@ pub fn run_node(
     Ok(ringsync_rt::node::run_node(&plan, index, stop)?)
 }
 
-/// Writes what a node saw (JSON), whole or not at all.
+/// Writes what a node saw (JSON), whole or not at all, as every single file ringsync
+/// writes ([`crate::output::write_file`]: a symbolic link is followed, a device or FIFO is
+/// written to, never replaced).
 pub fn write_node_record(rec: &ringsync_rt::node::NodeRecord, path: &Path) -> Result<()> {
-    Ok(ringsync_rt::node::write_record(rec, path)?)
+    let json = serde_json::to_vec(rec)
+        .map_err(|e| Error::Failed(format!("cannot write the node's record: {e}")))?;
+    crate::output::write_file(path, json)
 }
 
 /// The plan of a ring of node processes started by hand (docs/runtime.md, "Real
@@ -154,9 +158,13 @@ pub fn node_plan(
     Ok(plan)
 }
 
-/// Writes a node plan as JSON to `path`, whole or not at all (a temporary file renamed).
+/// Writes a node plan as JSON to `path`, whole or not at all, as every single file
+/// ringsync writes ([`crate::output::write_file`]: a symbolic link is followed, a device or
+/// FIFO is written to, never replaced).
 pub fn write_node_plan(plan: &ringsync_rt::node::NodePlan, path: &Path) -> Result<()> {
-    Ok(ringsync_rt::node::write_plan(plan, path)?)
+    let json = serde_json::to_vec_pretty(plan)
+        .map_err(|e| Error::Failed(format!("cannot write the node plan: {e}")))?;
+    crate::output::write_file(path, json)
 }
 
 /// One run's result from the records its node processes wrote (`ringsync node gather`):

@@ -18,8 +18,10 @@ registry::laws! {
     sync,
     ring,
     adjacent,
+    ccc,
 }
 
+pub use ccc::ContourCoupled;
 pub use pd::Pd;
 pub use registry::{LawEntry, LawParams, ParamSpec};
 pub use ring::RingCoupled;
