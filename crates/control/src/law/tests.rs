@@ -589,7 +589,7 @@ fn every_registered_law_builds_from_its_defaults() {
     assert!(registry::find("pid").is_none());
     assert_eq!(
         registry::unknown_law("pid"),
-        "unknown control law 'pid': expected one of pd, sync, ring-coupled, adjacent"
+        "unknown control law 'pid': expected one of pd, sync, ring-coupled, adjacent, ccc"
     );
 }
 
