@@ -219,7 +219,7 @@ fn chromium_draws_a_programs_path_in_the_xy_panel() {
     need_chromium();
     let dir = std::env::temp_dir().join(format!("ringsync-scope-xy-{}", std::process::id()));
     let shot: PathBuf = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("scope-xy.png");
-    let mut run = || replay_in_chromium(&dir, "circle-xy", &["--set", "duration=\"2s\""], &shot);
+    let run = || replay_in_chromium(&dir, "circle-xy", &["--set", "duration=\"2s\""], &shot);
     let (mut dom, mut status, mut said) = run();
     // Headless Chromium's virtual time runs ahead of the wall clock: on a loaded host the
     // page's time budget can run out before the replay's messages reach it (seen once in a
