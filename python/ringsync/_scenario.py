@@ -346,8 +346,8 @@ def laws() -> list[Law]:
     Example::
 
         >>> [law.name for law in ringsync.laws()]
-        ['pd', 'sync', 'ring-coupled', 'adjacent']
-        >>> adjacent = ringsync.laws()[-1]
+        ['pd', 'sync', 'ring-coupled', 'adjacent', 'ccc']
+        >>> adjacent = {law.name: law for law in ringsync.laws()}["adjacent"]
         >>> [(p.name, p.default, p.unit) for p in adjacent.params]
         [('kx', 1.591, 'V/rad'), ('kxd', 0.7955, 'V·s/rad')]
     """
