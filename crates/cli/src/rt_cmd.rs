@@ -32,6 +32,10 @@ pub(crate) fn duration(s: &str) -> Result<Duration, String> {
 pub struct RtArgs {
     /// Scenario file or built-in name (see `ringsync scenario list`).
     scenario: String,
+    /// Set a scenario key before the run, as `sim --set` and `check --set` do (e.g.
+    /// `--set control.law=ccc`); the options below apply on top.
+    #[arg(long = "set", value_name = "KEY=VALUE", value_parser = crate::sim_cmd::key_value)]
+    set: Vec<(String, String)>,
     /// How the frames travel.
     #[arg(long, value_enum)]
     transport: Transport,
@@ -199,7 +203,7 @@ impl RealtimeArgs {
 /// Runs `ringsync rt`: exit status 3 when the run ends in a group stop, 1 when it is
 /// interrupted (its partial results written all the same).
 pub(crate) fn rt(args: &RtArgs) -> Result<Outcome, CliError> {
-    let loaded = ringsync::load(&args.scenario)?;
+    let loaded = ringsync::with_values(&ringsync::load(&args.scenario)?, &args.set)?;
     let loaded = if args.break_link.is_empty() {
         loaded
     } else {

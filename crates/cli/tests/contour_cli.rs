@@ -58,3 +58,37 @@ fn ccc_halves_the_contour_error_of_pd_on_a_circle_at_the_same_command() {
     assert!(text.contains("NOT SHOWN") && text.contains("ccc"), "{text}");
     let _ = std::fs::remove_dir_all(&d);
 }
+
+/// The contour law runs on the real-time runtime unchanged (UDP on loopback), chosen with
+/// `rt --set` as with `sim --set`: the run names it and records the contour error past the
+/// program's lead-in (4 s of 19).
+#[test]
+fn ccc_runs_in_real_time_over_udp() {
+    let d = scratch("contour", "rt");
+    let out = d.join("rt");
+    let o = ringsync(&[
+        "rt",
+        "circle-xy",
+        "--set",
+        "control.law=ccc",
+        "--transport",
+        "udp",
+        "--duration",
+        "4s",
+        "--no-sim-prediction",
+        "--out",
+        out.to_str().expect("utf-8"),
+    ]);
+    // A host stall may stop the group (status 3); the law ran all the same.
+    assert!(
+        matches!(o.status.code(), Some(0 | 3)),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let v: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("summary.json")).expect("summary"))
+            .expect("json");
+    assert_eq!(v["controller"], "ccc", "{v}");
+    assert!(v["contour_rmse"].is_f64(), "{v}");
+    let _ = std::fs::remove_dir_all(&d);
+}
