@@ -106,7 +106,7 @@ enum Command {
     /// Reproduce the paper's Table 1 on the reference scenario (PD, sync, ring-coupled).
     Reproduce(sim_cmd::ReproduceArgs),
     /// Run a scenario in real time over UDP on loopback or a veth ring of network namespaces.
-    Rt(rt_cmd::RtArgs),
+    Rt(Box<rt_cmd::RtArgs>),
     /// Run one node of a ring as this process (what `rt --processes` starts, one per node;
     /// docs/runtime.md, "One process per node").
     #[command(subcommand)]
