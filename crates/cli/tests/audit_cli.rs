@@ -166,24 +166,30 @@ fn targets_and_cycles_are_checked_before_the_work() {
 
 /// A node started from a plan whose run has already begun was told its start-up phase "ran
 /// past the run's start … give it more time" (exit 1); it is told the plan is stale.
-#[test]
-fn a_node_plan_whose_run_has_begun_is_refused_as_stale() {
-    let d = common::scratch("audit", "stale-plan");
-    std::fs::create_dir_all(&d).expect("scratch directory");
-    let plan = d.join("plan.json");
-    let o = ringsync(&[
+/// `ringsync node plan paper-2015` for a 1 s run on loopback starting `start_in` from now,
+/// written to `out`.
+fn node_plan(start_in: &str, out: &str) -> std::process::Output {
+    ringsync(&[
         "node",
         "plan",
         "paper-2015",
         "--links",
         "lo:lo,lo:lo,lo:lo,lo:lo,lo:lo",
         "--start-in",
-        "1.5s",
+        start_in,
         "--duration",
         "1s",
         "--out",
-        p(&plan),
-    ]);
+        out,
+    ])
+}
+
+#[test]
+fn a_node_plan_whose_run_has_begun_is_refused_as_stale() {
+    let d = common::scratch("audit", "stale-plan");
+    std::fs::create_dir_all(&d).expect("scratch directory");
+    let plan = d.join("plan.json");
+    let o = node_plan("1.5s", p(&plan));
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     std::thread::sleep(std::time::Duration::from_millis(1_700));
     let rec = d.join("rec");
@@ -207,21 +213,7 @@ fn a_node_plan_goes_through_links_and_never_replaces_a_device() {
     let link = d.join("link.json");
     std::fs::write(&target, "old").expect("target");
     std::os::unix::fs::symlink(&target, &link).expect("symlink");
-    let plan = |out: &str| {
-        ringsync(&[
-            "node",
-            "plan",
-            "paper-2015",
-            "--links",
-            "lo:lo,lo:lo,lo:lo,lo:lo,lo:lo",
-            "--start-in",
-            "5s",
-            "--duration",
-            "1s",
-            "--out",
-            out,
-        ])
-    };
+    let plan = |out: &str| node_plan("5s", out);
     let o = plan(p(&link));
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(
